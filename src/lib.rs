@@ -1,0 +1,19 @@
+//! # orbitflex
+//!
+//! Flexible-joint robot arms on a floating base (a spacecraft carrying a manipulator).
+//! Conventions, equations and names follow `SPEC.md`; equation numbers (A.n) refer to Appendix A
+//! of the seed derivation.
+
+pub mod algorithms;
+pub mod dynamics;
+pub mod error;
+pub mod model;
+pub mod operators;
+pub mod spatial;
+#[doc(hidden)]
+pub mod testing;
+
+pub use algorithms::{Data, Method};
+pub use error::{Error, Result};
+pub use model::{JointModel, Robot, RobotBuilder, UrdfOptions, SPACE_ARM_URDF};
+pub use operators::Operators;

@@ -1,0 +1,214 @@
+//! Building and validating a [`Robot`] in code.
+
+use super::{JointModel, Robot};
+use crate::error::{Error, Result};
+use crate::spatial::{congruence, Inertia, Mat3, Transform, Vec3, Vec6};
+
+/// Builds a [`Robot`] joint by joint, base to EE.
+///
+/// ```
+/// use orbitflex::{RobotBuilder, spatial::{Inertia, Mat3, Transform, Vec3}};
+/// let link = Inertia::from_com(2.0, Vec3::new(0.5, 0.0, 0.0), Mat3::identity() * 0.1);
+/// let robot = RobotBuilder::new("two_link", "bus", Inertia::from_com(100.0, Vec3::zeros(), Mat3::identity() * 20.0))
+///     .joint("shoulder", Transform::from_xyz_rpy([0.5, 0.0, 0.0], [0.0; 3]), Vec3::z(), "upper", link)
+///     .joint("elbow", Transform::from_xyz_rpy([1.0, 0.0, 0.0], [0.0; 3]), Vec3::z(), "lower", link)
+///     .ee("tool", Transform::from_xyz_rpy([1.0, 0.0, 0.0], [0.0; 3]))
+///     .build()
+///     .unwrap();
+/// assert_eq!(robot.dof(), 2);
+/// ```
+#[derive(Debug, Clone)]
+pub struct RobotBuilder {
+    robot: Robot,
+}
+
+impl RobotBuilder {
+    /// Starts a model with its base body (`base_inertia` about the base origin, base frame).
+    pub fn new(name: &str, base_name: &str, base_inertia: Inertia) -> Self {
+        Self {
+            robot: Robot {
+                name: name.to_string(),
+                source: "<builder>".to_string(),
+                link_names: vec![base_name.to_string()],
+                joints: Vec::new(),
+                inertias: vec![base_inertia],
+                ee_link: base_name.to_string(),
+                ee_transform: Transform::identity(),
+            },
+        }
+    }
+
+    /// Appends revolute joint `i` with `origin = Φ_{i,i-1}` at `q = 0`, axis `h_i` in frame `i`
+    /// (normalised by [`build`](Self::build)), and the inertia of link `i` in its own frame.
+    /// The EE frame moves to the new link (identity) until [`ee`](Self::ee) says otherwise.
+    pub fn joint(
+        mut self,
+        name: &str,
+        origin: Transform,
+        axis: Vec3,
+        link_name: &str,
+        inertia: Inertia,
+    ) -> Self {
+        self.robot.joints.push(JointModel {
+            name: name.to_string(),
+            axis,
+            origin,
+        });
+        self.robot.link_names.push(link_name.to_string());
+        self.robot.inertias.push(inertia);
+        self.robot.ee_link = link_name.to_string();
+        self.robot.ee_transform = Transform::identity();
+        self
+    }
+
+    /// Sets the EE frame `n+1`: `transform = Φ_{n+1,n}` relative to the last link.
+    pub fn ee(mut self, name: &str, transform: Transform) -> Self {
+        self.robot.ee_link = name.to_string();
+        self.robot.ee_transform = transform;
+        self
+    }
+
+    /// Names where the model came from, for error messages (e.g. a file path).
+    pub fn source(mut self, source: &str) -> Self {
+        self.robot.source = source.to_string();
+        self
+    }
+
+    /// Validates and returns the model: finite numbers, orthonormal rotations, non-zero axes
+    /// (then normalised), physical inertias, and a positive-definite mass matrix at `q = 0`.
+    pub fn build(mut self) -> Result<Robot> {
+        let source = self.robot.source.clone();
+        let invalid = |message: String| Error::InvalidModel {
+            source_name: source.clone(),
+            message,
+        };
+        for joint in &mut self.robot.joints {
+            let norm = joint.axis.norm();
+            if !norm.is_finite() || norm < 1e-12 {
+                return Err(invalid(format!(
+                    "joint '{}': axis {:?} is zero or not finite; expected a non-zero 3-vector",
+                    joint.name,
+                    joint.axis.as_slice()
+                )));
+            }
+            joint.axis /= norm;
+            check_transform(&joint.origin)
+                .map_err(|m| invalid(format!("joint '{}': origin {m}", joint.name)))?;
+        }
+        check_transform(&self.robot.ee_transform)
+            .map_err(|m| invalid(format!("EE frame '{}': {m}", self.robot.ee_link)))?;
+        for (inertia, link) in self.robot.inertias.iter().zip(&self.robot.link_names) {
+            check_inertia(inertia.mass, &inertia.com, &inertia.inertia_about_com()).map_err(
+                |message| Error::InvalidInertia {
+                    source_name: source.clone(),
+                    link: link.clone(),
+                    message,
+                },
+            )?;
+        }
+        check_mass_matrix(&self.robot)?;
+        Ok(self.robot)
+    }
+}
+
+fn check_transform(t: &Transform) -> std::result::Result<(), String> {
+    let finite = t
+        .rotation
+        .iter()
+        .chain(t.translation.iter())
+        .all(|v| v.is_finite());
+    if !finite {
+        return Err("has non-finite numbers".into());
+    }
+    let error = (t.rotation.transpose() * t.rotation - Mat3::identity()).norm();
+    if error > 1e-9 || t.rotation.determinant() < 0.0 {
+        return Err(format!(
+            "rotation is not a proper orthonormal matrix (|RᵀR - I| = {error:.3e})"
+        ));
+    }
+    Ok(())
+}
+
+/// Checks that `mass` and the inertia about the COM are physical: mass ≥ 0, a symmetric inertia
+/// whose principal moments are ≥ 0 and satisfy the triangle inequality `I₁ + I₂ ≥ I₃`.
+/// A point mass (zero inertia) and a massless, inertia-free link are accepted.
+pub(crate) fn check_inertia(
+    mass: f64,
+    com: &Vec3,
+    about_com: &Mat3,
+) -> std::result::Result<(), String> {
+    if !mass.is_finite() || !com.iter().chain(about_com.iter()).all(|v| v.is_finite()) {
+        return Err("mass, centre of mass or inertia is not finite".into());
+    }
+    if mass < 0.0 {
+        return Err(format!("negative mass {mass} kg; expected mass >= 0"));
+    }
+    let asym = (about_com - about_com.transpose()).norm();
+    let scale = about_com.norm();
+    if asym > 1e-9 * scale.max(1e-300) {
+        return Err("inertia matrix is not symmetric".into());
+    }
+    let moments = about_com.symmetric_eigenvalues();
+    let mut m = [moments[0], moments[1], moments[2]];
+    m.sort_by(|a, b| a.total_cmp(b));
+    let tol = 1e-9 * scale;
+    if m[0] < -tol {
+        return Err(format!(
+            "inertia is not positive definite: principal moments {:.6e}, {:.6e}, {:.6e} kg·m²",
+            m[0], m[1], m[2]
+        ));
+    }
+    if m[0] + m[1] < m[2] - tol {
+        return Err(format!(
+            "inertia violates the triangle inequality: principal moments {:.6e} + {:.6e} < {:.6e} kg·m²",
+            m[0], m[1], m[2]
+        ));
+    }
+    if mass == 0.0 && scale > 0.0 {
+        return Err("rotational inertia without mass; expected mass > 0".into());
+    }
+    Ok(())
+}
+
+/// The mass matrix is positive definite at `q = 0` iff every articulated-body pivot
+/// `D_i = H_iᵀ I^A_i H_i` is positive and the base's articulated inertia is positive definite.
+fn check_mass_matrix(robot: &Robot) -> Result<()> {
+    let n = robot.dof();
+    let mut articulated: Vec<_> = robot.inertias.iter().map(Inertia::matrix).collect();
+    let scale: f64 = robot
+        .inertias
+        .iter()
+        .map(|i| i.mass + i.rotational.trace())
+        .sum::<f64>()
+        .max(f64::MIN_POSITIVE);
+    for i in (1..=n).rev() {
+        let joint = &robot.joints[i - 1];
+        let h = Vec6::new(joint.axis.x, joint.axis.y, joint.axis.z, 0.0, 0.0, 0.0);
+        let u = articulated[i] * h;
+        let d = h.dot(&u);
+        if d <= 1e-12 * scale {
+            return Err(Error::InvalidModel {
+                source_name: robot.source.clone(),
+                message: format!(
+                    "joint '{}' moves links with no inertia about its axis ({}): the mass matrix \
+                     is singular; give these links mass and inertia, or lock the joint",
+                    joint.name,
+                    robot.link_names[i..].join(", ")
+                ),
+            });
+        }
+        let reduced = articulated[i] - u * u.transpose() / d;
+        articulated[i - 1] += congruence(&joint.transform(0.0), &reduced);
+    }
+    if articulated[0].cholesky().is_none() {
+        return Err(Error::InvalidModel {
+            source_name: robot.source.clone(),
+            message: format!(
+                "the base '{}' and the bodies attached to it have no mass (or no rotational \
+                 inertia): the base block of the mass matrix is singular",
+                robot.link_names[0]
+            ),
+        });
+    }
+    Ok(())
+}

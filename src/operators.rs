@@ -1,0 +1,243 @@
+//! The seed's operator form (A.11)–(A.19): dense stacked operators and, from them, the
+//! floating-base equations of motion.
+//!
+//! This is the literal, O(n³), allocating reference. Every recursive algorithm in
+//! [`crate::algorithms`] is tested against it.
+
+use crate::error::{check_vector, Error, Result};
+use crate::model::Robot;
+use crate::spatial::{bias_force, coriolis_acceleration, Force, Mat6, Motion, Transform};
+use nalgebra::{DMatrix, DVector};
+
+/// Dense operators of the seed at one state `(q, V_B, q̇)`. Stacked quantities run over links
+/// `1..n`, six rows per link, `[angular; linear]` per block.
+#[derive(Debug, Clone)]
+pub struct Operators {
+    /// `Φ` (6n×6n), lower block-triangular, block `(i,k) = Φ_{ik}` for `i ≥ k` (A.13 ff.).
+    pub phi: DMatrix<f64>,
+    /// `H` (6n×n), block-diagonal `H_i = [h_i; 0]` (A.1).
+    pub h: DMatrix<f64>,
+    /// `M` (6n×6n), block-diagonal link inertias `M_i` (A.9).
+    pub m: DMatrix<f64>,
+    /// `a` (6n), stacked Coriolis accelerations `a_i` (A.7).
+    pub a: DVector<f64>,
+    /// `b` (6n), stacked bias forces `b_i` (A.10).
+    pub b: DVector<f64>,
+    /// `B` (6n×6): zero blocks and last block `Φ_{n+1,n}ᵀ`.
+    pub b_ee: DMatrix<f64>,
+    /// `Φ̂₁` (6n×6), blocks `Φ_{iB}` (A.17).
+    pub phi_hat1: DMatrix<f64>,
+    /// `Φ̂₂ = Φ̂₁ᵀ` (6×6n) (A.18).
+    pub phi_hat2: DMatrix<f64>,
+    /// Base inertia `M_B` (6×6) (A.9).
+    pub m_base: Mat6,
+    /// Base bias force `b_B` (6) (A.10).
+    pub b_base: DVector<f64>,
+    /// `M_b = M_B + Φ̂₂ M Φ̂₁` (A.19).
+    pub m_b: DMatrix<f64>,
+    /// `M_rb = Φ̂₂ M Φ H` (A.19).
+    pub m_rb: DMatrix<f64>,
+    /// `M_br = Hᵀ Φᵀ M Φ̂₁` (A.19).
+    pub m_br: DMatrix<f64>,
+    /// `M_r = Hᵀ Φᵀ M Φ H` (A.19), the fixed-base mass matrix.
+    pub m_r: DMatrix<f64>,
+    /// `C_B = Φ̂₂ M Φ a + b_B + Φ̂₂ b` (A.19).
+    pub c_b: DVector<f64>,
+    /// `C_r = Hᵀ Φᵀ M Φ a + Hᵀ Φᵀ b` (A.19), the fixed-base Coriolis/centrifugal torques.
+    pub c_r: DVector<f64>,
+    /// `J = Bᵀ Φ H` (6×n): the seed's `J = Hᵀ Φᵀ B` is a typo (SPEC §2); `Jᵀ = Hᵀ Φᵀ B`.
+    pub j: DMatrix<f64>,
+    /// `Φ_{n+1,B} = Φ_{n+1,n} Φ_{nB}` (6×6).
+    pub phi_ee_base: Mat6,
+}
+
+/// Checks `q`, `V_B` and `q̇` against the model.
+pub(crate) fn check_state(robot: &Robot, q: &[f64], base_twist: &[f64], qd: &[f64]) -> Result<()> {
+    let n = robot.dof();
+    check_vector("q", q, n)?;
+    check_vector("base_twist", base_twist, 6)?;
+    check_vector("qd", qd, n)
+}
+
+impl Operators {
+    /// Assembles every operator at `(q, V_B = base_twist, q̇ = qd)`; `base_twist` is `[ω_B; v_B]`
+    /// in the base frame.
+    // Block indices (i, k) are the equations' indices; iterator chains would hide them.
+    #[allow(clippy::needless_range_loop)]
+    pub fn new(robot: &Robot, q: &[f64], base_twist: &[f64], qd: &[f64]) -> Result<Self> {
+        check_state(robot, q, base_twist, qd)?;
+        let n = robot.dof();
+        let inertias = robot.inertias();
+
+        // Per-link Φ_{i,i-1}, velocities (A.4), a_i (A.7), b_i (A.10).
+        let mut step = Vec::with_capacity(n);
+        let mut velocity = vec![Motion::from_slice(base_twist)];
+        let mut a = DVector::zeros(6 * n);
+        let mut b = DVector::zeros(6 * n);
+        for (i, joint) in robot.joints().iter().enumerate() {
+            let phi = joint.transform(q[i]);
+            let h = Motion::new(joint.axis, nalgebra::Vector3::zeros());
+            let v = phi.apply_motion(&velocity[i]) + h * qd[i];
+            coriolis_acceleration(&phi, &velocity[i].angular, &v.angular)
+                .write_to(&mut a.as_mut_slice()[6 * i..]);
+            bias_force(&inertias[i + 1], &v.angular).write_to(&mut b.as_mut_slice()[6 * i..]);
+            step.push(phi);
+            velocity.push(v);
+        }
+
+        // Φ_{ik} = Φ_{i,i-1} ⋯ Φ_{k+1,k}, with k = 0 the base.
+        let mut phi_to = vec![vec![Transform::identity(); n + 1]; n + 1];
+        for i in 1..=n {
+            for k in 0..i {
+                phi_to[i][k] = step[i - 1].compose(&phi_to[i - 1][k]);
+            }
+        }
+
+        let mut phi = DMatrix::zeros(6 * n, 6 * n);
+        let mut h = DMatrix::zeros(6 * n, n);
+        let mut m = DMatrix::zeros(6 * n, 6 * n);
+        let mut phi_hat1 = DMatrix::zeros(6 * n, 6);
+        for i in 1..=n {
+            let r = 6 * (i - 1);
+            for k in 1..=i {
+                phi.view_mut((r, 6 * (k - 1)), (6, 6))
+                    .copy_from(&phi_to[i][k].matrix());
+            }
+            h.view_mut((r, i - 1), (3, 1))
+                .copy_from(&robot.joints()[i - 1].axis);
+            m.view_mut((r, r), (6, 6)).copy_from(&inertias[i].matrix());
+            phi_hat1
+                .view_mut((r, 0), (6, 6))
+                .copy_from(&phi_to[i][0].matrix());
+        }
+        let ee = robot.ee_transform();
+        let mut b_ee = DMatrix::zeros(6 * n, 6);
+        if n > 0 {
+            b_ee.view_mut((6 * (n - 1), 0), (6, 6))
+                .copy_from(&ee.matrix().transpose());
+        }
+        let phi_ee_base = ee.compose(&phi_to[n][0]).matrix();
+
+        let phi_hat2 = phi_hat1.transpose();
+        let m_base = inertias[0].matrix();
+        let b_base = DVector::from_column_slice(
+            bias_force(&inertias[0], &velocity[0].angular)
+                .to_vector()
+                .as_slice(),
+        );
+        let phi_h = &phi * &h;
+        let m_phi_h = &m * &phi_h;
+        let m_phi_a = &m * (&phi * &a);
+        let m_b = DMatrix::from_iterator(6, 6, m_base.iter().copied()) + &phi_hat2 * &m * &phi_hat1;
+        let m_rb = &phi_hat2 * &m_phi_h;
+        let m_br = phi_h.transpose() * &m * &phi_hat1;
+        let m_r = phi_h.transpose() * &m_phi_h;
+        let c_b = &phi_hat2 * &m_phi_a + &b_base + &phi_hat2 * &b;
+        let c_r = phi_h.transpose() * &m_phi_a + phi_h.transpose() * &b;
+        let j = b_ee.transpose() * &phi_h;
+        Ok(Self {
+            phi,
+            h,
+            m,
+            a,
+            b,
+            b_ee,
+            phi_hat1,
+            phi_hat2,
+            m_base,
+            b_base,
+            m_b,
+            m_rb,
+            m_br,
+            m_r,
+            c_b,
+            c_r,
+            j,
+            phi_ee_base,
+        })
+    }
+
+    /// The (6+n)×(6+n) mass matrix `𝓜 = [[M_b, M_rb], [M_br, M_r]]` (A.19).
+    pub fn mass_matrix(&self) -> DMatrix<f64> {
+        let n = self.m_r.nrows();
+        let mut out = DMatrix::zeros(6 + n, 6 + n);
+        out.view_mut((0, 0), (6, 6)).copy_from(&self.m_b);
+        out.view_mut((0, 6), (6, n)).copy_from(&self.m_rb);
+        out.view_mut((6, 0), (n, 6)).copy_from(&self.m_br);
+        out.view_mut((6, 6), (n, n)).copy_from(&self.m_r);
+        out
+    }
+
+    /// The bias `[C_B; C_r]` (A.19).
+    pub fn bias_forces(&self) -> DVector<f64> {
+        let n = self.c_r.len();
+        let mut out = DVector::zeros(6 + n);
+        out.rows_mut(0, 6).copy_from(&self.c_b);
+        out.rows_mut(6, n).copy_from(&self.c_r);
+        out
+    }
+
+    /// `[Φ_{n+1,B}ᵀ; Jᵀ]` ((6+n)×6): maps the EE wrench `f` into generalized forces (A.19).
+    pub fn ee_force_map(&self) -> DMatrix<f64> {
+        let n = self.j.ncols();
+        let mut out = DMatrix::zeros(6 + n, 6);
+        out.view_mut((0, 0), (6, 6))
+            .copy_from(&self.phi_ee_base.transpose());
+        out.view_mut((6, 0), (n, 6)).copy_from(&self.j.transpose());
+        out
+    }
+
+    /// Forward dynamics from (A.19) by a Cholesky solve:
+    /// `[α_B; q̈] = 𝓜⁻¹ ([f_B; τ] − [C_B; C_r] − [Φ_{n+1,B}ᵀ; Jᵀ] f)`.
+    pub fn forward_dynamics(
+        &self,
+        tau: &[f64],
+        base_wrench: &[f64],
+        ee_wrench: &[f64],
+    ) -> Result<DVector<f64>> {
+        let n = self.m_r.nrows();
+        check_vector("tau", tau, n)?;
+        check_vector("base_wrench", base_wrench, 6)?;
+        check_vector("ee_wrench", ee_wrench, 6)?;
+        let mut rhs = DVector::zeros(6 + n);
+        rhs.rows_mut(0, 6).copy_from_slice(base_wrench);
+        rhs.rows_mut(6, n).copy_from_slice(tau);
+        rhs -= self.bias_forces() + self.ee_force_map() * DVector::from_column_slice(ee_wrench);
+        let chol = self
+            .mass_matrix()
+            .cholesky()
+            .ok_or_else(|| Error::InvalidArgument {
+                what: "mass matrix".into(),
+                message: "not positive definite at this configuration".into(),
+            })?;
+        Ok(chol.solve(&rhs))
+    }
+
+    /// Inverse dynamics from (A.19): `[f_B; τ] = 𝓜 [α_B; q̈] + [C_B; C_r] + [Φ_{n+1,B}ᵀ; Jᵀ] f`.
+    pub fn inverse_dynamics(
+        &self,
+        base_acc: &[f64],
+        qdd: &[f64],
+        ee_wrench: &[f64],
+    ) -> Result<DVector<f64>> {
+        let n = self.m_r.nrows();
+        check_vector("base_acc", base_acc, 6)?;
+        check_vector("qdd", qdd, n)?;
+        check_vector("ee_wrench", ee_wrench, 6)?;
+        let mut acc = DVector::zeros(6 + n);
+        acc.rows_mut(0, 6).copy_from_slice(base_acc);
+        acc.rows_mut(6, n).copy_from_slice(qdd);
+        Ok(self.mass_matrix() * acc
+            + self.bias_forces()
+            + self.ee_force_map() * DVector::from_column_slice(ee_wrench))
+    }
+
+    /// Spatial momentum about the base origin in the base frame, `[M_b M_rb] [V_B; q̇]`: the sum
+    /// of `Φ_{iB}ᵀ M_i V_i` over base and links.
+    pub fn base_momentum(&self, base_twist: &[f64], qd: &[f64]) -> Force {
+        let v = nalgebra::Vector6::from_column_slice(base_twist);
+        let h = &self.m_b * DVector::from_column_slice(v.as_slice())
+            + &self.m_rb * DVector::from_column_slice(qd);
+        Force::from_slice(h.as_slice())
+    }
+}

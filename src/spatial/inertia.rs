@@ -1,0 +1,118 @@
+//! Spatial inertia `M_i` (A.9), the bias force `b_i` (A.10) and the Coriolis term `a_i` (A.7).
+
+use super::{blocks, skew, Force, Mat3, Mat6, Motion, Transform, Vec3};
+
+/// The spatial inertia of one rigid body about its frame origin, in its own frame (A.9):
+///
+/// ```text
+/// M_i = [ (I_i)_i          m_i [p_{i,c}]× ]
+///       [ -m_i [p_{i,c}]×  m_i 𝟙          ]
+/// ```
+/// `mass` in kg, `com` = `p_{i,c}` (m, in frame `i`), `rotational` = `(I_i)_i`, the rotational
+/// inertia about the frame ORIGIN (kg·m², not about the centre of mass).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Inertia {
+    pub mass: f64,
+    pub com: Vec3,
+    pub rotational: Mat3,
+}
+
+impl Default for Inertia {
+    fn default() -> Self {
+        Self::zero()
+    }
+}
+
+impl Inertia {
+    /// A massless body.
+    pub fn zero() -> Self {
+        Self {
+            mass: 0.0,
+            com: Vec3::zeros(),
+            rotational: Mat3::zeros(),
+        }
+    }
+
+    /// From mass, COM `p_{i,c}` and the rotational inertia about the COM (axes of frame `i`), by
+    /// the parallel-axis shift `(I_i)_i = I_c - m [p_c]×²`.
+    pub fn from_com(mass: f64, com: Vec3, inertia_about_com: Mat3) -> Self {
+        let c = skew(&com);
+        Self {
+            mass,
+            com,
+            rotational: inertia_about_com - mass * c * c,
+        }
+    }
+
+    /// The rotational inertia about the centre of mass (axes of this frame).
+    pub fn inertia_about_com(&self) -> Mat3 {
+        let c = skew(&self.com);
+        self.rotational + self.mass * c * c
+    }
+
+    /// `M V` (A.9): `[I ω + m p_c × v; m (v + ω × p_c)]`, the body's spatial momentum.
+    #[inline]
+    pub fn apply(&self, v: &Motion) -> Force {
+        Force::new(
+            self.rotational * v.angular + self.mass * self.com.cross(&v.linear),
+            self.mass * (v.linear + v.angular.cross(&self.com)),
+        )
+    }
+
+    /// Dense 6×6 form of (A.9).
+    pub fn matrix(&self) -> Mat6 {
+        let mc = skew(&self.com) * self.mass;
+        blocks(
+            &self.rotational,
+            &mc,
+            &(-mc),
+            &(Mat3::identity() * self.mass),
+        )
+    }
+
+    /// The sum of two inertias expressed in the same frame (rigidly joined bodies).
+    pub fn add(&self, other: &Inertia) -> Inertia {
+        let mass = self.mass + other.mass;
+        let com = if mass > 0.0 {
+            (self.com * self.mass + other.com * other.mass) / mass
+        } else {
+            Vec3::zeros()
+        };
+        Inertia {
+            mass,
+            com,
+            rotational: self.rotational + other.rotational,
+        }
+    }
+
+    /// This inertia, given in frame `i+1`, expressed in frame `i`, where `phi = Φ_{i+1,i}`;
+    /// equal to `Φᵀ M Φ` but kept in (mass, COM, inertia) form.
+    pub fn transformed_to_parent(&self, phi: &Transform) -> Inertia {
+        let r = &phi.rotation;
+        let com = phi.translation + r.tr_mul(&self.com);
+        let about_com = r.tr_mul(&(self.inertia_about_com() * r));
+        Inertia::from_com(self.mass, com, about_com)
+    }
+}
+
+/// The bias force `b_i` of (A.10) for a body turning at `ω` (rad/s, body frame):
+/// `[ω × (I_i)_i ω; m ω × (ω × p_c)]`.
+#[inline]
+pub fn bias_force(inertia: &Inertia, omega: &Vec3) -> Force {
+    Force::new(
+        omega.cross(&(inertia.rotational * omega)),
+        inertia.mass * omega.cross(&omega.cross(&inertia.com)),
+    )
+}
+
+/// The Coriolis/centripetal acceleration `a_{i+1}` of (A.7) for a revolute joint:
+/// `[(R ω_i) × ω_{i+1}; R (ω_i × (ω_i × p_{i,i+1}))]`, where `phi = Φ_{i+1,i}` supplies `R` and `p`,
+/// `omega_parent = ω_i` (frame `i`) and `omega_child = ω_{i+1}` (frame `i+1`).
+#[inline]
+pub fn coriolis_acceleration(phi: &Transform, omega_parent: &Vec3, omega_child: &Vec3) -> Motion {
+    let w = phi.rotation * omega_parent;
+    Motion::new(
+        w.cross(omega_child),
+        phi.rotation * omega_parent.cross(&omega_parent.cross(&phi.translation)),
+    )
+}

@@ -1,0 +1,56 @@
+//! Spatial algebra in the seed's conventions (SPEC §1).
+//!
+//! Motions are `V = [ω; v]` and forces `f = [n; F]`, angular part first, in the body's own frame;
+//! `v` is the velocity of the frame origin and `n` the moment about it. A [`Transform`] is the
+//! seed's `Φ_{i+1,i}` (A.5), acting on motions; its transpose acts on forces. An [`Inertia`] is the
+//! seed's `M_i` (A.9), stored as mass, centre of mass and rotational inertia about the frame origin.
+//!
+//! All operations are closed-form on 3-vectors and 3×3 blocks; every type also has a dense 6×6 or
+//! 6-vector form (`matrix()`, `to_vector()`) used by the operator form and by the tests that check
+//! each compact operation against its matrix.
+
+mod inertia;
+mod transform;
+mod vectors;
+
+pub use inertia::{bias_force, coriolis_acceleration, Inertia};
+pub use transform::{congruence, rotation_about_axis, Transform};
+pub use vectors::{Force, Motion};
+
+/// 3-vector of `f64`.
+pub type Vec3 = nalgebra::Vector3<f64>;
+/// 3×3 matrix of `f64`.
+pub type Mat3 = nalgebra::Matrix3<f64>;
+/// 6-vector of `f64` (a motion or force in dense form, `[angular; linear]`).
+pub type Vec6 = nalgebra::Vector6<f64>;
+/// 6×6 matrix of `f64` (a spatial transform or inertia in dense form).
+pub type Mat6 = nalgebra::Matrix6<f64>;
+
+/// The cross-product matrix `[p]×`, with `[p]× x = p × x`.
+#[inline]
+pub fn skew(p: &Vec3) -> Mat3 {
+    Mat3::new(0.0, -p.z, p.y, p.z, 0.0, -p.x, -p.y, p.x, 0.0)
+}
+
+/// Builds a 6×6 matrix from its four 3×3 blocks `[[a, b], [c, d]]`.
+pub fn blocks(a: &Mat3, b: &Mat3, c: &Mat3, d: &Mat3) -> Mat6 {
+    let mut m = Mat6::zeros();
+    m.fixed_view_mut::<3, 3>(0, 0).copy_from(a);
+    m.fixed_view_mut::<3, 3>(0, 3).copy_from(b);
+    m.fixed_view_mut::<3, 3>(3, 0).copy_from(c);
+    m.fixed_view_mut::<3, 3>(3, 3).copy_from(d);
+    m
+}
+
+#[cfg(test)]
+mod tests;
+
+/// Rotation matrix of a unit quaternion `(x, y, z, w)` (scalar last, SPEC §1): it maps base-frame
+/// components to inertial-frame components. The quaternion is normalised first.
+#[inline]
+pub fn quaternion_to_rotation(quat: &[f64]) -> Mat3 {
+    let q = nalgebra::Quaternion::new(quat[3], quat[0], quat[1], quat[2]);
+    nalgebra::UnitQuaternion::from_quaternion(q)
+        .to_rotation_matrix()
+        .into_inner()
+}

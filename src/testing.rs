@@ -1,0 +1,122 @@
+//! Random models and states for tests and benchmarks (in the spirit of spatial_v2's `autoTree`).
+//!
+//! Chains get awkward features on purpose: unaligned unit axes, rotated joint origins, offset
+//! centres of mass and rotated, fully populated inertias. A small deterministic generator keeps
+//! this module free of dev-dependencies.
+
+use crate::model::{Robot, RobotBuilder};
+use crate::spatial::{rotation_about_axis, Inertia, Mat3, Transform, Vec3};
+
+/// A tiny deterministic generator (SplitMix64), enough for test inputs.
+#[derive(Debug, Clone)]
+pub struct Rng(u64);
+
+impl Rng {
+    /// Seeded generator.
+    pub fn new(seed: u64) -> Self {
+        Self(seed.wrapping_add(0x9E37_79B9_7F4A_7C15))
+    }
+    /// Uniform in `[0, 1)`.
+    pub fn uniform(&mut self) -> f64 {
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^= z >> 31;
+        (z >> 11) as f64 / (1u64 << 53) as f64
+    }
+    /// Uniform in `[lo, hi)`.
+    pub fn range(&mut self, lo: f64, hi: f64) -> f64 {
+        lo + (hi - lo) * self.uniform()
+    }
+    /// `n` numbers uniform in `[lo, hi)`.
+    pub fn vector(&mut self, n: usize, lo: f64, hi: f64) -> Vec<f64> {
+        (0..n).map(|_| self.range(lo, hi)).collect()
+    }
+    /// A random unit vector.
+    pub fn unit(&mut self) -> Vec3 {
+        loop {
+            let v = Vec3::new(
+                self.range(-1.0, 1.0),
+                self.range(-1.0, 1.0),
+                self.range(-1.0, 1.0),
+            );
+            let n = v.norm();
+            if n > 0.1 && n <= 1.0 {
+                return v / n;
+            }
+        }
+    }
+    /// A random rotation.
+    pub fn rotation(&mut self) -> Mat3 {
+        let axis = self.unit();
+        rotation_about_axis(&axis, self.range(-3.1, 3.1))
+    }
+    /// A random physical inertia: mass in `[0.5, 5)` kg, COM offset up to 0.3 m, rotated
+    /// principal moments that satisfy the triangle inequality.
+    pub fn inertia(&mut self) -> Inertia {
+        let mass = self.range(0.5, 5.0);
+        let a = self.range(0.02, 0.2);
+        let b = self.range(0.02, 0.2);
+        let c = self.range((a - b).abs() + 0.01, a + b);
+        let r = self.rotation();
+        let about_com = r * Mat3::from_diagonal(&Vec3::new(a, b, c)) * r.transpose() * mass;
+        let com = Vec3::new(
+            self.range(-0.3, 0.3),
+            self.range(-0.3, 0.3),
+            self.range(-0.3, 0.3),
+        );
+        Inertia::from_com(mass, com, about_com)
+    }
+}
+
+/// A random floating-base chain with `n` revolute joints (seeded, reproducible): base of
+/// 20–60 kg, links 0.2–0.6 m apart with rotated origins, random axes, and a rotated, offset
+/// EE frame.
+pub fn random_chain(n: usize, seed: u64) -> Robot {
+    let mut rng = Rng::new(seed);
+    let base_mass = rng.range(20.0, 60.0);
+    let base = Inertia::from_com(
+        base_mass,
+        Vec3::new(
+            rng.range(-0.1, 0.1),
+            rng.range(-0.1, 0.1),
+            rng.range(-0.1, 0.1),
+        ),
+        Mat3::from_diagonal(&Vec3::new(
+            rng.range(2.0, 4.0),
+            rng.range(2.0, 4.0),
+            rng.range(2.0, 4.0),
+        )) * (base_mass / 6.0),
+    );
+    let mut builder = RobotBuilder::new(&format!("random_chain_{n}_{seed}"), "base", base);
+    for i in 0..n {
+        let offset = rng.unit() * rng.range(0.2, 0.6);
+        let origin = Transform::new(rng.rotation().transpose(), offset);
+        let axis = rng.unit();
+        let inertia = rng.inertia();
+        builder = builder.joint(
+            &format!("joint{}", i + 1),
+            origin,
+            axis,
+            &format!("link{}", i + 1),
+            inertia,
+        );
+    }
+    let ee = Transform::new(rng.rotation(), rng.unit() * rng.range(0.05, 0.3));
+    builder
+        .ee("ee", ee)
+        .build()
+        .expect("random chains are valid")
+}
+
+/// A random state `(q, base_twist, qd)` for `robot`: angles in ±π, rates in ±1.
+pub fn random_state(robot: &Robot, seed: u64) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
+    let mut rng = Rng::new(seed ^ 0xABCD);
+    let n = robot.dof();
+    (
+        rng.vector(n, -3.1, 3.1),
+        rng.vector(6, -1.0, 1.0),
+        rng.vector(n, -1.0, 1.0),
+    )
+}
