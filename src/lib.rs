@@ -7,6 +7,8 @@
 pub mod algorithms;
 pub mod dynamics;
 pub mod error;
+pub mod flex;
+pub mod integrate;
 pub mod model;
 pub mod operators;
 pub mod spatial;
@@ -15,5 +17,10 @@ pub mod testing;
 
 pub use algorithms::{Data, Method};
 pub use error::{Error, Result};
+pub use flex::{ArmWorkspace, FlexibleArm, FlexibleJoints, StateLayout};
+pub use integrate::{Controller, MotorPD, Schedule, SimulationFailure, Trajectory};
 pub use model::{JointModel, Robot, RobotBuilder, UrdfOptions, SPACE_ARM_URDF};
 pub use operators::Operators;
+
+#[cfg(feature = "python")]
+mod python;

@@ -14,10 +14,10 @@ fn rel_err_v(a: &DVector<f64>, b: &DVector<f64>) -> f64 {
     (a - b).norm() / b.norm().max(1.0)
 }
 
-fn inputs(
-    robot: &Robot,
-    seed: u64,
-) -> (Vec<f64>, Vec<f64>, Vec<f64>, Vec<f64>, Vec<f64>, Vec<f64>) {
+/// `(q, V_B, q̇, τ, f_B, f)`.
+type Inputs = (Vec<f64>, Vec<f64>, Vec<f64>, Vec<f64>, Vec<f64>, Vec<f64>);
+
+fn inputs(robot: &Robot, seed: u64) -> Inputs {
     let (q, v, qd) = random_state(robot, seed);
     let mut rng = Rng::new(seed + 99);
     let n = robot.dof();

@@ -4,9 +4,9 @@
 //! Each function checks its argument sizes first, then runs without allocating. Results are left
 //! in `Data` and returned by reference. Each is tested against [`crate::operators::Operators`].
 
-mod aba;
+pub(crate) mod aba;
 mod crba;
-mod kinematics;
+pub(crate) mod kinematics;
 mod rnea;
 
 pub use aba::aba;

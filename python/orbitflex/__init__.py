@@ -1,0 +1,39 @@
+"""orbitflex: flexible-joint robot arms on a floating base (spacecraft manipulators).
+
+Rigid floating-base dynamics in the operator form of the seed derivation (Appendix A, eqs.
+A.1-A.19) and in O(n) recursive form, Spong flexible joints, and a fixed-step RK4 simulator.
+
+Conventions (SPEC.md section 1): spatial vectors are ``[angular; linear]`` in the body's own
+frame; the base twist is ``[omega_B; v_B]`` in base-frame components; quaternions are
+``(x, y, z, w)``, scalar last, mapping base-frame to inertial-frame components; the base
+acceleration ``alpha_B`` is "classical"; SI units; no gravity.
+
+>>> import orbitflex
+>>> robot = orbitflex.models.space_arm()
+>>> robot.dof
+7
+"""
+
+from ._core import (
+    SPACE_ARM_URDF,
+    FlexibleJoints,
+    ModelError,
+    MotorPD,
+    Robot,
+    __version__,
+)
+from ._arm import FlexibleArm, SimulationError, Trajectory
+from . import models
+
+__all__ = [
+    "Robot",
+    "FlexibleJoints",
+    "FlexibleArm",
+    "MotorPD",
+    "Trajectory",
+    "ModelError",
+    "SimulationError",
+    "models",
+    "SPACE_ARM_URDF",
+    "__version__",
+]

@@ -1,0 +1,282 @@
+"""Command line: ``orbitflex demo`` and ``orbitflex simulate URDF``.
+
+Both run the same job: a free-floating slew of the arm under the built-in motor-side PD
+controller, long enough to show the base's reaction and the joints' vibration, then print a
+summary and write plots and the trajectory into an output folder.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+from typing import List, Optional
+
+import numpy as np
+
+from . import FlexibleArm, FlexibleJoints, MotorPD, Robot, SimulationError, models
+
+# Default slew for the built-in arm (rad, link side), one entry per joint.
+SPACE_ARM_SLEW = np.array([0.4, 0.6, -0.5, 0.8, -0.6, 0.5, 1.0])
+
+
+def quintic(s: np.ndarray) -> tuple:
+    """Rest-to-rest quintic 10s^3 - 15s^4 + 6s^5 on s in [0, 1], and its derivative in s."""
+    s = np.clip(s, 0.0, 1.0)
+    return 10 * s**3 - 15 * s**4 + 6 * s**5, 30 * s**2 - 60 * s**3 + 30 * s**4
+
+
+def pd_gains(arm: FlexibleArm, q0: np.ndarray, bandwidth_hz: float, damping_ratio: float = 1.0):
+    """Motor-side PD gains that place each joint's slow (rigid) mode near ``bandwidth_hz``:
+    ``kp = w^2 (m_i + j_i)``, ``kd = 2 zeta w (m_i + j_i)``, with ``m_i`` the diagonal of ``M_r``."""
+    _, j, _, _ = arm.parameters
+    m = np.diag(arm.robot.mass_matrix(q0))[6:]
+    w = 2 * np.pi * bandwidth_hz
+    return w**2 * (m + j), 2 * damping_ratio * w * (m + j)
+
+
+def run_slew(arm: FlexibleArm, slew: np.ndarray, duration: float, dt: float, slew_time: float,
+             bandwidth_hz: float, progress: bool = True):
+    """Simulates the slew in chunks (for the progress bar); returns (trajectory, u per step, seconds)."""
+    n = arm.dof
+    steps = int(round(duration / dt))
+    t = np.arange(steps) * dt
+    shape, dshape = quintic(t / slew_time)
+    theta_ref = np.outer(shape, slew)
+    theta_dot_ref = np.outer(dshape / slew_time, slew)
+    x0 = arm.state()
+    kp, kd = pd_gains(arm, np.zeros(n), bandwidth_hz)
+
+    chunk = max(1, steps // 50)
+    ts, xs = [np.zeros(1)], [x0[None, :]]
+    bar = _progress(steps, progress)
+    x, elapsed, done = x0, 0.0, 0
+    error = None
+    while done < steps:
+        k = min(chunk, steps - done)
+        pd = MotorPD(kp, kd, theta_ref[done:done + k], theta_dot_ref[done:done + k])
+        start = time.perf_counter()
+        try:
+            part = arm.simulate(x, dt, k, u=pd)
+        except SimulationError as e:
+            part, error = e.trajectory, e
+        elapsed += time.perf_counter() - start
+        ts.append(part.t[1:] + done * dt)
+        xs.append(part.x[1:])
+        done += len(part.t) - 1
+        bar.update(len(part.t) - 1)
+        if error is not None:
+            break
+        x = part.x[-1]
+    bar.close()
+    from ._arm import Trajectory
+
+    traj = Trajectory(arm, np.concatenate(ts), np.concatenate(xs))
+    rows = len(traj.t) - 1
+    u = kp * (theta_ref[:rows] - traj.theta[:rows]) + kd * (theta_dot_ref[:rows] - traj.theta_dot[:rows])
+    if error is not None:
+        print(f"warning: {error}; keeping the {rows} steps computed", file=sys.stderr)
+    return traj, u, elapsed
+
+
+class _NoBar:
+    def update(self, k):
+        pass
+
+    def close(self):
+        pass
+
+
+def _progress(total: int, enabled: bool):
+    if not enabled:
+        return _NoBar()
+    try:
+        from tqdm import tqdm
+    except ImportError:  # tqdm is a dependency, but keep the simulator usable without it
+        return _NoBar()
+    return tqdm(total=total, unit="step", desc="simulating", file=sys.stderr, mininterval=0.25)
+
+
+def rotation_angle_deg(q0: np.ndarray, q1: np.ndarray) -> float:
+    """Angle (deg) of the rotation between two unit quaternions (x, y, z, w)."""
+    return float(np.degrees(2 * np.arccos(np.clip(abs(np.dot(q0, q1)), -1.0, 1.0))))
+
+
+def energy_balance(traj, u: np.ndarray) -> tuple:
+    """(E(T) - E(0), integral of the power balance of SPEC 6.3) with the trapezoid rule on the
+    recorded states; ``u`` is held over each step."""
+    _, _, d, beta = traj.arm.parameters
+    td, qd = traj.theta_dot, traj.qd
+    dissipated = ((td - qd) ** 2 * d).sum(axis=1) + (td**2 * beta).sum(axis=1)
+    rows = len(u)
+    dt = np.diff(traj.t[: rows + 1])
+    motor_power_a = (u * td[:rows]).sum(axis=1)
+    motor_power_b = (u * td[1 : rows + 1]).sum(axis=1)
+    work = np.sum(0.5 * dt * (motor_power_a + motor_power_b)) - np.sum(0.5 * dt * (dissipated[:rows] + dissipated[1 : rows + 1]))
+    return float(traj.energy[rows] - traj.energy[0]), float(work)
+
+
+def summarise(name: str, traj, u: np.ndarray, elapsed: float) -> dict:
+    steps = len(traj.t) - 1
+    h = traj.momentum
+    h_drift = np.abs(h - h[0]).max(axis=0)
+    de, work = energy_balance(traj, u)
+    summary = {
+        "model": name,
+        "steps": steps,
+        "simulated_s": float(traj.t[-1]),
+        "steps_per_second": steps / elapsed if elapsed > 0 else float("inf"),
+        "base_attitude_change_deg": rotation_angle_deg(traj.base_pose[0, 3:], traj.base_pose[-1, 3:]),
+        "base_displacement_m": float(np.linalg.norm(traj.base_pose[-1, :3] - traj.base_pose[0, :3])),
+        "max_deflection_deg": float(np.degrees(np.abs(traj.deflection).max())),
+        "max_deflection_joint": traj.arm.robot.joint_names[int(np.abs(traj.deflection).max(axis=0).argmax())],
+        "momentum_drift_angular": float(h_drift[:3].max()),
+        "momentum_drift_linear": float(h_drift[3:].max()),
+        "energy_change_J": de,
+        "net_work_J": work,
+        "ee_travel_m": float(np.linalg.norm(traj.ee_pose[-1, :3] - traj.ee_pose[0, :3])),
+    }
+    print(f"\norbitflex: free-floating slew of '{name}' ({traj.arm.dof} flexible joints)")
+    print(f"  simulated           {summary['simulated_s']:.1f} s in {steps} RK4 steps, "
+          f"{summary['steps_per_second']:,.0f} steps/s")
+    print(f"  base attitude       changed by {summary['base_attitude_change_deg']:.3f} deg "
+          f"(origin moved {summary['base_displacement_m'] * 1e3:.2f} mm)")
+    print(f"  joint deflection    max {summary['max_deflection_deg']:.4f} deg at {summary['max_deflection_joint']}")
+    print(f"  EE travel           {summary['ee_travel_m']:.3f} m")
+    print(f"  momentum drift      {summary['momentum_drift_angular']:.2e} N m s (angular), "
+          f"{summary['momentum_drift_linear']:.2e} N s (linear)  [should be round-off]")
+    print(f"  energy balance      E(T) - E(0) = {de:.6g} J, net work in = {work:.6g} J, "
+          f"residual {de - work:.2e} J")
+    return summary
+
+
+def plot(traj, out: Path) -> List[Path]:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    t = traj.t
+    names = traj.arm.robot.joint_names
+    files = []
+
+    def save(fig, name):
+        path = out / name
+        fig.tight_layout()
+        fig.savefig(path, dpi=110)
+        plt.close(fig)
+        files.append(path)
+
+    fig, ax = plt.subplots(figsize=(9, 5))
+    for i, name in enumerate(names):
+        line, = ax.plot(t, np.degrees(traj.q[:, i]), label=f"q {name}")
+        ax.plot(t, np.degrees(traj.theta[:, i]), "--", color=line.get_color(), lw=1)
+    ax.set(xlabel="time (s)", ylabel="angle (deg)", title="Link angles q (solid) and motor angles θ (dashed)")
+    ax.legend(fontsize=7, ncol=2)
+    save(fig, "joint_vs_motor_angles.png")
+
+    fig, ax = plt.subplots(figsize=(9, 5))
+    for i, name in enumerate(names):
+        ax.plot(t, np.degrees(traj.deflection[:, i]), label=name)
+    ax.set(xlabel="time (s)", ylabel="θ − q (deg)", title="Joint deflection (spring stretch)")
+    ax.legend(fontsize=7, ncol=2)
+    save(fig, "deflection.png")
+
+    quat = traj.base_pose[:, 3:]
+    x, y, z, w = quat.T
+    roll = np.arctan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y))
+    pitch = np.arcsin(np.clip(2 * (w * y - z * x), -1, 1))
+    yaw = np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
+    fig, ax = plt.subplots(figsize=(9, 4))
+    for v, label in ((roll, "roll"), (pitch, "pitch"), (yaw, "yaw")):
+        ax.plot(t, np.degrees(v), label=label)
+    ax.set(xlabel="time (s)", ylabel="deg", title="Base attitude (roll-pitch-yaw of the bus): the reaction to the slew")
+    ax.legend()
+    save(fig, "base_attitude.png")
+
+    p = traj.ee_pose[:, :3]
+    fig = plt.figure(figsize=(7, 6))
+    ax = fig.add_subplot(projection="3d")
+    ax.plot(p[:, 0], p[:, 1], p[:, 2])
+    ax.scatter(*p[0], color="green", label="start")
+    ax.scatter(*p[-1], color="red", label="end")
+    ax.set(xlabel="x (m)", ylabel="y (m)", zlabel="z (m)", title="EE path in the inertial frame")
+    ax.legend()
+    save(fig, "ee_path.png")
+
+    h = traj.momentum
+    fig, ax = plt.subplots(figsize=(9, 4))
+    labels = ["Kx", "Ky", "Kz", "Lx", "Ly", "Lz"]
+    for i in range(6):
+        ax.plot(t, h[:, i] - h[0, i], label=labels[i], lw=1)
+    ax.set(xlabel="time (s)", ylabel="h(t) − h(0)", title="Momentum drift (angular N·m·s, linear N·s): round-off level")
+    ax.legend(ncol=6, fontsize=8)
+    save(fig, "momentum_drift.png")
+    return files
+
+
+def _run(arm, name, slew, args) -> int:
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    limit = arm.rk4_stability_limit()
+    print(f"{name}: {arm.dof} joints, total mass {arm.robot.total_mass:.1f} kg, "
+          f"dt = {args.dt:g} s (RK4 limit of the stiffest joint mode: {limit:.3g} s)")
+    traj, u, elapsed = run_slew(arm, slew, args.duration, args.dt, args.slew_time, args.bandwidth,
+                                progress=not args.quiet)
+    summary = summarise(name, traj, u, elapsed)
+    traj.save_npz(out / "trajectory.npz")
+    files = [] if args.no_plots else plot(traj, out)
+    print(f"\nwrote {out / 'trajectory.npz'}" + "".join(f"\n      {f}" for f in files))
+    import json
+
+    (out / "summary.json").write_text(json.dumps(summary, indent=2))
+    return 0 if len(traj.t) - 1 == int(round(args.duration / args.dt)) else 1
+
+
+def _common(p: argparse.ArgumentParser, duration: float) -> None:
+    p.add_argument("--duration", type=float, default=duration, help="simulated time, s (default %(default)s)")
+    p.add_argument("--dt", type=float, default=1e-3, help="RK4 step, s (default %(default)s)")
+    p.add_argument("--slew-time", type=float, default=8.0, help="duration of the quintic slew, s (default %(default)s)")
+    p.add_argument("--bandwidth", type=float, default=0.25, help="PD bandwidth per joint, Hz (default %(default)s)")
+    p.add_argument("--out", default="orbitflex_out", help="output folder (default %(default)s)")
+    p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+
+
+def main(argv: Optional[List[str]] = None) -> int:
+    parser = argparse.ArgumentParser(prog="orbitflex", description="Flexible-joint space manipulator simulation.")
+    sub = parser.add_subparsers(dest="command")
+    demo = sub.add_parser("demo", help="simulate the built-in space arm (bus + 7-joint arm), free floating")
+    _common(demo, 20.0)
+    sim = sub.add_parser("simulate", help="simulate your URDF, free floating, with the same slew")
+    sim.add_argument("urdf", help="path to the URDF; the root link is the floating base")
+    sim.add_argument("--params", required=True, help="joint-parameter TOML keyed by joint name")
+    sim.add_argument("--ee-link", default=None, help="EE link (default: the unique leaf)")
+    sim.add_argument("--locked-joints", nargs="*", default=None, help="joints held at zero (e.g. fingers)")
+    sim.add_argument("--slew", type=float, nargs="*", default=None,
+                     help="slew per joint, rad (default 0.3 rad on every joint)")
+    _common(sim, 10.0)
+    args = parser.parse_args(argv)
+    if args.command is None:
+        args = parser.parse_args(["demo"] + (argv or []))
+    try:
+        if args.command == "demo":
+            robot = models.space_arm()
+            arm = FlexibleArm(robot, models.space_arm_joints())
+            return _run(arm, robot.name, SPACE_ARM_SLEW, args)
+        robot = Robot.from_urdf(args.urdf, ee_link=args.ee_link, locked_joints=args.locked_joints)
+        arm = FlexibleArm(robot, FlexibleJoints.from_toml(args.params, robot))
+        slew = np.full(robot.dof, 0.3) if not args.slew else np.asarray(args.slew, dtype=float)
+        if len(slew) == 1:
+            slew = np.full(robot.dof, slew[0])
+        if len(slew) != robot.dof:
+            parser.error(f"--slew: expected 1 or {robot.dof} values, given {len(slew)}")
+        return _run(arm, robot.name, slew, args)
+    except (ValueError, FileNotFoundError) as e:
+        print(f"orbitflex: error: {e}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

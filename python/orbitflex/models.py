@@ -1,0 +1,40 @@
+"""Built-in models.
+
+``space_arm()``: a 500 kg, 1.5 m cube spacecraft bus carrying a 7-joint, 86 kg space arm (two
+carbon-fibre booms of 2.0 m and 1.8 m, a 3-joint wrist, a 3 kg end-effector), EE link ``ee``.
+The URDF text is embedded in the compiled module (``space_arm_urdf()``).
+"""
+
+from __future__ import annotations
+
+from ._core import SPACE_ARM_URDF, FlexibleJoints, Robot
+
+__all__ = ["space_arm", "space_arm_urdf", "space_arm_joints"]
+
+
+def space_arm() -> Robot:
+    """The built-in default model: bus + 7-joint arm (see the module docstring)."""
+    return Robot.space_arm()
+
+
+def space_arm_urdf() -> str:
+    """The URDF text of the built-in model, e.g. to write it to a file or load it elsewhere."""
+    return SPACE_ARM_URDF
+
+
+def space_arm_joints() -> FlexibleJoints:
+    """Plausible harmonic-drive joint parameters for the built-in arm (link side).
+
+    Stiffness 2e4 N m/rad at the shoulder, 1e4 at the elbow, 4e3 in the wrist; reflected motor
+    inertia from gear ratio 160 and rotor inertia 1.5e-5 ... 4e-5 kg m^2; light joint and motor
+    damping. The stiffest mode is near 300 rad/s, so RK4 is stable up to dt of about 9 ms.
+    """
+    stiffness = [2.0e4, 2.0e4, 2.0e4, 1.0e4, 4.0e3, 4.0e3, 4.0e3]
+    rotor = [4.0e-5, 4.0e-5, 4.0e-5, 3.0e-5, 1.5e-5, 1.5e-5, 1.5e-5]
+    return FlexibleJoints.from_gear(
+        stiffness,
+        gear_ratio=[160.0] * 7,
+        rotor_inertia=rotor,
+        damping=[2.0, 2.0, 2.0, 1.0, 0.5, 0.5, 0.5],
+        motor_damping=[1.0] * 7,
+    )

@@ -1,0 +1,133 @@
+//! numpy ⇄ Rust conversions with shape and finiteness checks.
+
+use super::ModelError;
+use crate::error::check_finite;
+use numpy::{PyArray1, PyArray2, PyReadonlyArray1, PyReadonlyArray2, PyUntypedArrayMethods};
+use pyo3::prelude::*;
+
+/// Any 1-D float array-like (numpy array, list, tuple) as a `Vec<f64>` of `expected` length
+/// (`None`: any length), all finite.
+pub fn vector(obj: &Bound<'_, PyAny>, what: &str, expected: Option<usize>) -> PyResult<Vec<f64>> {
+    let values = if let Ok(a) = obj.extract::<PyReadonlyArray1<f64>>() {
+        match a.as_slice() {
+            Ok(s) => s.to_vec(),
+            Err(_) => a.as_array().to_vec(),
+        }
+    } else {
+        let a = as_float_array(obj, what)?;
+        let shape = a.getattr("shape")?.extract::<Vec<usize>>()?;
+        if shape.len() != 1 {
+            return Err(ModelError::new_err(format!(
+                "{what}: expected a 1-D array{}, given shape {shape:?}",
+                expected.map_or(String::new(), |n| format!(" of length {n}"))
+            )));
+        }
+        a.extract::<PyReadonlyArray1<f64>>()?.as_array().to_vec()
+    };
+    if let Some(n) = expected {
+        if values.len() != n {
+            return Err(ModelError::new_err(format!(
+                "{what}: expected length {n}, given length {}",
+                values.len()
+            )));
+        }
+    }
+    check_finite(what, &values)?;
+    Ok(values)
+}
+
+/// Like [`vector`] but `None` gives `default`.
+pub fn vector_or(
+    obj: Option<&Bound<'_, PyAny>>,
+    what: &str,
+    n: usize,
+    default: f64,
+) -> PyResult<Vec<f64>> {
+    match obj {
+        Some(o) if !o.is_none() => vector(o, what, Some(n)),
+        _ => Ok(vec![default; n]),
+    }
+}
+
+/// A 2-D float array of `width` columns as (rows, row-major values), all finite.
+pub fn matrix(obj: &Bound<'_, PyAny>, what: &str, width: usize) -> PyResult<(usize, Vec<f64>)> {
+    let a = as_float_array(obj, what)?;
+    let a = a.extract::<PyReadonlyArray2<f64>>().map_err(|_| {
+        let shape = a
+            .getattr("shape")
+            .and_then(|s| s.extract::<Vec<usize>>())
+            .unwrap_or_default();
+        ModelError::new_err(format!(
+            "{what}: expected a 2-D array of shape (rows, {width}), given shape {shape:?}"
+        ))
+    })?;
+    let shape = a.shape().to_vec();
+    if shape[1] != width {
+        return Err(ModelError::new_err(format!(
+            "{what}: expected shape (rows, {width}), given shape ({}, {})",
+            shape[0], shape[1]
+        )));
+    }
+    let values: Vec<f64> = a.as_array().iter().copied().collect();
+    check_finite(what, &values)?;
+    Ok((shape[0], values))
+}
+
+/// `numpy.asarray(obj, dtype=float64)` with a clear error.
+pub fn as_float_array<'py>(obj: &Bound<'py, PyAny>, what: &str) -> PyResult<Bound<'py, PyAny>> {
+    let np = obj.py().import("numpy")?;
+    np.call_method1("asarray", (obj, np.getattr("float64")?))
+        .map_err(|e| {
+            ModelError::new_err(format!(
+                "{what}: expected an array of numbers, given {} ({e})",
+                type_name(obj)
+            ))
+        })
+}
+
+fn type_name(obj: &Bound<'_, PyAny>) -> String {
+    obj.get_type()
+        .name()
+        .map(|n| n.to_string())
+        .unwrap_or_else(|_| "?".into())
+}
+
+/// A new 1-D numpy array.
+pub fn array1<'py>(py: Python<'py>, values: &[f64]) -> Bound<'py, PyArray1<f64>> {
+    PyArray1::from_slice(py, values)
+}
+
+/// A new 2-D numpy array from a column-major nalgebra matrix.
+pub fn array2<'py, R: nalgebra::Dim, C: nalgebra::Dim, S: nalgebra::RawStorage<f64, R, C>>(
+    py: Python<'py>,
+    m: &nalgebra::Matrix<f64, R, C, S>,
+) -> Bound<'py, PyArray2<f64>> {
+    let (rows, cols) = m.shape();
+    let data: Vec<f64> = (0..rows)
+        .flat_map(|r| (0..cols).map(move |c| m[(r, c)]))
+        .collect();
+    row_major(py, rows, cols, data)
+}
+
+/// A new 2-D numpy array from row-major values.
+pub fn row_major(
+    py: Python<'_>,
+    rows: usize,
+    cols: usize,
+    data: Vec<f64>,
+) -> Bound<'_, PyArray2<f64>> {
+    numpy::ndarray::Array2::from_shape_vec((rows, cols), data)
+        .map(|a| PyArray2::from_owned_array(py, a))
+        .expect("shape matches data")
+}
+
+/// Parses `method="recursive" | "operator"`.
+pub fn method(name: &str) -> PyResult<crate::Method> {
+    match name {
+        "recursive" => Ok(crate::Method::Recursive),
+        "operator" => Ok(crate::Method::Operator),
+        other => Err(ModelError::new_err(format!(
+            "method: expected \"recursive\" or \"operator\", given {other:?}"
+        ))),
+    }
+}

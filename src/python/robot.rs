@@ -1,0 +1,349 @@
+//! `orbitflex.Robot`.
+
+use super::convert::{array1, array2, vector, vector_or};
+use crate::algorithms::{self, Data};
+use crate::model::{Robot, UrdfOptions};
+use numpy::{PyArray1, PyArray2};
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+use std::sync::Mutex;
+
+/// A floating-base serial chain loaded from URDF (SPEC §1, §7).
+///
+/// Conventions: base twist ``[ω_B; v_B]`` in the base frame; joint order base to EE; spatial
+/// vectors ``[angular; linear]``; base acceleration ``α_B`` is classical (the derivative of the
+/// base-frame components of ``ω`` and of the origin velocity, expressed in the base frame); SI units.
+#[pyclass(name = "Robot", module = "orbitflex", frozen)]
+pub struct PyRobot {
+    pub(crate) robot: Robot,
+    data: Mutex<Data>,
+}
+
+impl PyRobot {
+    pub(crate) fn wrap(robot: Robot) -> Self {
+        let data = Mutex::new(Data::new(&robot));
+        Self { robot, data }
+    }
+
+    fn data(&self) -> std::sync::MutexGuard<'_, Data> {
+        self.data.lock().unwrap_or_else(|p| p.into_inner())
+    }
+
+    fn state(
+        &self,
+        q: &Bound<'_, PyAny>,
+        base_twist: &Bound<'_, PyAny>,
+        qd: &Bound<'_, PyAny>,
+    ) -> PyResult<(Vec<f64>, Vec<f64>, Vec<f64>)> {
+        let n = self.robot.dof();
+        Ok((
+            vector(q, "q", Some(n))?,
+            vector(base_twist, "base_twist", Some(6))?,
+            vector(qd, "qd", Some(n))?,
+        ))
+    }
+}
+
+fn options(ee_link: Option<String>, locked_joints: Option<Vec<String>>) -> UrdfOptions {
+    UrdfOptions {
+        ee_link,
+        locked_joints: locked_joints.unwrap_or_default(),
+    }
+}
+
+#[pymethods]
+impl PyRobot {
+    /// Loads a URDF file. ``ee_link`` names the EE link (default: the unique leaf);
+    /// ``locked_joints`` are held at zero and treated as fixed (e.g. gripper fingers).
+    #[staticmethod]
+    #[pyo3(signature = (path, ee_link=None, locked_joints=None))]
+    fn from_urdf(
+        py: Python<'_>,
+        path: std::path::PathBuf,
+        ee_link: Option<String>,
+        locked_joints: Option<Vec<String>>,
+    ) -> PyResult<Self> {
+        let opts = options(ee_link, locked_joints);
+        Ok(Self::wrap(
+            py.allow_threads(|| Robot::from_urdf(&path, &opts))?,
+        ))
+    }
+
+    /// Loads a URDF from its XML text; options as :meth:`from_urdf`.
+    #[staticmethod]
+    #[pyo3(signature = (xml, ee_link=None, locked_joints=None))]
+    fn from_urdf_string(
+        xml: &str,
+        ee_link: Option<String>,
+        locked_joints: Option<Vec<String>>,
+    ) -> PyResult<Self> {
+        Ok(Self::wrap(Robot::from_urdf_string(
+            xml,
+            &options(ee_link, locked_joints),
+        )?))
+    }
+
+    /// The built-in default model (see ``orbitflex.models.space_arm``).
+    #[staticmethod]
+    fn space_arm() -> Self {
+        Self::wrap(Robot::space_arm())
+    }
+
+    /// Number of joints ``n``.
+    #[getter]
+    fn dof(&self) -> usize {
+        self.robot.dof()
+    }
+
+    /// Joint names, base to EE.
+    #[getter]
+    fn joint_names(&self) -> Vec<String> {
+        self.robot
+            .joint_names()
+            .iter()
+            .map(|s| s.to_string())
+            .collect()
+    }
+
+    /// Body names: the base (root link), then the child link of each joint.
+    #[getter]
+    fn body_names(&self) -> Vec<String> {
+        self.robot.body_names().to_vec()
+    }
+
+    /// The URDF robot name.
+    #[getter]
+    fn name(&self) -> String {
+        self.robot.name().to_string()
+    }
+
+    /// The EE link name.
+    #[getter]
+    fn ee_link(&self) -> String {
+        self.robot.ee_link().to_string()
+    }
+
+    /// Total mass of base and links (kg).
+    #[getter]
+    fn total_mass(&self) -> f64 {
+        self.robot.total_mass()
+    }
+
+    /// Body masses (kg), base first, after merging fixed links.
+    #[getter]
+    fn body_masses<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        let m: Vec<f64> = self.robot.inertias().iter().map(|i| i.mass).collect();
+        array1(py, &m)
+    }
+
+    /// Mass matrix ``[[M_b, M_rb], [M_br, M_r]]``, shape (6+n, 6+n) (A.19). ``method``:
+    /// ``"recursive"`` (CRBA, default) or ``"operator"`` (the seed's dense operator form).
+    #[pyo3(signature = (q, method="recursive"))]
+    fn mass_matrix<'py>(
+        &self,
+        py: Python<'py>,
+        q: &Bound<'py, PyAny>,
+        method: &str,
+    ) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        let q = vector(q, "q", Some(self.robot.dof()))?;
+        let m = match super::convert::method(method)? {
+            crate::Method::Recursive => {
+                algorithms::crba(&self.robot, &mut self.data(), &q)?.clone()
+            }
+            other => self.robot.mass_matrix(&q, other)?,
+        };
+        Ok(array2(py, &m))
+    }
+
+    /// Bias ``[C_B; C_r]``, shape (6+n,) (A.19): the generalized force needed for zero
+    /// accelerations at this velocity.
+    #[pyo3(signature = (q, base_twist, qd, method="recursive"))]
+    fn bias_forces<'py>(
+        &self,
+        py: Python<'py>,
+        q: &Bound<'py, PyAny>,
+        base_twist: &Bound<'py, PyAny>,
+        qd: &Bound<'py, PyAny>,
+        method: &str,
+    ) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        let (q, v, qd) = self.state(q, base_twist, qd)?;
+        let c = match super::convert::method(method)? {
+            crate::Method::Recursive => {
+                algorithms::bias_forces(&self.robot, &mut self.data(), &q, &v, &qd)?.clone()
+            }
+            other => self.robot.bias_forces(&q, &v, &qd, other)?,
+        };
+        Ok(array1(py, c.as_slice()))
+    }
+
+    /// EE Jacobian ``J``, shape (6, n): joint rates to EE twist ``[ω; v]`` in the EE frame,
+    /// base at rest (SPEC §2, ``J = Bᵀ Φ H``).
+    fn ee_jacobian<'py>(
+        &self,
+        py: Python<'py>,
+        q: &Bound<'py, PyAny>,
+    ) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        let q = vector(q, "q", Some(self.robot.dof()))?;
+        let mut data = self.data();
+        algorithms::ee_jacobian(&self.robot, &mut data, &q)?;
+        Ok(array2(py, &data.jacobian))
+    }
+
+    /// ``Φ_{n+1,B}``, shape (6, 6): base twist to EE twist (each in its own frame).
+    fn ee_base_operator<'py>(
+        &self,
+        py: Python<'py>,
+        q: &Bound<'py, PyAny>,
+    ) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        let q = vector(q, "q", Some(self.robot.dof()))?;
+        let mut data = self.data();
+        algorithms::ee_jacobian(&self.robot, &mut data, &q)?;
+        Ok(array2(py, &data.ee_base))
+    }
+
+    /// Forward dynamics ``[α_B; q̈]``, shape (6+n,) (A.19). ``tau``: joint torques (N·m);
+    /// ``base_wrench`` ``f_B``: ``[moment; force]`` applied to the base, base frame, about its
+    /// origin; ``ee_wrench`` ``f``: ``[moment; force]`` the EE exerts ON its environment, EE frame
+    /// (a load applied to the EE is ``-f``). ``α_B`` is the classical base acceleration.
+    #[pyo3(signature = (q, base_twist, qd, tau, base_wrench=None, ee_wrench=None, method="recursive"))]
+    #[allow(clippy::too_many_arguments)]
+    fn forward_dynamics<'py>(
+        &self,
+        py: Python<'py>,
+        q: &Bound<'py, PyAny>,
+        base_twist: &Bound<'py, PyAny>,
+        qd: &Bound<'py, PyAny>,
+        tau: &Bound<'py, PyAny>,
+        base_wrench: Option<&Bound<'py, PyAny>>,
+        ee_wrench: Option<&Bound<'py, PyAny>>,
+        method: &str,
+    ) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        let (q, v, qd) = self.state(q, base_twist, qd)?;
+        let tau = vector(tau, "tau", Some(self.robot.dof()))?;
+        let fb = vector_or(base_wrench, "base_wrench", 6, 0.0)?;
+        let f = vector_or(ee_wrench, "ee_wrench", 6, 0.0)?;
+        let out = match super::convert::method(method)? {
+            crate::Method::Recursive => {
+                algorithms::aba(&self.robot, &mut self.data(), &q, &v, &qd, &tau, &fb, &f)?.clone()
+            }
+            other => self
+                .robot
+                .forward_dynamics(&q, &v, &qd, &tau, Some(&fb), Some(&f), other)?,
+        };
+        Ok(array1(py, out.as_slice()))
+    }
+
+    /// Inverse dynamics ``[f_B; τ]``, shape (6+n,) (A.19), for classical base acceleration
+    /// ``base_acc`` and joint accelerations ``qdd``, with the EE wrench ``ee_wrench``.
+    #[pyo3(signature = (q, base_twist, qd, base_acc, qdd, ee_wrench=None, method="recursive"))]
+    #[allow(clippy::too_many_arguments)]
+    fn inverse_dynamics<'py>(
+        &self,
+        py: Python<'py>,
+        q: &Bound<'py, PyAny>,
+        base_twist: &Bound<'py, PyAny>,
+        qd: &Bound<'py, PyAny>,
+        base_acc: &Bound<'py, PyAny>,
+        qdd: &Bound<'py, PyAny>,
+        ee_wrench: Option<&Bound<'py, PyAny>>,
+        method: &str,
+    ) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        let (q, v, qd) = self.state(q, base_twist, qd)?;
+        let acc = vector(base_acc, "base_acc", Some(6))?;
+        let qdd = vector(qdd, "qdd", Some(self.robot.dof()))?;
+        let f = vector_or(ee_wrench, "ee_wrench", 6, 0.0)?;
+        let out = match super::convert::method(method)? {
+            crate::Method::Recursive => {
+                algorithms::rnea(&self.robot, &mut self.data(), &q, &v, &qd, &acc, &qdd, &f)?
+                    .clone()
+            }
+            other => self
+                .robot
+                .inverse_dynamics(&q, &v, &qd, &acc, &qdd, Some(&f), other)?,
+        };
+        Ok(array1(py, out.as_slice()))
+    }
+
+    /// The seed's dense operators at this state, as a dict of numpy arrays: ``Phi``, ``H``,
+    /// ``M``, ``a``, ``b``, ``B``, ``Phi_hat1``, ``Phi_hat2``, ``M_b``, ``M_rb``, ``M_br``,
+    /// ``M_r``, ``C_B``, ``C_r``, ``J``, and also ``M_B``, ``b_B`` and ``Phi_n1_B``
+    /// (``Φ_{n+1,B}``). Stacked quantities have six rows per link (A.13–A.19).
+    fn operators<'py>(
+        &self,
+        py: Python<'py>,
+        q: &Bound<'py, PyAny>,
+        base_twist: &Bound<'py, PyAny>,
+        qd: &Bound<'py, PyAny>,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let (q, v, qd) = self.state(q, base_twist, qd)?;
+        let o = self.robot.operators(&q, &v, &qd)?;
+        let d = PyDict::new(py);
+        d.set_item("Phi", array2(py, &o.phi))?;
+        d.set_item("H", array2(py, &o.h))?;
+        d.set_item("M", array2(py, &o.m))?;
+        d.set_item("a", array1(py, o.a.as_slice()))?;
+        d.set_item("b", array1(py, o.b.as_slice()))?;
+        d.set_item("B", array2(py, &o.b_ee))?;
+        d.set_item("Phi_hat1", array2(py, &o.phi_hat1))?;
+        d.set_item("Phi_hat2", array2(py, &o.phi_hat2))?;
+        d.set_item("M_B", array2(py, &o.m_base))?;
+        d.set_item("b_B", array1(py, o.b_base.as_slice()))?;
+        d.set_item("M_b", array2(py, &o.m_b))?;
+        d.set_item("M_rb", array2(py, &o.m_rb))?;
+        d.set_item("M_br", array2(py, &o.m_br))?;
+        d.set_item("M_r", array2(py, &o.m_r))?;
+        d.set_item("C_B", array1(py, o.c_b.as_slice()))?;
+        d.set_item("C_r", array1(py, o.c_r.as_slice()))?;
+        d.set_item("J", array2(py, &o.j))?;
+        d.set_item("Phi_n1_B", array2(py, &o.phi_ee_base))?;
+        Ok(d)
+    }
+
+    /// Total spatial momentum ``[angular; linear]`` of base and links, shape (6,), in the
+    /// inertial frame about the inertial origin (SPEC §6.1). ``base_pose = [r_B; x, y, z, w]``.
+    fn momentum<'py>(
+        &self,
+        py: Python<'py>,
+        base_pose: &Bound<'py, PyAny>,
+        q: &Bound<'py, PyAny>,
+        base_twist: &Bound<'py, PyAny>,
+        qd: &Bound<'py, PyAny>,
+    ) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        let pose = vector(base_pose, "base_pose", Some(7))?;
+        let (q, v, qd) = self.state(q, base_twist, qd)?;
+        crate::dynamics::check_base_pose(&pose)?;
+        let h = algorithms::momentum(&self.robot, &mut self.data(), &q, &v, &qd)?;
+        Ok(array1(
+            py,
+            &crate::dynamics::momentum_in_inertial_frame(&pose, &h),
+        ))
+    }
+
+    /// Kinetic energy of base and links ``½ νᵀ 𝓜 ν`` (J), ``ν = [V_B; q̇]``.
+    fn kinetic_energy(
+        &self,
+        q: &Bound<'_, PyAny>,
+        base_twist: &Bound<'_, PyAny>,
+        qd: &Bound<'_, PyAny>,
+    ) -> PyResult<f64> {
+        let (q, v, qd) = self.state(q, base_twist, qd)?;
+        Ok(algorithms::kinetic_energy(
+            &self.robot,
+            &mut self.data(),
+            &q,
+            &v,
+            &qd,
+        )?)
+    }
+
+    fn __repr__(&self) -> String {
+        format!(
+            "Robot(name={:?}, dof={}, base={:?}, ee_link={:?}, total_mass={:.3} kg)",
+            self.robot.name(),
+            self.robot.dof(),
+            self.robot.body_names()[0],
+            self.robot.ee_link(),
+            self.robot.total_mass()
+        )
+    }
+}
