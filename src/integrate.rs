@@ -310,13 +310,15 @@ impl FlexibleArm {
                 .and_then(|_| {
                     base_wrench.write(k, &mut fb);
                     ee_wrench.write(k, &mut f);
-                    self.step_unchecked(&mut ws, &mut x, dt, &torque, &fb, &f).map_err(|e| stop(e.to_string()))
+                    self.step_unchecked(&mut ws, &mut x, dt, &torque, &fb, &f).map_err(|e| {
+                        stop(format!("the state diverged during the step ({e}); dt = {dt} s may be past the RK4 stability limit"))
+                    })
                 })
                 .and_then(|_| match x.iter().position(|v| !v.is_finite()) {
                     Some(i) => Err(Error::Simulation {
                         step: k + 1,
                         time: (k + 1) as f64 * dt,
-                        message: format!("the state turned non-finite (element {i}); dt = {dt} s may be too large for the stiffest joint"),
+                        message: format!("the state diverged: element {i} turned non-finite; dt = {dt} s may be past the RK4 stability limit"),
                     }),
                     None => Ok(()),
                 });

@@ -1,0 +1,142 @@
+//! The hot paths allocate nothing per call (STYLE.md): counted with a global allocator.
+
+use orbitflex::algorithms::{self, Data};
+use orbitflex::testing::{random_chain, random_state};
+use orbitflex::{ArmWorkspace, FlexibleArm, FlexibleJoints, MotorPD, Schedule};
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+struct Counting;
+static ALLOCATIONS: AtomicUsize = AtomicUsize::new(0);
+
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
+        System.alloc(layout)
+    }
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        System.dealloc(ptr, layout)
+    }
+    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
+        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
+        System.realloc(ptr, layout, new_size)
+    }
+}
+
+#[global_allocator]
+static GLOBAL: Counting = Counting;
+
+fn allocations(f: impl FnOnce()) -> usize {
+    let before = ALLOCATIONS.load(Ordering::SeqCst);
+    f();
+    ALLOCATIONS.load(Ordering::SeqCst) - before
+}
+
+// One test function: the counter is global and the test harness runs tests on threads.
+#[test]
+fn hot_paths_do_not_allocate() {
+    let robot = random_chain(12, 3);
+    let n = robot.dof();
+    let (q, v, qd) = random_state(&robot, 3);
+    let tau = vec![0.5; n];
+    let w = [0.1; 6];
+    let mut data = Data::new(&robot);
+    assert_eq!(
+        allocations(|| {
+            algorithms::aba(&robot, &mut data, &q, &v, &qd, &tau, &w, &w).unwrap();
+        }),
+        0,
+        "aba"
+    );
+    assert_eq!(
+        allocations(|| {
+            algorithms::rnea(&robot, &mut data, &q, &v, &qd, &w, &tau, &w).unwrap();
+        }),
+        0,
+        "rnea"
+    );
+    assert_eq!(
+        allocations(|| {
+            algorithms::crba(&robot, &mut data, &q).unwrap();
+        }),
+        0,
+        "crba"
+    );
+    assert_eq!(
+        allocations(|| {
+            algorithms::bias_forces(&robot, &mut data, &q, &v, &qd).unwrap();
+        }),
+        0,
+        "bias"
+    );
+    assert_eq!(
+        allocations(|| {
+            algorithms::ee_jacobian(&robot, &mut data, &q).unwrap();
+        }),
+        0,
+        "jacobian"
+    );
+    assert_eq!(
+        allocations(|| {
+            algorithms::momentum(&robot, &mut data, &q, &v, &qd).unwrap();
+        }),
+        0,
+        "momentum"
+    );
+
+    let arm = FlexibleArm::new(
+        robot,
+        FlexibleJoints::uniform(n, 500.0, 0.1, 0.5, 0.1).unwrap(),
+    )
+    .unwrap();
+    let mut ws = ArmWorkspace::new(&arm);
+    let mut x = arm
+        .state(Some(&q), None, Some(&qd), None, None, Some(&v))
+        .unwrap();
+    let mut xdot = vec![0.0; x.len()];
+    assert_eq!(
+        allocations(|| arm
+            .derivative(&mut ws, &x, &tau, &w, &w, &mut xdot)
+            .unwrap()),
+        0,
+        "derivative"
+    );
+    assert_eq!(
+        allocations(|| arm.step(&mut ws, &mut x, 1e-3, &tau, &w, &w).unwrap()),
+        0,
+        "step"
+    );
+    assert_eq!(
+        allocations(|| {
+            arm.energy(&mut ws, &x);
+            arm.momentum(&mut ws, &x);
+        }),
+        0,
+        "diagnostics"
+    );
+
+    // simulate: a fixed number of allocations (workspace and output), whatever the step count.
+    let pd = MotorPD::new(
+        vec![10.0; n],
+        vec![1.0; n],
+        Schedule::Constant(vec![0.1; n]),
+        Schedule::Zero,
+        Schedule::Zero,
+    )
+    .unwrap();
+    let count = |steps: usize| {
+        let mut pd = pd.clone();
+        allocations(|| {
+            arm.simulate(
+                &x,
+                1e-4,
+                steps,
+                &mut pd,
+                &Schedule::Zero,
+                &Schedule::Constant(w.to_vec()),
+            )
+            .unwrap();
+        })
+    };
+    assert_eq!(count(10), count(1000), "simulate allocates per step");
+}

@@ -1,0 +1,421 @@
+//! The flexible-joint simulator checked through the invariants of SPEC §6.
+
+use orbitflex::testing::{random_chain, Rng};
+use orbitflex::{ArmWorkspace, Controller, FlexibleArm, FlexibleJoints, MotorPD, Robot, Schedule};
+
+fn arm(n: usize, seed: u64, damping: f64, motor_damping: f64) -> FlexibleArm {
+    let robot = random_chain(n, seed);
+    let mut rng = Rng::new(seed);
+    let joints = FlexibleJoints::new(
+        rng.vector(n, 200.0, 800.0),
+        rng.vector(n, 0.05, 0.2),
+        vec![damping; n],
+        vec![motor_damping; n],
+    )
+    .unwrap();
+    FlexibleArm::new(robot, joints).unwrap()
+}
+
+fn moving_state(arm: &FlexibleArm, seed: u64) -> Vec<f64> {
+    let n = arm.robot().dof();
+    let mut rng = Rng::new(seed + 7);
+    let q = rng.vector(n, -1.0, 1.0);
+    let theta: Vec<f64> = q.iter().map(|v| v + rng.range(-0.05, 0.05)).collect();
+    arm.state(
+        Some(&q),
+        Some(&theta),
+        Some(&rng.vector(n, -0.5, 0.5)),
+        Some(&rng.vector(n, -0.5, 0.5)),
+        Some(&[0.3, -0.2, 0.1, 0.1, 0.2, -0.3, 0.9]),
+        Some(&rng.vector(6, -0.3, 0.3)),
+    )
+    .unwrap()
+}
+
+/// Time-varying torques, a different sine per joint.
+struct Sines;
+impl Controller for Sines {
+    fn torque(&mut self, _: usize, t: f64, _: &[f64], u: &mut [f64]) -> orbitflex::Result<()> {
+        for (i, ui) in u.iter_mut().enumerate() {
+            *ui = 3.0 * (2.0 * t + i as f64).sin();
+        }
+        Ok(())
+    }
+}
+
+/// Momentum in the inertial frame is not a linear function of the state, so RK4 keeps it only
+/// to its truncation error: the drift must fall like dt⁴ until it reaches round-off.
+#[test]
+fn momentum_is_constant_when_free_floating_with_any_torques() {
+    let arm = arm(5, 1, 0.5, 0.2);
+    let x0 = moving_state(&arm, 1);
+    let drift = |dt: f64| {
+        let traj = arm
+            .simulate(
+                &x0,
+                dt,
+                (1.0 / dt) as usize,
+                &mut Sines,
+                &Schedule::Zero,
+                &Schedule::Zero,
+            )
+            .unwrap();
+        let h = arm.momentum_along(&traj);
+        let scale = h[..6].iter().map(|v| v.abs()).fold(1.0, f64::max);
+        let worst = (6..h.len())
+            .map(|k| (h[k] - h[k % 6]).abs())
+            .fold(0.0, f64::max);
+        worst / scale
+    };
+    let (coarse, fine, finest) = (drift(1e-3), drift(5e-4), drift(1.25e-4));
+    assert!(coarse < 1e-9, "relative momentum drift {coarse:e}");
+    assert!(
+        coarse / fine > 12.0,
+        "drift should fall like dt⁴: {coarse:e} -> {fine:e}"
+    );
+    assert!(finest < 1e-12, "round-off level at small dt: {finest:e}");
+    // and a base wrench does change it: the test can fail
+    let push = Schedule::Constant(vec![0.0, 0.0, 0.0, 1.0, 0.0, 0.0]);
+    let traj = arm
+        .simulate(&x0, 1e-3, 100, &mut Sines, &push, &Schedule::Zero)
+        .unwrap();
+    let h2 = arm.momentum_along(&traj);
+    let r0 = orbitflex::spatial::quaternion_to_rotation(&x0[3..7]);
+    // 1 N along the base x axis for 0.1 s: the base turns slowly, so nearly R_B e_x × 0.1 N s
+    let expected = r0.column(0) * 0.1;
+    let got = nalgebra::Vector3::new(
+        h2[600 + 3] - h2[3],
+        h2[600 + 4] - h2[4],
+        h2[600 + 5] - h2[5],
+    );
+    assert!(
+        (got - expected).norm() < 0.1 * 0.1,
+        "impulse {got} vs {expected}"
+    );
+}
+
+#[test]
+fn energy_is_conserved_without_input_or_damping_up_to_rk4_error() {
+    let arm = arm(4, 2, 0.0, 0.0);
+    let x0 = moving_state(&arm, 2);
+    let mut ws = ArmWorkspace::new(&arm);
+    let e0 = arm.energy(&mut ws, &x0);
+    let drift = |dt: f64| {
+        let steps = (0.5 / dt) as usize;
+        let traj = arm
+            .simulate(
+                &x0,
+                dt,
+                steps,
+                &mut Schedule::Zero,
+                &Schedule::Zero,
+                &Schedule::Zero,
+            )
+            .unwrap();
+        let e = arm.energy_along(&traj);
+        e.iter().map(|v| (v - e0).abs()).fold(0.0, f64::max)
+    };
+    let (coarse, fine) = (drift(2e-3), drift(1e-3));
+    assert!(fine < 1e-6 * e0, "energy drift {fine:e} of {e0}");
+    // RK4's energy error falls with dt like dt⁴ (a correct RK4, not a lucky one).
+    assert!(coarse / fine > 10.0, "energy drift ratio {}", coarse / fine);
+}
+
+/// Power `dE/dt` from SPEC §6.3 at state `x` with inputs.
+fn power(arm: &FlexibleArm, x: &[f64], u: &[f64], fb: &[f64], f: &[f64]) -> f64 {
+    let l = arm.layout();
+    let p = arm.joints();
+    let (q, qd, td) = (&x[l.q()], &x[l.qd()], &x[l.theta_dot()]);
+    let mut pw = 0.0;
+    for i in 0..l.n {
+        pw += u[i] * td[i]
+            - p.damping[i] * (td[i] - qd[i]).powi(2)
+            - p.motor_damping[i] * td[i] * td[i];
+    }
+    let v_b = &x[l.base_twist()];
+    pw += fb.iter().zip(v_b).map(|(a, b)| a * b).sum::<f64>();
+    // V_{n+1} = Φ_{n+1,B} V_B + J q̇
+    let j = arm.robot().ee_jacobian(q).unwrap();
+    let phi = arm.robot().ee_base_operator(q).unwrap();
+    let v_ee = phi * nalgebra::Vector6::from_column_slice(v_b)
+        + nalgebra::Vector6::from_column_slice(
+            (j * nalgebra::DVector::from_column_slice(qd)).as_slice(),
+        );
+    pw - f.iter().zip(v_ee.iter()).map(|(a, b)| a * b).sum::<f64>()
+}
+
+#[test]
+fn power_balance_holds_pointwise_with_all_inputs() {
+    let arm = arm(6, 3, 0.7, 0.3);
+    let mut ws = ArmWorkspace::new(&arm);
+    let mut rng = Rng::new(3);
+    for seed in 0..5 {
+        let x = moving_state(&arm, seed);
+        let (u, fb, f) = (
+            rng.vector(6, -5.0, 5.0),
+            rng.vector(6, -5.0, 5.0),
+            rng.vector(6, -5.0, 5.0),
+        );
+        let mut xdot = vec![0.0; x.len()];
+        arm.derivative(&mut ws, &x, &u, &fb, &f, &mut xdot).unwrap();
+        let h = 1e-6;
+        let shifted =
+            |s: f64| -> Vec<f64> { x.iter().zip(&xdot).map(|(a, b)| a + s * h * b).collect() };
+        let de =
+            (arm.energy(&mut ws, &shifted(1.0)) - arm.energy(&mut ws, &shifted(-1.0))) / (2.0 * h);
+        let p = power(&arm, &x, &u, &fb, &f);
+        assert!(
+            (de - p).abs() < 1e-6 * (1.0 + p.abs()),
+            "dE/dt {de} vs power {p}"
+        );
+    }
+}
+
+#[test]
+fn power_balance_integrates_along_a_run() {
+    let arm = arm(4, 4, 0.5, 0.2);
+    let x0 = moving_state(&arm, 4);
+    let n = 4;
+    let residual = |dt: f64| {
+        let steps = (0.4 / dt) as usize;
+        let mut rng = Rng::new(11);
+        let u_table: Vec<f64> = (0..steps)
+            .flat_map(|k| (0..n).map(move |i| 2.0 * ((k as f64) * dt * 3.0 + i as f64).sin()))
+            .collect();
+        let fb: Vec<f64> = rng.vector(6, -2.0, 2.0);
+        let f: Vec<f64> = rng.vector(6, -2.0, 2.0);
+        let mut u = Schedule::Table {
+            values: u_table.clone(),
+            width: n,
+        };
+        let traj = arm
+            .simulate(
+                &x0,
+                dt,
+                steps,
+                &mut u,
+                &Schedule::Constant(fb.clone()),
+                &Schedule::Constant(f.clone()),
+            )
+            .unwrap();
+        let e = arm.energy_along(&traj);
+        let mut work = 0.0;
+        for k in 0..steps {
+            let uk = &u_table[k * n..(k + 1) * n];
+            work += 0.5
+                * dt
+                * (power(&arm, traj.state(k), uk, &fb, &f)
+                    + power(&arm, traj.state(k + 1), uk, &fb, &f));
+        }
+        ((e[steps] - e[0]) - work).abs()
+    };
+    let (coarse, fine) = (residual(2e-3), residual(1e-3));
+    assert!(fine < 1e-5, "energy balance residual {fine:e}");
+    // trapezoid rule: second order
+    assert!(coarse / fine > 3.0, "ratio {}", coarse / fine);
+}
+
+#[test]
+fn rk4_error_falls_sixteenfold_per_halving() {
+    let arm = arm(3, 5, 0.3, 0.1);
+    let x0 = moving_state(&arm, 5);
+    let t_end: f64 = 0.4;
+    let run = |dt: f64| {
+        let steps = (t_end / dt).round() as usize;
+        let traj = arm
+            .simulate(
+                &x0,
+                dt,
+                steps,
+                &mut Schedule::Constant(vec![1.0, -2.0, 0.5]),
+                &Schedule::Zero,
+                &Schedule::Zero,
+            )
+            .unwrap();
+        traj.state(steps).to_vec()
+    };
+    let reference = run(t_end / 10240.0);
+    let err = |dt: f64| {
+        run(dt)
+            .iter()
+            .zip(&reference)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f64::max)
+    };
+    let errors: Vec<f64> = [t_end / 160.0, t_end / 320.0, t_end / 640.0]
+        .iter()
+        .map(|&dt| err(dt))
+        .collect();
+    for w in errors.windows(2) {
+        let ratio = w[0] / w[1];
+        assert!(
+            (12.0..20.0).contains(&ratio),
+            "error ratio {ratio} (errors {errors:?})"
+        );
+    }
+}
+
+/// Very stiff joints with small motor inertia behave like the rigid arm driven by `τ = u`.
+#[test]
+fn stiff_joints_track_the_rigid_arm() {
+    let robot = random_chain(3, 6);
+    let u = [0.8, -0.5, 0.3];
+    let t_end: f64 = 0.3;
+    // Rigid reference: RK4 on (q, V_B, q̇) with the rigid forward dynamics, tiny steps.
+    let rigid = {
+        let dt = 1e-4;
+        let f = |q: &[f64], v: &[f64], qd: &[f64]| -> Vec<f64> {
+            robot
+                .forward_dynamics(q, v, qd, &u, None, None, orbitflex::Method::Recursive)
+                .unwrap()
+                .as_slice()
+                .to_vec()
+        };
+        let (mut q, mut v, mut qd) = (vec![0.0; 3], vec![0.0; 6], vec![0.0; 3]);
+        for _ in 0..(t_end / dt).round() as usize {
+            // state z = [q, V, q̇]; V's derivative: base-frame components of the twist
+            let deriv = |q: &[f64], v: &[f64], qd: &[f64]| -> Vec<f64> {
+                let a = f(q, v, qd);
+                let w = nalgebra::Vector3::new(v[0], v[1], v[2]);
+                let lin = nalgebra::Vector3::new(v[3], v[4], v[5]);
+                let vdot = nalgebra::Vector3::new(a[3], a[4], a[5]) - w.cross(&lin);
+                let mut out = qd.to_vec();
+                out.extend_from_slice(&a[0..3]);
+                out.extend_from_slice(vdot.as_slice());
+                out.extend_from_slice(&a[6..9]);
+                out
+            };
+            let z: Vec<f64> = q.iter().chain(&v).chain(&qd).copied().collect();
+            let split = |z: &[f64]| (z[0..3].to_vec(), z[3..9].to_vec(), z[9..12].to_vec());
+            let k1 = {
+                let (a, b, c) = split(&z);
+                deriv(&a, &b, &c)
+            };
+            let z2: Vec<f64> = z.iter().zip(&k1).map(|(a, k)| a + 0.5 * dt * k).collect();
+            let k2 = {
+                let (a, b, c) = split(&z2);
+                deriv(&a, &b, &c)
+            };
+            let z3: Vec<f64> = z.iter().zip(&k2).map(|(a, k)| a + 0.5 * dt * k).collect();
+            let k3 = {
+                let (a, b, c) = split(&z3);
+                deriv(&a, &b, &c)
+            };
+            let z4: Vec<f64> = z.iter().zip(&k3).map(|(a, k)| a + dt * k).collect();
+            let k4 = {
+                let (a, b, c) = split(&z4);
+                deriv(&a, &b, &c)
+            };
+            let z: Vec<f64> = (0..12)
+                .map(|i| z[i] + dt / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]))
+                .collect();
+            (q, v, qd) = split(&z);
+        }
+        q
+    };
+    let deviation = |k: f64, j: f64| {
+        let d = 2.0 * (k * j).sqrt();
+        let arm = FlexibleArm::new(
+            robot.clone(),
+            FlexibleJoints::uniform(3, k, j, d, 0.0).unwrap(),
+        )
+        .unwrap();
+        let dt = 0.2 * arm.rk4_stability_limit(&[0.0; 3]).unwrap().min(j / d);
+        let steps = (t_end / dt).ceil() as usize;
+        let dt = t_end / steps as f64;
+        let traj = arm
+            .simulate(
+                &arm.state(None, None, None, None, None, None).unwrap(),
+                dt,
+                steps,
+                &mut Schedule::Constant(u.to_vec()),
+                &Schedule::Zero,
+                &Schedule::Zero,
+            )
+            .unwrap();
+        let q = &traj.state(steps)[7..10];
+        q.iter()
+            .zip(&rigid)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f64::max)
+    };
+    // The rigid limit needs k → ∞ and j → 0: the motor inertia adds j q̈ to the link's load.
+    let (soft, stiff) = (deviation(1e4, 1e-3), deviation(1e5, 1e-4));
+    let travel = rigid.iter().map(|v| v.abs()).fold(0.0, f64::max);
+    assert!(
+        stiff < 2e-2 * travel,
+        "deviation {stiff} of travel {travel}"
+    );
+    assert!(
+        soft / stiff > 3.0,
+        "deviation should shrink towards the rigid limit: {soft} -> {stiff}"
+    );
+}
+
+#[test]
+fn motor_pd_drives_the_motor_to_its_reference() {
+    let robot = Robot::space_arm();
+    let joints = FlexibleJoints::uniform(7, 1e4, 1.0, 5.0, 1.0).unwrap();
+    let arm = FlexibleArm::new(robot, joints).unwrap();
+    let target = vec![0.1; 7];
+    let mut pd = MotorPD::new(
+        vec![2000.0; 7],
+        vec![800.0; 7],
+        Schedule::Constant(target.clone()),
+        Schedule::Zero,
+        Schedule::Zero,
+    )
+    .unwrap();
+    let x0 = arm.state(None, None, None, None, None, None).unwrap();
+    let traj = arm
+        .simulate(&x0, 2e-3, 15000, &mut pd, &Schedule::Zero, &Schedule::Zero)
+        .unwrap();
+    let theta = &traj.state(15000)[14..21];
+    for (a, b) in theta.iter().zip(&target) {
+        assert!((a - b).abs() < 5e-3, "θ {a} vs reference {b}");
+    }
+}
+
+#[test]
+fn diverging_run_keeps_the_finite_steps() {
+    let arm = arm(3, 8, 0.0, 0.0);
+    let x0 = moving_state(&arm, 8);
+    let dt = 20.0 * arm.rk4_stability_limit(&x0[7..10]).unwrap();
+    let failure = arm
+        .simulate(
+            &x0,
+            dt,
+            10_000,
+            &mut Schedule::Zero,
+            &Schedule::Zero,
+            &Schedule::Zero,
+        )
+        .unwrap_err();
+    let message = failure.error.to_string();
+    assert!(
+        message.contains("step") && message.contains("diverged"),
+        "{message}"
+    );
+    assert!(failure.trajectory.len() >= 1);
+    assert!(failure.trajectory.x.iter().all(|v| v.is_finite()));
+    assert!(failure.trajectory.len() < 10_001);
+}
+
+#[test]
+fn joint_parameters_from_toml() {
+    let robot = Robot::space_arm();
+    let names = robot.joint_names();
+    let text = "[defaults]\nstiffness = 1e4\nmotor_inertia = 0.5\n[joints.elbow_pitch]\nstiffness = 2e3\ngear_ratio = 100.0\nrotor_inertia = 2e-5\ndamping = 3.0\n";
+    let j = FlexibleJoints::from_toml_str(text, &names, "test").unwrap();
+    let e = names.iter().position(|n| *n == "elbow_pitch").unwrap();
+    assert_eq!(j.stiffness[e], 2e3);
+    assert!((j.motor_inertia[e] - 0.2).abs() < 1e-12);
+    assert_eq!(j.damping[e], 3.0);
+    assert_eq!(j.stiffness[0], 1e4);
+    let err = FlexibleJoints::from_toml_str("[joints.nope]\nstiffness = 1.0\n", &names, "test")
+        .unwrap_err();
+    assert!(err.to_string().contains("nope"), "{err}");
+    let err = FlexibleJoints::from_toml_str("[defaults]\nmotor_inertia = 1.0\n", &names, "test")
+        .unwrap_err();
+    assert!(err.to_string().contains("stiffness"), "{err}");
+}
