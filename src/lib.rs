@@ -1,8 +1,7 @@
-//! # orbitflex
+#![doc = include_str!("../README.md")]
 //!
-//! Flexible-joint robot arms on a floating base (a spacecraft carrying a manipulator).
-//! Conventions, equations and names follow `SPEC.md`; equation numbers (A.n) refer to Appendix A
-//! of the seed derivation.
+//! Conventions, equations and names follow `SPEC.md`; equation numbers (A.n) in the documentation
+//! refer to Appendix A of the seed derivation.
 
 pub mod algorithms;
 pub mod dynamics;

@@ -95,7 +95,15 @@ def chain_case(seed: int, via_file_dir: Optional[str] = None) -> Case:
     return Case(f"chain{seed}", xml=chain.xml, ee_link=chain.ee_link)
 
 
-PIN_CASE_NAMES = ["space_arm", "ur5", "panda", "xarm7"] + [f"chain{s}" for s in PIN_CHAIN_SEEDS]
+# Locked revolute/continuous joints in the middle of a chain (held at zero on both sides).
+LOCKED_CASES = {
+    "ur5_locked_elbow": ("ur5", ["elbow_joint"]),
+    "chain4_locked": (4, ["j2", "j3"]),
+}
+
+PIN_CASE_NAMES = (
+    ["space_arm", "ur5", "panda", "xarm7"] + [f"chain{s}" for s in PIN_CHAIN_SEEDS] + list(LOCKED_CASES)
+)
 
 
 @pytest.fixture(scope="session")
@@ -113,6 +121,10 @@ def loaded(request, case_dir):
     if name not in _LOADED:
         if name == "space_arm":
             case = _space_arm_case(case_dir)
+        elif name in LOCKED_CASES:
+            base, locked = LOCKED_CASES[name]
+            case = erd_case(base) if isinstance(base, str) else chain_case(base)
+            case.name, case.locked_joints = name, list(locked)
         elif name.startswith("chain"):
             seed = int(name[5:])
             # Even seeds go through a file, odd ones through the string loader.

@@ -44,8 +44,9 @@ def robots_dir() -> str:
     try:  # the classic Python module
         import example_robot_data  # type: ignore
 
-        d = os.path.join(os.path.dirname(example_robot_data.getModelPath("ur_description/urdf/ur5_robot.urdf")))
-        if os.path.isdir(d):
+        # getModelPath(subpath) returns the folder that holds subpath.
+        d = example_robot_data.getModelPath("ur_description/urdf/ur5_robot.urdf")
+        if os.path.isdir(os.path.join(d, "ur_description")):
             return d
     except Exception:
         pass

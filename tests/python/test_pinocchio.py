@@ -12,11 +12,13 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
+from conftest import PIN_CHAIN_SEEDS
 from pin_helpers import quat_to_matrix, random_quaternion, rel_err
+from urdf_gen import random_chain
 
 TOL = 1e-9
 METHODS = ["recursive", "operator"]
-STATES_PER_ROBOT = 2
+STATES_PER_ROBOT = 3
 
 
 def states(case, robot, count=STATES_PER_ROBOT):
@@ -45,6 +47,55 @@ def states(case, robot, count=STATES_PER_ROBOT):
 def check(name, value, reference, tol=TOL):
     err = rel_err(value, reference)
     assert err <= tol, f"{name}: relative error {err:.3e} > {tol:g}\norbitflex={np.asarray(value)}\npinocchio={np.asarray(reference)}"
+
+
+# ------------------------------------------------------------------------------- the generator
+
+
+def test_random_chains_have_the_awkward_features():
+    """Guards the generator: the features the comparison relies on are really in the URDFs."""
+    import xml.etree.ElementTree as ET
+
+    seen = dict(non_unit_axis=0, aligned_axis=0, continuous=0, revolute=0, mid_fixed=0,
+                branch=0, no_inertial=0, off_diagonal=0, rotated_com=0)
+    for seed in PIN_CHAIN_SEEDS:
+        chain = random_chain(seed)
+        root = ET.fromstring(chain.xml)
+        joints = root.findall("joint")
+        moving_parents = {j.find("parent").get("link") for j in joints if j.get("type") != "fixed"}
+        children = {}
+        for j in joints:
+            children.setdefault(j.find("parent").get("link"), []).append(j)
+            kind = j.get("type")
+            seen["continuous"] += kind == "continuous"
+            seen["revolute"] += kind == "revolute"
+            rpy = np.array(j.find("origin").get("rpy").split(), float)
+            assert np.all(rpy != 0.0), "every joint origin is rotated"
+            if kind == "fixed" and j.find("child").get("link") in moving_parents:
+                seen["mid_fixed"] += 1
+            if kind != "fixed":
+                axis = np.array(j.find("axis").get("xyz").split(), float)
+                norm = np.linalg.norm(axis)
+                seen["non_unit_axis"] += abs(norm - 1.0) > 0.1
+                seen["aligned_axis"] += np.count_nonzero(axis) == 1
+        seen["branch"] += any(len(c) > 1 for c in children.values())
+        leaves = [l.get("name") for l in root.findall("link") if l.get("name") not in children]
+        assert chain.ee_link in leaves and len(leaves) == 2
+        for link in root.findall("link"):
+            inertial = link.find("inertial")
+            if inertial is None:
+                seen["no_inertial"] += 1
+                continue
+            a = {k: float(v) for k, v in inertial.find("inertia").attrib.items()}
+            inertia = np.array([[a["ixx"], a["ixy"], a["ixz"]], [a["ixy"], a["iyy"], a["iyz"]],
+                                [a["ixz"], a["iyz"], a["izz"]]])
+            ev = np.linalg.eigvalsh(inertia)
+            assert ev[0] > 0 and 2 * ev[-1] < ev.sum(), f"unphysical inertia in {link.get('name')}"
+            seen["off_diagonal"] += abs(a["ixy"]) + abs(a["ixz"]) + abs(a["iyz"]) > 1e-6 * ev[-1]
+            seen["rotated_com"] += np.any(np.array(inertial.find("origin").get("rpy").split(), float) != 0)
+        assert len(chain.joint_names) >= 3
+    assert all(v > 0 for v in seen.values()), seen
+    assert seen["branch"] == len(PIN_CHAIN_SEEDS)
 
 
 # ------------------------------------------------------------------------------- the model itself
