@@ -25,16 +25,18 @@ def space_arm_urdf() -> str:
 def space_arm_joints() -> FlexibleJoints:
     """Plausible harmonic-drive joint parameters for the built-in arm (link side).
 
-    Stiffness 2e4 N m/rad at the shoulder, 1e4 at the elbow, 4e3 in the wrist; reflected motor
-    inertia from gear ratio 160 and rotor inertia 1.5e-5 ... 4e-5 kg m^2; light joint and motor
-    damping. The stiffest mode is near 300 rad/s, so RK4 is stable up to dt of about 9 ms.
+    Stiffness 1e4 N m/rad at the shoulder, 5e3 at the elbow, 2e3 in the wrist (space-arm joints
+    are compliant: long output shafts and light gearboxes); reflected motor inertia from gear
+    ratio 160 and rotor inertia 1.5e-5 ... 4e-5 kg m^2 (j = 0.38 ... 1.0 kg m^2); light joint
+    damping (0.2 N m s/rad) so that residual vibration is visible; motor friction 1 N m s/rad.
+    The stiffest mode is near 270 rad/s, so RK4 is stable up to dt of about 10 ms.
     """
-    stiffness = [2.0e4, 2.0e4, 2.0e4, 1.0e4, 4.0e3, 4.0e3, 4.0e3]
+    stiffness = [1.0e4, 1.0e4, 1.0e4, 5.0e3, 2.0e3, 2.0e3, 2.0e3]
     rotor = [4.0e-5, 4.0e-5, 4.0e-5, 3.0e-5, 1.5e-5, 1.5e-5, 1.5e-5]
     return FlexibleJoints.from_gear(
         stiffness,
         gear_ratio=[160.0] * 7,
         rotor_inertia=rotor,
-        damping=[2.0, 2.0, 2.0, 1.0, 0.5, 0.5, 0.5],
+        damping=[0.2] * 7,
         motor_damping=[1.0] * 7,
     )
