@@ -80,7 +80,7 @@ pub enum Error {
     InvalidArgument { what: String, message: String },
 
     /// A simulation whose state turned non-finite, or whose controller failed.
-    #[error("simulation stopped at step {step} (t = {time} s): {message}")]
+    #[error("simulation stopped at step {step} (t = {} s): {message}", round_time(*time))]
     Simulation {
         step: usize,
         time: f64,
@@ -113,4 +113,9 @@ pub(crate) fn check_finite(what: &str, values: &[f64]) -> Result<()> {
         }),
         None => Ok(()),
     }
+}
+
+/// Times in messages without float noise (`0.30000000000000004` prints as `0.3`).
+fn round_time(t: f64) -> f64 {
+    (t * 1e9).round() / 1e9
 }

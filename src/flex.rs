@@ -151,6 +151,25 @@ impl FlexibleJoints {
                 });
             }
         }
+        // motor_inertia, or gear_ratio and rotor_inertia, from one table; None if it gives neither.
+        let inertia_in = |entry: &Entry, where_: &str| -> Result<Option<f64>> {
+            match (entry.motor_inertia, entry.gear_ratio, entry.rotor_inertia) {
+                (Some(value), None, None) => Ok(Some(value)),
+                (None, Some(g), Some(r)) => {
+                    if !(g > 0.0 && r > 0.0) {
+                        return Err(malformed(format!(
+                            "{where_}: gear_ratio and rotor_inertia must be > 0, given {g} and {r}"
+                        )));
+                    }
+                    Ok(Some(g * g * r))
+                }
+                (None, None, None) => Ok(None),
+                _ => Err(malformed(format!(
+                    "{where_}: give either motor_inertia, or both gear_ratio and rotor_inertia"
+                ))),
+            }
+        };
+        let default_inertia = inertia_in(&file.defaults, "[defaults]")?;
         let n = joint_names.len();
         let (mut k, mut j, mut d, mut beta) = (
             Vec::with_capacity(n),
@@ -160,31 +179,39 @@ impl FlexibleJoints {
         );
         for name in joint_names {
             let own = file.joints.get(*name).copied().unwrap_or_default();
-            let pick = |a: Option<f64>, b: Option<f64>| a.or(b);
             let d0 = file.defaults;
             let missing = |key: &str| {
                 malformed(format!(
                     "joint '{name}': no {key} (give it in [joints.{name}] or [defaults])"
                 ))
             };
-            k.push(pick(own.stiffness, d0.stiffness).ok_or_else(|| missing("stiffness"))?);
-            let inertia = match (own.motor_inertia, own.gear_ratio, own.rotor_inertia) {
-                (Some(value), None, None) => value,
-                (None, Some(g), Some(r)) => g * g * r,
-                (None, None, None) => match (d0.motor_inertia, d0.gear_ratio, d0.rotor_inertia) {
-                    (Some(value), None, None) => value,
-                    (None, Some(g), Some(r)) => g * g * r,
-                    _ => return Err(missing("motor_inertia (or gear_ratio and rotor_inertia)")),
-                },
-                _ => {
+            let table = format!("joint '{name}' ([joints.{name}])");
+            let stiffness = own
+                .stiffness
+                .or(d0.stiffness)
+                .ok_or_else(|| missing("stiffness"))?;
+            let inertia = inertia_in(&own, &table)?
+                .or(default_inertia)
+                .ok_or_else(|| missing("motor_inertia (or gear_ratio and rotor_inertia)"))?;
+            let damping = own.damping.or(d0.damping).unwrap_or(0.0);
+            let motor_damping = own.motor_damping.or(d0.motor_damping).unwrap_or(0.0);
+            for (key, value, positive) in [
+                ("stiffness", stiffness, true),
+                ("motor_inertia", inertia, true),
+                ("damping", damping, false),
+                ("motor_damping", motor_damping, false),
+            ] {
+                if !value.is_finite() || value < 0.0 || (positive && value <= 0.0) {
                     return Err(malformed(format!(
-                        "joint '{name}': give either motor_inertia, or both gear_ratio and rotor_inertia"
-                    )))
+                        "joint '{name}': {key} must be {}, given {value}",
+                        if positive { "> 0" } else { ">= 0" }
+                    )));
                 }
-            };
+            }
+            k.push(stiffness);
             j.push(inertia);
-            d.push(pick(own.damping, d0.damping).unwrap_or(0.0));
-            beta.push(pick(own.motor_damping, d0.motor_damping).unwrap_or(0.0));
+            d.push(damping);
+            beta.push(motor_damping);
         }
         Self::new(k, j, d, beta).map_err(|e| malformed(e.to_string()))
     }
@@ -407,7 +434,7 @@ impl FlexibleArm {
     ) -> Result<()> {
         let layout = self.layout();
         crate::algorithms::check_data(&self.robot, &ws.data)?;
-        check_vector("x (state)", x, layout.len())?;
+        self.check_state(x)?;
         check_vector("u", u, layout.n)?;
         check_vector("base_wrench", base_wrench, 6)?;
         check_vector("ee_wrench", ee_wrench, 6)?;
@@ -552,7 +579,10 @@ impl FlexibleArm {
         let ee = self.robot.ee_transform();
         position += rotation * ee.translation;
         rotation *= ee.rotation.transpose();
-        let quat = nalgebra::UnitQuaternion::from_matrix(&rotation);
+        // Closed form (no iteration), exact for the orthonormal product above.
+        let quat = nalgebra::UnitQuaternion::from_rotation_matrix(
+            &nalgebra::Rotation3::from_matrix_unchecked(rotation),
+        );
         let c = quat.coords; // (i, j, k, w)
         [position.x, position.y, position.z, c[0], c[1], c[2], c[3]]
     }
@@ -576,11 +606,33 @@ impl FlexibleArm {
 }
 
 /// Scales the quaternion part of a state to unit norm.
+/// Scales the quaternion part of a state to unit norm. The norm is taken after dividing by the
+/// largest component, so huge but finite components do not overflow into a zero quaternion; a
+/// zero or non-finite quaternion is left as it is (and is then caught as a diverged state).
 pub(crate) fn normalise_quaternion(quat: &mut [f64]) {
-    let norm = quat.iter().map(|v| v * v).sum::<f64>().sqrt();
-    if norm > 0.0 {
-        quat.iter_mut().for_each(|v| *v /= norm);
+    let squares: f64 = quat.iter().map(|v| v * v).sum();
+    let norm = if squares.is_finite() && squares > f64::MIN_POSITIVE {
+        squares.sqrt()
+    } else {
+        let scale = quat.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        if !(scale.is_finite() && scale > 0.0) {
+            return;
+        }
+        scale * quat.iter().map(|v| (v / scale).powi(2)).sum::<f64>().sqrt()
+    };
+    quat.iter_mut().for_each(|v| *v /= norm);
+}
+
+/// Why `x` is not a valid state, if it is not: a non-finite element or a zero quaternion.
+pub(crate) fn state_defect(x: &[f64]) -> Option<String> {
+    if let Some(i) = x.iter().position(|v| !v.is_finite()) {
+        return Some(format!("element {i} turned non-finite"));
     }
+    let scale = x[3..7].iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    if scale == 0.0 {
+        return Some("the base quaternion collapsed to zero".into());
+    }
+    None
 }
 
 /// Checks `values` are finite; used on controller output.

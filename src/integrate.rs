@@ -2,7 +2,7 @@
 //! schedules, and [`simulate`] with its [`Trajectory`].
 
 use crate::error::{check_vector, Error, Result};
-use crate::flex::{check_output, normalise_quaternion, ArmWorkspace, FlexibleArm};
+use crate::flex::{check_output, normalise_quaternion, state_defect, ArmWorkspace, FlexibleArm};
 
 /// A per-step input of fixed width: zero, a constant, or a table with one row per step
 /// (row-major, `steps × width`). Held constant over each step (zero-order hold).
@@ -213,7 +213,17 @@ impl FlexibleArm {
         check_vector("u", u, self.robot().dof())?;
         check_vector("base_wrench", base_wrench, 6)?;
         check_vector("ee_wrench", ee_wrench, 6)?;
-        self.step_unchecked(ws, x, dt, u, base_wrench, ee_wrench)
+        self.step_unchecked(ws, x, dt, u, base_wrench, ee_wrench)?;
+        match state_defect(x) {
+            Some(defect) => Err(Error::Simulation {
+                step: 0,
+                time: 0.0,
+                message: format!(
+                    "the state diverged: {defect}; dt = {dt} s may be past the RK4 stability limit"
+                ),
+            }),
+            None => Ok(()),
+        }
     }
 
     pub(crate) fn step_unchecked(
@@ -254,9 +264,10 @@ impl FlexibleArm {
     }
 
     /// Integrates `steps` RK4 steps of `dt` from `x0`. `u` is asked once per step; `base_wrench`
-    /// and `ee_wrench` are schedules of width 6. A state that turns non-finite, or a controller
-    /// that fails or returns non-finite torques, stops the run: the error names the step and
-    /// time, and every state computed before it is kept.
+    /// and `ee_wrench` are schedules of width 6. A state that turns non-finite (or whose
+    /// quaternion collapses), or a controller that fails or returns non-finite torques, stops the
+    /// run: [`Error::Simulation`] names the failing step `k` (from `t = k dt` to `(k+1) dt`), and
+    /// the failure keeps the `k + 1` valid states computed before it.
     pub fn simulate(
         &self,
         x0: &[f64],
@@ -272,9 +283,11 @@ impl FlexibleArm {
             x: Vec::new(),
             state_len: len,
         };
-        let fail = |error| SimulationFailure {
-            error,
-            trajectory: empty(),
+        let fail = |error| {
+            Box::new(SimulationFailure {
+                error,
+                trajectory: empty(),
+            })
         };
         check_dt(dt).map_err(fail)?;
         self.check_state(x0).map_err(fail)?;
@@ -282,12 +295,24 @@ impl FlexibleArm {
             .check("base_wrench", 6, Some(steps))
             .map_err(fail)?;
         ee_wrench.check("ee_wrench", 6, Some(steps)).map_err(fail)?;
+        let mut traj = empty();
+        let rows = steps.checked_add(1);
+        let reserved = rows
+            .and_then(|r| r.checked_mul(len).map(|values| (r, values)))
+            .and_then(|(r, values)| {
+                traj.t.try_reserve_exact(r).ok()?;
+                traj.x.try_reserve_exact(values).ok()
+            });
+        if reserved.is_none() {
+            return Err(fail(Error::InvalidArgument {
+                what: "steps".into(),
+                message: format!(
+                    "{steps} steps of a {len}-element state do not fit in memory; \
+                     simulate in shorter pieces"
+                ),
+            }));
+        }
         let mut ws = ArmWorkspace::new(self);
-        let mut traj = Trajectory {
-            t: Vec::with_capacity(steps + 1),
-            x: Vec::with_capacity((steps + 1) * len),
-            state_len: len,
-        };
         let mut x = x0.to_vec();
         normalise_quaternion(&mut x[3..7]);
         traj.t.push(0.0);
@@ -314,12 +339,10 @@ impl FlexibleArm {
                         stop(format!("the state diverged during the step ({e}); dt = {dt} s may be past the RK4 stability limit"))
                     })
                 })
-                .and_then(|_| match x.iter().position(|v| !v.is_finite()) {
-                    Some(i) => Err(Error::Simulation {
-                        step: k + 1,
-                        time: (k + 1) as f64 * dt,
-                        message: format!("the state diverged: element {i} turned non-finite; dt = {dt} s may be past the RK4 stability limit"),
-                    }),
+                .and_then(|_| match state_defect(&x) {
+                    Some(defect) => Err(stop(format!(
+                        "the state diverged: {defect}; dt = {dt} s may be past the RK4 stability limit"
+                    ))),
                     None => Ok(()),
                 });
             if let Err(error) = outcome {

@@ -15,9 +15,10 @@ __all__ = ["FlexibleArm", "Trajectory", "SimulationError"]
 
 
 class SimulationError(RuntimeError):
-    """A run that stopped early: a state turned non-finite, or the controller failed.
+    """A run that stopped early: the state diverged, or the controller failed.
 
-    ``step`` and ``time`` say where; ``trajectory`` holds every finite state computed before.
+    ``step`` is the index k of the step that failed (from ``t = k dt`` to ``(k+1) dt``) and
+    ``time = k dt``; ``trajectory`` holds the k + 1 valid states computed before it.
     """
 
     def __init__(self, message: str, trajectory: "Trajectory", step: int, time: float):
@@ -65,6 +66,9 @@ class FlexibleArm(_core.FlexibleArm):
         x0 = np.asarray(x0, dtype=np.float64)
         if x0.shape != (self.state_size,):
             raise _core.ModelError(f"x0: expected shape ({self.state_size},), given shape {x0.shape}")
+        bad = np.flatnonzero(~np.isfinite(x0))
+        if bad.size:
+            raise _core.ModelError(f"x0: element {bad[0]} is not finite ({x0[bad[0]]})")
         limit = self.rk4_stability_limit(x0[7 : 7 + self.dof])
         if dt > limit:
             warnings.warn(

@@ -63,7 +63,8 @@ def run_slew(arm: FlexibleArm, slew: np.ndarray, duration: float, dt: float, sle
         try:
             part = arm.simulate(x, dt, k, u=pd)
         except SimulationError as e:
-            part, error = e.trajectory, e
+            part = e.trajectory
+            error = (done + e.step, (done + e.step) * dt, e)
         elapsed += time.perf_counter() - start
         ts.append(part.t[1:] + done * dt)
         xs.append(part.x[1:])
@@ -79,7 +80,10 @@ def run_slew(arm: FlexibleArm, slew: np.ndarray, duration: float, dt: float, sle
     rows = len(traj.t) - 1
     u = kp * (theta_ref[:rows] - traj.theta[:rows]) + kd * (theta_dot_ref[:rows] - traj.theta_dot[:rows])
     if error is not None:
-        print(f"warning: {error}; keeping the {rows} steps computed", file=sys.stderr)
+        step, when, e = error
+        reason = str(e).split(": ", 1)[-1]
+        print(f"warning: the run stopped at step {step} (t = {when:.6g} s): {reason}; "
+              f"keeping the {rows} steps computed", file=sys.stderr)
     return traj, u, elapsed
 
 
@@ -269,6 +273,12 @@ def main(argv: Optional[List[str]] = None) -> int:
     args = parser.parse_args(argv)
     if args.command is None:
         args = parser.parse_args(["demo"] + (argv or []))
+    for name in ("duration", "dt", "slew_time", "bandwidth"):
+        value = getattr(args, name)
+        if not (np.isfinite(value) and value > 0):
+            parser.error(f"--{name.replace('_', '-')}: expected a finite number > 0, given {value}")
+    if args.dt > args.duration:
+        parser.error(f"--dt: expected at most --duration ({args.duration}), given {args.dt}")
     try:
         if args.command == "demo":
             robot = models.space_arm()

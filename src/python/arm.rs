@@ -374,8 +374,16 @@ impl PyFlexibleArm {
             vector_or(f, "ee_wrench", 6, 0.0)?,
         ))
     }
+    /// Rows of states, each validated (finite, non-zero quaternion).
     fn states(&self, x: &Bound<'_, PyAny>) -> PyResult<(usize, Vec<f64>)> {
-        matrix(x, "x", self.arm.layout().len())
+        let len = self.arm.layout().len();
+        let (rows, values) = matrix(x, "x", len)?;
+        for (k, row) in values.chunks(len).enumerate() {
+            self.arm
+                .check_state(row)
+                .map_err(|e| ModelError::new_err(format!("x[{k}]: {e}")))?;
+        }
+        Ok((rows, values))
     }
 }
 
@@ -636,7 +644,14 @@ impl PyFlexibleArm {
                     error: None,
                 };
                 let r = arm.simulate(&x0, dt, steps, &mut c, &fb, &f);
-                callable_error = c.error;
+                // KeyboardInterrupt, SystemExit and other non-Exception errors are not a
+                // controller failure: re-raise them as they are.
+                if let Some(e) = c.error {
+                    if !e.is_instance_of::<pyo3::exceptions::PyException>(py) {
+                        return Err(e);
+                    }
+                    callable_error = Some(e);
+                }
                 r
             }
             other => {
