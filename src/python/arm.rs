@@ -49,39 +49,35 @@ pub struct PyFlexibleJoints {
 }
 
 impl PyFlexibleJoints {
-    fn validate(params: [Param; 4]) -> PyResult<Self> {
-        let lengths: Vec<usize> = params.iter().filter_map(Param::len).collect();
-        let n = lengths.first().copied().unwrap_or(1);
-        let names = ["stiffness", "motor_inertia", "damping", "motor_damping"];
-        for (p, name) in params.iter().zip(names) {
-            if let Some(len) = p.len() {
-                if len != n {
-                    return Err(ModelError::new_err(format!(
-                        "{name}: expected length {n} (as the other per-joint parameters), given length {len}"
-                    )));
+    const NAMES: [&'static str; 4] = ["stiffness", "motor_inertia", "damping", "motor_damping"];
+
+    /// Checks the per-joint parameters against `n` joints (`expected` says where `n` comes from)
+    /// and builds the validated Rust parameters.
+    fn build(params: &[Param; 4], n: usize, expected: &str) -> Result<FlexibleJoints, Error> {
+        for (p, name) in params.iter().zip(Self::NAMES) {
+            match p.len() {
+                Some(len) if len != n => {
+                    return Err(Error::Dimension {
+                        what: format!("FlexibleJoints.{name}"),
+                        expected: format!("length {n} ({expected})"),
+                        given: format!("length {len}"),
+                    })
                 }
+                _ => {}
             }
         }
-        let r: Vec<Vec<f64>> = params.iter().map(|p| p.resolve(n)).collect();
-        FlexibleJoints::new(r[0].clone(), r[1].clone(), r[2].clone(), r[3].clone())?;
+        let [k, j, d, beta] = params.clone().map(|p| p.resolve(n));
+        FlexibleJoints::new(k, j, d, beta)
+    }
+
+    fn validate(params: [Param; 4]) -> PyResult<Self> {
+        let n = params.iter().find_map(Param::len).unwrap_or(1);
+        Self::build(&params, n, "as the other per-joint parameters")?;
         Ok(Self { params })
     }
 
     pub(crate) fn resolve(&self, n: usize) -> Result<FlexibleJoints, Error> {
-        let names = ["stiffness", "motor_inertia", "damping", "motor_damping"];
-        for (p, name) in self.params.iter().zip(names) {
-            if let Some(len) = p.len() {
-                if len != n {
-                    return Err(Error::Dimension {
-                        what: format!("FlexibleJoints.{name}"),
-                        expected: format!("length {n} (the robot's dof)"),
-                        given: format!("length {len}"),
-                    });
-                }
-            }
-        }
-        let r: Vec<Vec<f64>> = self.params.iter().map(|p| p.resolve(n)).collect();
-        FlexibleJoints::new(r[0].clone(), r[1].clone(), r[2].clone(), r[3].clone())
+        Self::build(&self.params, n, "the robot's dof")
     }
 
     fn from_rust(j: FlexibleJoints) -> Self {
