@@ -462,13 +462,10 @@ impl FlexibleArm {
         let n = layout.n;
         let p = &self.joints;
         let q = &x[layout.q()];
-        let theta = &x[layout.theta()];
         let twist = &x[layout.base_twist()];
         let qd = &x[layout.qd()];
         let theta_dot = &x[layout.theta_dot()];
-        for i in 0..n {
-            ws.tau[i] = p.stiffness[i] * (theta[i] - q[i]) + p.damping[i] * (theta_dot[i] - qd[i]);
-        }
+        self.spring_torque(x, &mut ws.tau);
 
         let acc: &[f64] = match self.method {
             Method::Recursive => {

@@ -61,6 +61,21 @@ pub trait Controller {
 
 impl Controller for Schedule {
     fn torque(&mut self, step: usize, _t: f64, _x: &[f64], u: &mut [f64]) -> Result<()> {
+        let fits = match self {
+            Schedule::Zero => true,
+            Schedule::Constant(v) => v.len() == u.len(),
+            Schedule::Table { values, width } => {
+                *width == u.len() && values.len() >= (step + 1) * *width
+            }
+        };
+        if !fits {
+            self.check("u", u.len(), Some(step + 1))?;
+            return Err(Error::Dimension {
+                what: "u".into(),
+                expected: format!("a row of {} torques for step {step}", u.len()),
+                given: "a shorter table".into(),
+            });
+        }
         self.write(step, u);
         Ok(())
     }
@@ -143,8 +158,16 @@ impl Controller for MotorPD {
     fn torque(&mut self, step: usize, _t: f64, x: &[f64], u: &mut [f64]) -> Result<()> {
         self.check_steps(step + 1)?;
         let n = self.n;
-        let theta = &x[7 + n..7 + 2 * n];
-        let theta_dot = &x[13 + 3 * n..13 + 4 * n];
+        let layout = crate::flex::StateLayout { n };
+        if u.len() != n || x.len() != layout.len() {
+            return Err(Error::Dimension {
+                what: "MotorPD".into(),
+                expected: format!("an arm with {n} joints (state length {})", layout.len()),
+                given: format!("{} joints (state length {})", u.len(), x.len()),
+            });
+        }
+        let theta = &x[layout.theta()];
+        let theta_dot = &x[layout.theta_dot()];
         let (reference, rest) = self.scratch.split_at_mut(n);
         let (rate, ff) = rest.split_at_mut(n);
         self.theta_ref.write(step, reference);

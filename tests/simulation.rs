@@ -419,3 +419,46 @@ fn joint_parameters_from_toml() {
         .unwrap_err();
     assert!(err.to_string().contains("stiffness"), "{err}");
 }
+
+/// A controller or input table of the wrong size is an error, not a panic or a silent misread.
+#[test]
+fn wrongly_sized_controllers_are_errors() {
+    let arm = arm(4, 9, 0.1, 0.1);
+    let x0 = arm.state(None, None, None, None, None, None).unwrap();
+    let mut small_pd = MotorPD::new(
+        vec![1.0; 3],
+        vec![1.0; 3],
+        Schedule::Constant(vec![0.1; 3]),
+        Schedule::Zero,
+        Schedule::Zero,
+    )
+    .unwrap();
+    let mut big_pd = MotorPD::new(
+        vec![1.0; 5],
+        vec![1.0; 5],
+        Schedule::Constant(vec![0.1; 5]),
+        Schedule::Zero,
+        Schedule::Zero,
+    )
+    .unwrap();
+    let mut narrow = Schedule::Constant(vec![1.0; 3]);
+    let mut short = Schedule::Table {
+        values: vec![0.0; 4 * 5],
+        width: 4,
+    };
+    for (u, what) in [
+        (&mut small_pd as &mut dyn Controller, "MotorPD"),
+        (&mut big_pd as &mut dyn Controller, "MotorPD"),
+        (&mut narrow as &mut dyn Controller, "u"),
+        (&mut short as &mut dyn Controller, "u"),
+    ] {
+        let failure = arm
+            .simulate(&x0, 1e-3, 10, u, &Schedule::Zero, &Schedule::Zero)
+            .unwrap_err();
+        let message = failure.error.to_string();
+        assert!(
+            message.contains("controller failed") && message.contains(what),
+            "{message}"
+        );
+    }
+}

@@ -27,6 +27,10 @@ class SimulationError(RuntimeError):
         self.step = step
         self.time = time
 
+    def __reduce__(self):
+        # picklable, e.g. to cross multiprocessing in a Monte-Carlo campaign
+        return (type(self), (str(self), self.trajectory, self.step, self.time))
+
 
 class FlexibleArm(_core.FlexibleArm):
     """A floating-base arm with Spong flexible joints (SPEC sections 3-5).
@@ -69,11 +73,15 @@ class FlexibleArm(_core.FlexibleArm):
         bad = np.flatnonzero(~np.isfinite(x0))
         if bad.size:
             raise _core.ModelError(f"x0: element {bad[0]} is not finite ({x0[bad[0]]})")
-        limit = self.rk4_stability_limit(x0[7 : 7 + self.dof])
+        limit, cause = self.rk4_stability_limit(x0[7 : 7 + self.dof]), "stiffest joint mode"
+        if isinstance(u, _core.MotorPD) and u.dof == self.dof:
+            pd_limit = self._pd_stability_limit(u, x0[7 : 7 + self.dof])
+            if pd_limit < limit:
+                limit, cause = pd_limit, "motor PD loop (kp stiffens, kd adds a fast pole near -kd/j)"
         if dt > limit:
             warnings.warn(
-                f"dt = {dt:g} s exceeds the RK4 stability limit {limit:.4g} s of the stiffest "
-                f"joint mode (2*sqrt(2)/omega_max); the run will likely diverge",
+                f"dt = {dt:g} s exceeds the RK4 stability limit {limit:.4g} s of the {cause}; "
+                f"the run will likely diverge",
                 RuntimeWarning,
                 stacklevel=2,
             )
@@ -83,6 +91,23 @@ class FlexibleArm(_core.FlexibleArm):
             message, step, time, cause = error
             raise SimulationError(message, traj, step, time) from cause
         return traj
+
+
+    def __reduce__(self):
+        # picklable (with its Robot and FlexibleJoints), e.g. to return trajectories from
+        # multiprocessing workers
+        return (type(self), (self.robot, self.joints, self.method))
+
+    def _pd_stability_limit(self, pd: _core.MotorPD, q: np.ndarray) -> float:
+        """RK4 step limit with the motor PD closed: joint modes stiffened by ``kp`` (SPEC 5's
+        estimate with ``k/j`` raised by ``kp/j``) and the real pole ``-(kd + beta)/j``, stable while
+        ``|lambda dt| < 2.785``."""
+        k, j, _, beta = self.parameters
+        m = np.diag(self.robot.mass_matrix(q))[6:]
+        omega = np.sqrt(k * (1 / j + 1 / m) + pd.kp / j).max()
+        fast = ((pd.kd + beta) / j).max()
+        limits = [2 * np.sqrt(2) / omega if omega > 0 else np.inf, 2.785 / fast if fast > 0 else np.inf]
+        return float(min(limits))
 
 
 class Trajectory:
@@ -101,6 +126,9 @@ class Trajectory:
 
     def __len__(self) -> int:
         return len(self.t)
+
+    def __reduce__(self):
+        return (type(self), (self.arm, self.t, self.x))
 
     def __repr__(self) -> str:
         return f"Trajectory(states={len(self)}, t_end={self.t[-1] if len(self) else 0.0:g} s, dof={self._n})"

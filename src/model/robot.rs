@@ -7,7 +7,7 @@ use crate::spatial::{rotation_about_axis, Inertia, Transform, Vec3};
 pub struct JointModel {
     /// Joint name (from the URDF, or given to the builder).
     pub name: String,
-    /// Unit axis `h_i`, in frame `i` (and in frame `i-1` at `q = 0`); `H_i = [h_i; 0]` (A.1).
+    /// Unit axis `h_i`, components in frame `i` (the child frame); `H_i = [h_i; 0]` (A.1).
     pub axis: Vec3,
     /// `Φ_{i,i-1}` at `q_i = 0`: the child frame's pose in the parent body's frame.
     pub origin: Transform,
@@ -27,7 +27,7 @@ impl JointModel {
 /// attached to link `n` (SPEC §1).
 ///
 /// Built by [`crate::RobotBuilder`] or loaded from a URDF; validated on construction (physical
-/// inertias, unit axes, a positive-definite mass matrix). Immutable afterwards.
+/// inertias, unit axes, a positive-definite mass matrix at `q = 0`). Immutable afterwards.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Robot {
     pub(crate) name: String,

@@ -15,7 +15,8 @@ use urdf_rs::JointType;
 /// Options for URDF loading.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct UrdfOptions {
-    /// The link whose frame is the EE frame; `None` picks the unique leaf link of the tree.
+    /// The link whose frame is the EE frame; `None` picks the unique leaf link of the tree, not
+    /// counting leaves behind a locked joint.
     pub ee_link: Option<String>,
     /// Joints held at zero and treated as fixed (any type), e.g. gripper fingers.
     pub locked_joints: Vec<String>,
@@ -172,6 +173,36 @@ fn load(xml: &str, source: &str, options: &UrdfOptions) -> Result<Robot> {
         }
     };
 
+    // With one root and at most one parent per link, a link the root does not reach sits in a
+    // cycle (or a separate tree); reject it before any walk along parents.
+    let mut reached: HashSet<&str> = HashSet::from([root]);
+    let mut behind_lock: HashSet<&str> = HashSet::new();
+    let mut stack = vec![root];
+    while let Some(link) = stack.pop() {
+        for joint in child_joints.get(link).map(Vec::as_slice).unwrap_or(&[]) {
+            let child = joint.child.link.as_str();
+            if reached.insert(child) {
+                if behind_lock.contains(link) || locked.contains(joint.name.as_str()) {
+                    behind_lock.insert(child);
+                }
+                stack.push(child);
+            }
+        }
+    }
+    if reached.len() != urdf.links.len() {
+        let unreached: Vec<&str> = urdf
+            .links
+            .iter()
+            .map(|l| l.name.as_str())
+            .filter(|l| !reached.contains(l))
+            .collect();
+        return Err(invalid(format!(
+            "links not connected to the root link '{root}' (a cycle of joints, or a separate \
+             tree): {}",
+            unreached.join(", ")
+        )));
+    }
+
     let ee_link: &str = match &options.ee_link {
         Some(name) => {
             if !links.contains_key(name.as_str()) {
@@ -185,20 +216,29 @@ fn load(xml: &str, source: &str, options: &UrdfOptions) -> Result<Robot> {
             name.as_str()
         }
         None => {
-            let leaves: Vec<&str> = urdf
+            // Leaves behind a locked joint (a locked gripper jaw, say) are not EE candidates,
+            // unless they are all there is.
+            let all_leaves: Vec<&str> = urdf
                 .links
                 .iter()
                 .map(|l| l.name.as_str())
                 .filter(|l| !child_joints.contains_key(l))
                 .collect();
+            let free: Vec<&str> = all_leaves
+                .iter()
+                .copied()
+                .filter(|l| !behind_lock.contains(l))
+                .collect();
+            let leaves = if free.is_empty() { all_leaves } else { free };
             match leaves.as_slice() {
                 [leaf] => leaf,
                 many => {
                     return Err(Error::Branching {
                         source_name: source.to_string(),
                         message: format!(
-                            "the tree has {} leaf links ({}), so the EE link is ambiguous; \
-                             pass ee_link to choose one",
+                            "the tree has {} candidate leaf links ({}), so the EE link is \
+                             ambiguous; pass ee_link to choose one, or lock the joints of \
+                             branches that are not the arm (locked_joints)",
                             many.len(),
                             many.join(", ")
                         ),

@@ -102,7 +102,10 @@ impl PyFlexibleJoints {
 #[pymethods]
 impl PyFlexibleJoints {
     #[new]
-    #[pyo3(signature = (stiffness, motor_inertia, damping=None, motor_damping=None))]
+    #[pyo3(
+        signature = (stiffness, motor_inertia, damping=None, motor_damping=None),
+        text_signature = "(stiffness, motor_inertia, damping=0.0, motor_damping=0.0)"
+    )]
     fn new(
         stiffness: &Bound<'_, PyAny>,
         motor_inertia: &Bound<'_, PyAny>,
@@ -217,6 +220,14 @@ impl PyFlexibleJoints {
         self.get(py, 3)
     }
 
+    /// Pickle support.
+    fn __reduce__<'py>(slf: &Bound<'py, Self>) -> PyResult<(PyObject, PyObject)> {
+        let py = slf.py();
+        let me = slf.get();
+        let args = PyTuple::new(py, (0..4).map(|k| me.get(py, k)))?;
+        Ok((slf.get_type().into_any().unbind(), args.into_any().unbind()))
+    }
+
     fn __repr__(&self) -> String {
         format!("FlexibleJoints{:?}", self.params)
     }
@@ -299,6 +310,18 @@ impl PyMotorPD {
     #[getter]
     fn dof(&self) -> usize {
         self.pd.dof()
+    }
+
+    /// Proportional gains (N·m/rad), shape (n,).
+    #[getter]
+    fn kp<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        array1(py, &self.pd.kp)
+    }
+
+    /// Derivative gains (N·m·s/rad), shape (n,).
+    #[getter]
+    fn kd<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        array1(py, &self.pd.kd)
     }
 
     fn __repr__(&self) -> String {

@@ -1,7 +1,9 @@
 //! Python bindings (feature `python`): the `orbitflex._core` extension module.
 //!
-//! Arrays cross as numpy float64, are converted once to Rust values, the work runs in Rust
-//! (without the GIL where no Python callback is involved) and results return as new arrays.
+//! Arrays cross as numpy float64, are converted once to Rust values, the work runs in Rust and
+//! results return as new arrays. Long-running calls (URDF loading, `simulate` without a Python
+//! controller, trajectory diagnostics) release the GIL; per-call dynamics keep it, as releasing
+//! it would cost more than the call.
 
 mod arm;
 mod convert;
@@ -13,7 +15,7 @@ use pyo3::exceptions::{PyFileNotFoundError, PyValueError};
 use pyo3::prelude::*;
 
 create_exception!(
-    _core,
+    orbitflex,
     ModelError,
     PyValueError,
     "An invalid model, model file or argument (a ValueError)."

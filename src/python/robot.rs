@@ -1,6 +1,7 @@
 //! `orbitflex.Robot`.
 
 use super::convert::{array1, array2, vector, vector_or};
+use super::ModelError;
 use crate::algorithms::{self, Data};
 use crate::model::{Robot, UrdfOptions};
 use numpy::{PyArray1, PyArray2};
@@ -81,6 +82,93 @@ impl PyRobot {
             xml,
             &options(ee_link, locked_joints),
         )?))
+    }
+
+    /// Rebuilds a model from :meth:`__reduce__`'s parts (for pickling).
+    #[staticmethod]
+    #[allow(clippy::type_complexity)]
+    fn _from_parts(
+        name: String,
+        source: String,
+        bodies: Vec<(String, f64, [f64; 3], [f64; 9])>,
+        joints: Vec<(String, [f64; 3], [f64; 9], [f64; 3])>,
+        ee: (String, [f64; 9], [f64; 3]),
+    ) -> PyResult<Self> {
+        use crate::spatial::{Inertia, Mat3, Transform, Vec3};
+        let transform =
+            |r: &[f64; 9], p: &[f64; 3]| Transform::new(Mat3::from_row_slice(r), Vec3::from(*p));
+        let inertia = |m: f64, c: &[f64; 3], i: &[f64; 9]| Inertia {
+            mass: m,
+            com: Vec3::from(*c),
+            rotational: Mat3::from_row_slice(i),
+        };
+        let Some(((base, m, c, i), links)) = bodies.split_first() else {
+            return Err(ModelError::new_err("Robot parts: no base body"));
+        };
+        if links.len() != joints.len() {
+            return Err(ModelError::new_err(
+                "Robot parts: one joint per link expected",
+            ));
+        }
+        let mut builder = crate::RobotBuilder::new(&name, base, inertia(*m, c, i)).source(&source);
+        for ((link, m, c, i), (joint, axis, r, p)) in links.iter().zip(&joints) {
+            builder = builder.joint(
+                joint,
+                transform(r, p),
+                Vec3::from(*axis),
+                link,
+                inertia(*m, c, i),
+            );
+        }
+        Ok(Self::wrap(
+            builder.ee(&ee.0, transform(&ee.1, &ee.2)).build()?,
+        ))
+    }
+
+    /// Pickle support: the model's parts (bodies, joints, EE frame), rebuilt and re-validated
+    /// by ``Robot._from_parts``.
+    fn __reduce__<'py>(slf: &Bound<'py, Self>) -> PyResult<(PyObject, PyObject)> {
+        let py = slf.py();
+        let robot = &slf.get().robot;
+        let rows =
+            |m: &crate::spatial::Mat3| -> [f64; 9] { std::array::from_fn(|k| m[(k / 3, k % 3)]) };
+        let vec3 = |v: &crate::spatial::Vec3| -> [f64; 3] { [v.x, v.y, v.z] };
+        let bodies: Vec<_> = robot
+            .body_names()
+            .iter()
+            .zip(robot.inertias())
+            .map(|(name, i)| (name.clone(), i.mass, vec3(&i.com), rows(&i.rotational)))
+            .collect();
+        let joints: Vec<_> = robot
+            .joints()
+            .iter()
+            .map(|j| {
+                (
+                    j.name.clone(),
+                    vec3(&j.axis),
+                    rows(&j.origin.rotation),
+                    vec3(&j.origin.translation),
+                )
+            })
+            .collect();
+        let ee = robot.ee_transform();
+        let ee = (
+            robot.ee_link().to_string(),
+            rows(&ee.rotation),
+            vec3(&ee.translation),
+        );
+        let args = (
+            robot.name().to_string(),
+            robot.source().to_string(),
+            bodies,
+            joints,
+            ee,
+        );
+        let constructor = slf.get_type().getattr("_from_parts")?;
+        Ok((
+            constructor.unbind(),
+            args.into_pyobject(py)?.into_any().unbind(),
+        ))
     }
 
     /// The built-in default model (see ``orbitflex.models.space_arm``).

@@ -79,6 +79,14 @@ def erd_case(name: str) -> Case:
             ee_link="panda_hand_tcp",
             locked_joints=["panda_finger_joint1", "panda_finger_joint2"],
         )
+    if name == "so101":
+        # The jaw branches off the chain; locked, its leaf is no EE candidate, so the default EE
+        # is the unique remaining leaf (gripper_frame_link).
+        return Case(
+            "so101",
+            path=os.path.join(root, "so_arm_description/urdf/so101.urdf"),
+            locked_joints=["gripper"],
+        )
     if name == "xarm7":
         # No ee_link: the unique leaf (link_eef) is the default.
         return Case("xarm7", path=os.path.join(root, "xarm_description/urdf/xarm7.urdf"))
@@ -102,7 +110,7 @@ LOCKED_CASES = {
 }
 
 PIN_CASE_NAMES = (
-    ["space_arm", "ur5", "panda", "xarm7"] + [f"chain{s}" for s in PIN_CHAIN_SEEDS] + list(LOCKED_CASES)
+    ["space_arm", "ur5", "panda", "xarm7", "so101"] + [f"chain{s}" for s in PIN_CHAIN_SEEDS] + list(LOCKED_CASES)
 )
 
 
