@@ -76,6 +76,11 @@ pub fn matrix(obj: &Bound<'_, PyAny>, what: &str, width: usize) -> PyResult<(usi
 /// `numpy.asarray(obj, dtype=float64)` with a clear error.
 pub fn as_float_array<'py>(obj: &Bound<'py, PyAny>, what: &str) -> PyResult<Bound<'py, PyAny>> {
     let np = obj.py().import("numpy")?;
+    if np.call_method1("iscomplexobj", (obj,))?.is_truthy()? {
+        return Err(ModelError::new_err(format!(
+            "{what}: expected real numbers, given a complex array"
+        )));
+    }
     np.call_method1("asarray", (obj, np.getattr("float64")?))
         .map_err(|e| {
             ModelError::new_err(format!(
