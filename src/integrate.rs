@@ -300,6 +300,25 @@ impl FlexibleArm {
         base_wrench: &Schedule,
         ee_wrench: &Schedule,
     ) -> std::result::Result<Trajectory, Box<SimulationFailure>> {
+        self.simulate_with_hook(x0, dt, steps, u, base_wrench, ee_wrench, 0, &mut |_| true)
+    }
+
+    /// [`simulate`](Self::simulate) that calls `hook(k)` before step `k` every `every` steps
+    /// (never if `every` is 0); a hook that returns `false` stops the run as interrupted, keeping
+    /// the states computed so far. The Python bindings use it to honour Ctrl-C while the run
+    /// holds no GIL.
+    #[allow(clippy::too_many_arguments)]
+    pub fn simulate_with_hook(
+        &self,
+        x0: &[f64],
+        dt: f64,
+        steps: usize,
+        u: &mut dyn Controller,
+        base_wrench: &Schedule,
+        ee_wrench: &Schedule,
+        every: usize,
+        hook: &mut dyn FnMut(usize) -> bool,
+    ) -> std::result::Result<Trajectory, Box<SimulationFailure>> {
         let len = self.layout().len();
         let empty = || Trajectory {
             t: Vec::new(),
@@ -351,6 +370,12 @@ impl FlexibleArm {
                 time: t,
                 message,
             };
+            if every > 0 && k > 0 && k % every == 0 && !hook(k) {
+                return Err(Box::new(SimulationFailure {
+                    error: stop("interrupted by the caller".into()),
+                    trajectory: traj,
+                }));
+            }
             let outcome = u
                 .torque(k, t, &x, &mut torque)
                 .map_err(|e| stop(format!("the controller failed: {e}")))

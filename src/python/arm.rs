@@ -365,6 +365,38 @@ impl Controller for PyCallable<'_> {
     }
 }
 
+/// Runs `simulate` without the GIL, taking it back every 4096 steps to check for signals
+/// (Ctrl-C): a pending `KeyboardInterrupt` stops the run and is raised as it is.
+#[allow(clippy::too_many_arguments)]
+fn simulate_releasing_gil(
+    py: Python<'_>,
+    arm: &FlexibleArm,
+    x0: &[f64],
+    dt: f64,
+    steps: usize,
+    u: &mut (dyn Controller + Send),
+    fb: &Schedule,
+    f: &Schedule,
+) -> PyResult<Result<crate::Trajectory, Box<crate::SimulationFailure>>> {
+    let mut signal: Option<PyErr> = None;
+    let result = py.allow_threads(|| {
+        let mut check = |_k: usize| {
+            Python::with_gil(|py| match py.check_signals() {
+                Ok(()) => true,
+                Err(e) => {
+                    signal = Some(e);
+                    false
+                }
+            })
+        };
+        arm.simulate_with_hook(x0, dt, steps, u, fb, f, 4096, &mut check)
+    });
+    match signal {
+        Some(e) => Err(e),
+        None => Ok(result),
+    }
+}
+
 /// The Rust core of ``orbitflex.FlexibleArm`` (the Python subclass adds ``simulate``).
 #[pyclass(name = "FlexibleArm", module = "orbitflex", subclass, frozen)]
 pub struct PyFlexibleArm {
@@ -654,7 +686,7 @@ impl PyFlexibleArm {
                     )));
                 }
                 pd.check_steps(steps)?;
-                py.allow_threads(|| arm.simulate(&x0, dt, steps, &mut pd, &fb, &f))
+                simulate_releasing_gil(py, arm, &x0, dt, steps, &mut pd, &fb, &f)?
             }
             Some(obj) if obj.is_callable() => {
                 let mut c = PyCallable {
@@ -676,7 +708,7 @@ impl PyFlexibleArm {
             other => {
                 let mut s = schedule(other, "u", n)?;
                 s.check("u", n, Some(steps))?;
-                py.allow_threads(|| arm.simulate(&x0, dt, steps, &mut s, &fb, &f))
+                simulate_releasing_gil(py, arm, &x0, dt, steps, &mut s, &fb, &f)?
             }
         };
         let (traj, error) = match result {

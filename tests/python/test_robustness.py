@@ -116,3 +116,29 @@ def test_models_and_trajectories_pickle():
     assert (r2.joint_names, r2.body_names, r2.ee_link) == (robot.joint_names, robot.body_names, robot.ee_link)
     arm2 = pickle.loads(pickle.dumps(arm))
     np.testing.assert_array_equal(arm2.simulate(arm2.state(), 1e-3, 5).x, arm.simulate(arm.state(), 1e-3, 5).x)
+
+
+def test_ctrl_c_stops_a_long_run_without_the_gil():
+    # A 40-joint chain, 200k steps under MotorPD (several seconds, GIL released): SIGINT after
+    # half a second must raise KeyboardInterrupt promptly instead of waiting for the run to end.
+    code = textwrap.dedent("""
+        import signal, threading, os, time, numpy as np, orbitflex
+        link = '<link name="l{0}"><inertial><origin xyz="0.2 0 0"/><mass value="1"/><inertia ixx="0.01" iyy="0.02" izz="0.02" ixy="0" ixz="0" iyz="0"/></inertial></link>'
+        parts = [link.format(i) for i in range(41)]
+        for i in range(40):
+            axis = "0 0 1" if i % 2 else "0 1 0"
+            parts.append(f'<joint name="j{i}" type="revolute"><parent link="l{i}"/><child link="l{i+1}"/><origin xyz="0.4 0 0"/><axis xyz="{axis}"/></joint>')
+        robot = orbitflex.Robot.from_urdf_string('<robot name="long">' + "".join(parts) + '</robot>')
+        arm = orbitflex.FlexibleArm(robot, orbitflex.FlexibleJoints(1e3, 0.1, 0.5, 0.1))
+        pd = orbitflex.MotorPD(1.0, 0.5, np.full(40, 0.1))
+        threading.Timer(0.5, lambda: os.kill(os.getpid(), signal.SIGINT)).start()
+        start = time.perf_counter()
+        try:
+            arm.simulate(arm.state(), 1e-4, 200_000, u=pd)
+            print("FINISHED", time.perf_counter() - start)
+        except KeyboardInterrupt:
+            print("INTERRUPTED", time.perf_counter() - start)
+    """)
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert "INTERRUPTED" in out.stdout, out.stdout + out.stderr
+    assert float(out.stdout.split()[-1]) < 3.0, out.stdout
