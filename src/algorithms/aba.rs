@@ -5,7 +5,7 @@ use super::{check_data, Data};
 use crate::error::{check_vector, Error, Result};
 use crate::model::Robot;
 use crate::operators::check_state;
-use crate::spatial::{congruence, Force, Motion, Vec6};
+use crate::spatial::{ArticulatedInertia, Force, Motion};
 use nalgebra::DVector;
 
 /// Forward dynamics `[α_B; q̈]` of (A.19) without forming `𝓜`:
@@ -45,6 +45,10 @@ pub fn aba<'a>(
 }
 
 /// The articulated-body passes after [`velocities_unchecked`]; no allocation.
+///
+/// The chain is serial, so body `i−1` receives the articulated inertia of body `i` only: the
+/// backward pass carries `I^A` and `p^A` in locals and writes them to `data.ia`/`data.f` as it
+/// goes. All spatial operations are closed-form on 3×3 blocks ([`ArticulatedInertia`]).
 pub(crate) fn aba_from_velocities(
     robot: &Robot,
     data: &mut Data,
@@ -54,45 +58,48 @@ pub(crate) fn aba_from_velocities(
 ) -> Result<()> {
     let n = robot.dof();
     let joints = robot.joints();
-    for i in 0..=n {
-        data.ia[i] = robot.inertias()[i].matrix();
-        data.f[i] = body_bias(robot, data, i);
-    }
-    let ee_load = robot.ee_transform().apply_force_transpose(ee_wrench);
-    data.f[n] += ee_load;
+    let inertias = robot.inertias();
 
+    // Tip body: M_n (A.9), b_n (A.10) and the EE load Φ_{n+1,n}ᵀ f (A.3, A.8).
+    let mut ia = ArticulatedInertia::from(&inertias[n]);
+    let mut pa = body_bias(robot, data, n) + robot.ee_transform().apply_force_transpose(ee_wrench);
     for i in (1..=n).rev() {
+        data.ia[i] = ia;
+        data.f[i] = pa;
         let h = &joints[i - 1].axis;
-        let ia = &data.ia[i];
-        // U = I^A H: the first three columns of I^A times h.
-        let u_col: Vec6 = ia.fixed_columns::<3>(0) * h;
-        let d = h.dot(&u_col.fixed_rows::<3>(0));
-        let u = tau[i - 1] - h.dot(&data.f[i].angular);
-        let reduced = ia - u_col * (u_col.transpose() / d);
-        let c = data.c[i].to_vector();
-        let pa = data.f[i].to_vector() + reduced * c + u_col * (u / d);
-        let to_parent = congruence(&data.x[i], &reduced);
-        data.ia[i - 1] += to_parent;
-        let pa = data.x[i].apply_force_transpose(&Force::from_vector(&pa));
-        data.f[i - 1] += pa;
-        data.u_col[i] = u_col;
+        // U = I^A H, D = Hᵀ U, u = τ − Hᵀ p^A
+        let u_col = ia.apply_angular(h);
+        let d = h.dot(&u_col.angular);
+        let u = tau[i - 1] - h.dot(&pa.angular);
+        // I^a = I^A − U Uᵀ/D and p^a = p^A + I^a a + U u/D = p^A + I^A a + U (u − Uᵀ a)/D
+        let c = &data.c[i];
+        let reduced = ia.minus_outer(&u_col, 1.0 / d);
+        let pa_child = pa + ia.apply(c) + u_col * ((u - c.dot(&u_col)) / d);
+        let x = &data.x[i];
+        ia = ArticulatedInertia::from(&inertias[i - 1]) + reduced.transformed_to_parent(x);
+        pa = body_bias(robot, data, i - 1) + x.apply_force_transpose(&pa_child);
+        data.u_col[i] = u_col.to_vector();
         data.d[i] = d;
         data.u[i] = u;
     }
+    data.ia[0] = ia;
+    data.f[0] = pa;
 
-    let rhs = (*base_wrench - data.f[0]).to_vector();
-    let base_acc = data.ia[0]
+    let rhs = (*base_wrench - pa).to_vector();
+    let base_acc = ia
+        .matrix()
         .cholesky()
         .ok_or_else(|| Error::InvalidArgument {
             what: "articulated base inertia".into(),
             message: "not positive definite (the model's mass matrix is singular here)".into(),
         })?;
-    let base_acc = Motion::from_vector(&base_acc.solve(&rhs));
-    data.acc[0] = base_acc;
-    base_acc.write_to(data.out.as_mut_slice());
+    let mut acc = Motion::from_vector(&base_acc.solve(&rhs));
+    data.acc[0] = acc;
+    acc.write_to(data.out.as_mut_slice());
     for i in 1..=n {
-        let mut acc = data.x[i].apply_motion(&data.acc[i - 1]) + data.c[i];
-        let qdd = (data.u[i] - data.u_col[i].dot(&acc.to_vector())) / data.d[i];
+        // (A.6) α_i = Φ α_{i−1} + a_i + H q̈_i, with q̈_i = (u − Uᵀ (Φ α_{i−1} + a_i))/D
+        acc = data.x[i].apply_motion(&acc) + data.c[i];
+        let qdd = (data.u[i] - acc.dot(&Force::from_vector(&data.u_col[i]))) / data.d[i];
         acc.angular += joints[i - 1].axis * qdd;
         data.acc[i] = acc;
         data.out[5 + i] = qdd;

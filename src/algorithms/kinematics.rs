@@ -4,7 +4,7 @@ use super::{check_data, Data};
 use crate::error::{check_vector, Result};
 use crate::model::Robot;
 use crate::operators::check_state;
-use crate::spatial::{bias_force, coriolis_acceleration, Force, Motion, Vec3};
+use crate::spatial::{bias_force, Force, Motion, Vec3};
 
 /// Fills `x[i] = Φ_{i,i-1}(q)`, `v[i] = V_i` (A.4) and `c[i] = a_i` (A.7), base to tip.
 /// `base_twist = [ω_B; v_B]` in the base frame.
@@ -34,12 +34,17 @@ pub(crate) fn velocities_unchecked(
     for (i, joint) in robot.joints().iter().enumerate() {
         let x = joint.transform(q[i]);
         let parent = data.v[i];
-        // (A.4) V_i = Φ_{i,i-1} V_{i-1} + H_i q̇_i
-        let mut v = x.apply_motion(&parent);
-        v.angular += joint.axis * qd[i];
-        // (A.7) a_i
-        data.c[i + 1] = coriolis_acceleration(&x, &parent.angular, &v.angular);
-        data.v[i + 1] = v;
+        // (A.4) V_i = Φ_{i,i-1} V_{i-1} + H_i q̇_i = [R ω_{i-1} + h q̇_i; R (v_{i-1} + ω_{i-1} × p)]
+        // and (A.7) a_i = [(R ω_{i-1}) × ω_i; R (ω_{i-1} × (ω_{i-1} × p))]
+        // (`coriolis_acceleration`), sharing R ω_{i-1} and ω_{i-1} × p.
+        let w_rotated = x.rotation * parent.angular;
+        let w_cross_p = parent.angular.cross(&x.translation);
+        let omega = w_rotated + joint.axis * qd[i];
+        data.v[i + 1] = Motion::new(omega, x.rotation * (parent.linear + w_cross_p));
+        data.c[i + 1] = Motion::new(
+            w_rotated.cross(&omega),
+            x.rotation * parent.angular.cross(&w_cross_p),
+        );
         data.x[i + 1] = x;
     }
 }

@@ -15,7 +15,7 @@ pub use kinematics::{ee_jacobian, kinetic_energy, momentum, velocities};
 pub use rnea::{bias_forces, rnea};
 
 use crate::model::Robot;
-use crate::spatial::{Force, Inertia, Mat6, Motion, Transform, Vec6};
+use crate::spatial::{ArticulatedInertia, Force, Inertia, Mat6, Motion, Transform, Vec6};
 use nalgebra::{DMatrix, DVector};
 
 /// Which implementation of the dynamics to use.
@@ -44,8 +44,8 @@ pub struct Data {
     pub acc: Vec<Motion>,
     /// Body forces `f_i` (A.8/A.12) or articulated bias forces (ABA).
     pub f: Vec<Force>,
-    /// Articulated-body inertias (ABA).
-    pub ia: Vec<Mat6>,
+    /// Articulated-body inertias `I^A_i` (ABA), in 3×3 blocks.
+    pub ia: Vec<ArticulatedInertia>,
     /// Composite-rigid-body inertias (CRBA).
     pub ic: Vec<Inertia>,
     /// ABA `U_i = I^A_i H_i`.
@@ -74,7 +74,7 @@ impl Data {
             c: vec![Motion::zero(); n + 1],
             acc: vec![Motion::zero(); n + 1],
             f: vec![Force::zero(); n + 1],
-            ia: vec![Mat6::zeros(); n + 1],
+            ia: vec![ArticulatedInertia::zero(); n + 1],
             ic: vec![Inertia::zero(); n + 1],
             u_col: vec![Vec6::zeros(); n + 1],
             d: vec![0.0; n + 1],

@@ -1,6 +1,6 @@
 //! Spatial inertia `M_i` (A.9), the bias force `b_i` (A.10) and the Coriolis term `a_i` (A.7).
 
-use super::{blocks, skew, Force, Mat3, Mat6, Motion, Transform, Vec3};
+use super::{blocks, skew, Force, Mat3, Mat6, Motion, Symmetric3, Transform, Vec3};
 
 /// The spatial inertia of one rigid body about its frame origin, in its own frame (A.9):
 ///
@@ -87,11 +87,33 @@ impl Inertia {
 
     /// This inertia, given in frame `i+1`, expressed in frame `i`, where `phi = Φ_{i+1,i}`;
     /// equal to `Φᵀ M Φ` but kept in (mass, COM, inertia) form.
+    ///
+    /// With the COM in parent axes `c_r = Rᵀ p_c` and `c' = p + c_r`, the parallel-axis theorem
+    /// moves `Rᵀ (I_i)_i R` from the child origin to the COM and on to the parent origin:
+    /// `Rᵀ (I_i)_i R + m ([c_r]×² − [c']×²)`, with `[a]×² = a aᵀ − |a|² 𝟙`.
+    #[inline]
     pub fn transformed_to_parent(&self, phi: &Transform) -> Inertia {
         let r = &phi.rotation;
-        let com = phi.translation + r.tr_mul(&self.com);
-        let about_com = r.tr_mul(&(self.inertia_about_com() * r));
-        Inertia::from_com(self.mass, com, about_com)
+        let c_r = r.tr_mul(&self.com);
+        let com = phi.translation + c_r;
+        let m = self.mass;
+        let shift = m * (com.norm_squared() - c_r.norm_squared());
+        let (mc_r, mcom) = (c_r * m, com * m);
+        let rotated = Symmetric3::from_upper(&self.rotational).rotated_by_transpose(r);
+        let rotational = Symmetric3 {
+            xx: rotated.xx + mc_r.x * c_r.x - mcom.x * com.x + shift,
+            xy: rotated.xy + mc_r.x * c_r.y - mcom.x * com.y,
+            xz: rotated.xz + mc_r.x * c_r.z - mcom.x * com.z,
+            yy: rotated.yy + mc_r.y * c_r.y - mcom.y * com.y + shift,
+            yz: rotated.yz + mc_r.y * c_r.z - mcom.y * com.z,
+            zz: rotated.zz + mc_r.z * c_r.z - mcom.z * com.z + shift,
+        }
+        .matrix();
+        Inertia {
+            mass: m,
+            com,
+            rotational,
+        }
     }
 }
 

@@ -5,14 +5,18 @@
 //! seed's `Φ_{i+1,i}` (A.5), acting on motions; its transpose acts on forces. An [`Inertia`] is the
 //! seed's `M_i` (A.9), stored as mass, centre of mass and rotational inertia about the frame origin.
 //!
+//! An [`ArticulatedInertia`] is the ABA's symmetric `I^A`, kept as 3×3 blocks.
+//!
 //! All operations are closed-form on 3-vectors and 3×3 blocks; every type also has a dense 6×6 or
 //! 6-vector form (`matrix()`, `to_vector()`) used by the operator form and by the tests that check
 //! each compact operation against its matrix.
 
+mod articulated;
 mod inertia;
 mod transform;
 mod vectors;
 
+pub use articulated::{ArticulatedInertia, Symmetric3};
 pub use inertia::{bias_force, coriolis_acceleration, Inertia};
 pub use transform::{congruence, rotation_about_axis, Transform};
 pub use vectors::{Force, Motion};

@@ -139,3 +139,70 @@ fn coriolis_term_is_derivative_of_propagated_velocity() {
     // tolerance of the central difference
     assert!((numeric.to_vector() - a.to_vector()).norm() < 1e-8);
 }
+
+/// A random symmetric positive-definite 6×6 in block form (a general articulated inertia).
+fn articulated(rng: &mut ChaCha8Rng) -> ArticulatedInertia {
+    let a = Mat6::from_fn(|_, _| rng.gen_range(-1.0..1.0));
+    ArticulatedInertia::from_matrix(&(a * a.transpose() + Mat6::identity() * 0.1))
+}
+
+#[test]
+fn articulated_inertia_operations_equal_their_matrices() {
+    let mut rng = ChaCha8Rng::seed_from_u64(10);
+    for _ in 0..50 {
+        let phi = transform(&mut rng);
+        let x = phi.matrix();
+        let ia = articulated(&mut rng);
+        let dense = ia.matrix();
+        assert_eq!(dense, dense.transpose());
+        let m = Motion::new(vec3(&mut rng), vec3(&mut rng));
+        let f = Force::new(vec3(&mut rng), vec3(&mut rng));
+        let h = vec3(&mut rng).normalize();
+
+        close6(&ia.apply(&m).to_vector(), &(dense * m.to_vector()));
+        close6(
+            &ia.apply_angular(&h).to_vector(),
+            &(dense * Motion::new(h, Vec3::zeros()).to_vector()),
+        );
+        close66(
+            &ia.minus_outer(&f, 0.7).matrix(),
+            &(dense - f.to_vector() * f.to_vector().transpose() * 0.7),
+        );
+        close66(
+            &ia.transformed_to_parent(&phi).matrix(),
+            &(x.transpose() * dense * x),
+        );
+        close66(
+            &ia.transformed_to_parent(&phi).matrix(),
+            &congruence(&phi, &dense),
+        );
+        let other = articulated(&mut rng);
+        close66(&(ia + other).matrix(), &(dense + other.matrix()));
+
+        let rigid = inertia(&mut rng);
+        close66(&ArticulatedInertia::from(&rigid).matrix(), &rigid.matrix());
+
+        let r = phi.rotation;
+        let s = ia.angular;
+        let rotated = s.rotated_by_transpose(&r).matrix();
+        assert!(
+            (rotated - r.transpose() * s.matrix() * r).norm() <= 1e-12 * (1.0 + rotated.norm())
+        );
+        assert!((s.mul_vec(&h) - s.matrix() * h).norm() <= 1e-12);
+    }
+}
+
+#[test]
+fn rotation_about_axis_is_rodrigues() {
+    let mut rng = ChaCha8Rng::seed_from_u64(11);
+    for _ in 0..50 {
+        let h = vec3(&mut rng).normalize();
+        let angle: f64 = rng.gen_range(-4.0..4.0);
+        let k = skew(&h);
+        let expected = Mat3::identity() + k * angle.sin() + k * k * (1.0 - angle.cos());
+        let r = rotation_about_axis(&h, angle);
+        assert!((r - expected).norm() < 1e-14);
+        assert!((r * r.transpose() - Mat3::identity()).norm() < 1e-14);
+        assert!((r * h - h).norm() < 1e-14);
+    }
+}

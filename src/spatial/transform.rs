@@ -135,11 +135,27 @@ pub fn congruence(phi: &Transform, x: &Mat6) -> Mat6 {
 
 /// Rotation matrix `exp([h]× θ)` for a unit axis `h` (Rodrigues' formula): the matrix whose
 /// columns are the rotated frame's axes, i.e. it maps rotated-frame components to fixed-frame ones.
+///
+/// Written out as `cos θ 𝟙 + sin θ [h]× + (1 − cos θ) h hᵀ`, which equals
+/// `𝟙 + sin θ [h]× + (1 − cos θ) [h]×²` because `[h]×² = h hᵀ − 𝟙` for `|h| = 1`.
 #[inline]
 pub fn rotation_about_axis(axis: &Vec3, angle: f64) -> Mat3 {
     let (s, c) = angle.sin_cos();
-    let k = skew(axis);
-    Mat3::identity() + k * s + k * k * (1.0 - c)
+    let t = 1.0 - c;
+    let (x, y, z) = (axis.x, axis.y, axis.z);
+    let (tx, ty, tz) = (t * x, t * y, t * z);
+    let (sx, sy, sz) = (s * x, s * y, s * z);
+    Mat3::new(
+        c + tx * x,
+        tx * y - sz,
+        tx * z + sy,
+        tx * y + sz,
+        c + ty * y,
+        ty * z - sx,
+        tx * z - sy,
+        ty * z + sx,
+        c + tz * z,
+    )
 }
 
 impl Transform {

@@ -1,0 +1,197 @@
+//! orbitflex's side of the Rust-vs-C++ comparison with Pinocchio (BENCHMARKS.md): the same URDF,
+//! the same inputs and the same timing loop as `benches/pinocchio_cpp/bench_aba.cpp`.
+//!
+//! ```text
+//! cargo run --release --example bench_cpp_match -- <urdf> <ee_link or -> [locked joint ...]
+//!     [--only NAME[,NAME...]] [--blocks N]
+//! ```
+//! Prints `<name> <median ns per call>` for `aba`, `rnea`, `crba`, `rk4_step` (one flexible-joint
+//! RK4 step, four forward dynamics) and `simulate_1e4` (10⁴ steps under MotorPD, trajectory
+//! included: the pure-Rust figure that `benches/compare_pinocchio.py` sets against `simulate`
+//! from Python). Medians are over blocks of calls, after a warm-up.
+
+use orbitflex::algorithms::{self, Data};
+use orbitflex::{ArmWorkspace, FlexibleArm, FlexibleJoints, MotorPD, Robot, Schedule, UrdfOptions};
+use std::hint::black_box;
+use std::time::Instant;
+
+/// Median over `blocks` blocks of the mean time per call (ns) of `iters` calls of `f`.
+fn median_ns(mut f: impl FnMut(), iters: usize, blocks: usize) -> f64 {
+    for _ in 0..iters / 10 + 1 {
+        f();
+    }
+    let mut times: Vec<f64> = (0..blocks)
+        .map(|_| {
+            let start = Instant::now();
+            for _ in 0..iters {
+                f();
+            }
+            start.elapsed().as_secs_f64() * 1e9 / iters as f64
+        })
+        .collect();
+    times.sort_by(f64::total_cmp);
+    times[times.len() / 2]
+}
+
+fn scientific(values: &[f64]) -> String {
+    values
+        .iter()
+        .map(|v| format!("{v:.15e}"))
+        .collect::<Vec<_>>()
+        .join(" ")
+}
+
+fn main() {
+    let mut args: Vec<String> = std::env::args().skip(1).collect();
+    let mut take_flag = |flag: &str| -> Option<String> {
+        let i = args.iter().position(|a| a == flag)?;
+        let value = args.get(i + 1).cloned();
+        args.drain(i..(i + 2).min(args.len()));
+        value
+    };
+    let only: Option<Vec<String>> =
+        take_flag("--only").map(|s| s.split(',').map(str::to_string).collect());
+    let blocks: usize = take_flag("--blocks").map_or(15, |s| s.parse().expect("--blocks N"));
+    if args.len() < 2 {
+        eprintln!("usage: bench_cpp_match <urdf> <ee_link or -> [locked joint ...] [--only NAMES] [--blocks N]");
+        std::process::exit(2);
+    }
+    let options = UrdfOptions {
+        ee_link: (args[1] != "-").then(|| args[1].clone()),
+        locked_joints: args[2..].to_vec(),
+    };
+    let robot = Robot::from_urdf(&args[0], &options).expect("a valid URDF");
+    let n = robot.dof();
+    let wanted = |name: &str| only.as_ref().map_or(true, |o| o.iter().any(|w| w == name));
+
+    // The inputs of bench_aba.cpp: q_i = 0.3 sin(i+1), q̇_i = 0.2 cos(i+1), τ_i = 1 + 0.1 i,
+    // Pinocchio's base velocity [v; ω] = [0.01, -0.02, 0.03; 0.05, -0.04, 0.03] as [ω; v].
+    let q: Vec<f64> = (0..n).map(|i| 0.3 * (i as f64 + 1.0).sin()).collect();
+    let qd: Vec<f64> = (0..n).map(|i| 0.2 * (i as f64 + 1.0).cos()).collect();
+    let tau: Vec<f64> = (0..n).map(|i| 1.0 + 0.1 * i as f64).collect();
+    let twist = [0.05, -0.04, 0.03, 0.01, -0.02, 0.03];
+    let (acc, qdd) = ([0.1; 6], vec![0.1; n]);
+    let zero6 = [0.0; 6];
+    println!("model {} n {}", args[0], n);
+
+    let mut data = Data::new(&robot);
+    // The joint accelerations and one RK4 step's (q, θ) for run.sh's agreement check.
+    let check = algorithms::aba(&robot, &mut data, &q, &twist, &qd, &tau, &zero6, &zero6).unwrap();
+    println!("check_qdd {}", scientific(&check.as_slice()[6..]));
+    if wanted("aba") {
+        let t = median_ns(
+            || {
+                black_box(
+                    algorithms::aba(
+                        &robot,
+                        &mut data,
+                        black_box(&q),
+                        &twist,
+                        &qd,
+                        &tau,
+                        &zero6,
+                        &zero6,
+                    )
+                    .unwrap()[0],
+                );
+            },
+            20_000,
+            blocks,
+        );
+        println!("aba {t:.1}");
+    }
+    if wanted("rnea") {
+        let t = median_ns(
+            || {
+                black_box(
+                    algorithms::rnea(
+                        &robot,
+                        &mut data,
+                        black_box(&q),
+                        &twist,
+                        &qd,
+                        &acc,
+                        &qdd,
+                        &zero6,
+                    )
+                    .unwrap()[0],
+                );
+            },
+            20_000,
+            blocks,
+        );
+        println!("rnea {t:.1}");
+    }
+    if wanted("crba") {
+        let t = median_ns(
+            || {
+                black_box(algorithms::crba(&robot, &mut data, black_box(&q)).unwrap()[(0, 0)]);
+            },
+            20_000,
+            blocks,
+        );
+        println!("crba {t:.1}");
+    }
+
+    // bench_aba.cpp's FlexArm: k = 2·10⁴, d = 2, j = 160² · 4·10⁻⁵, β = 1; u = 1; dt = 1 ms.
+    let joints = FlexibleJoints::from_gear(
+        vec![2e4; n],
+        &vec![160.0; n],
+        &vec![4e-5; n],
+        vec![2.0; n],
+        vec![1.0; n],
+    )
+    .unwrap();
+    let arm = FlexibleArm::new(robot, joints).unwrap();
+    if wanted("rk4_step") {
+        let x0 = arm
+            .state(Some(&q), Some(&q), Some(&qd), None, None, Some(&twist))
+            .unwrap();
+        let mut ws = ArmWorkspace::new(&arm);
+        let mut x = x0.clone();
+        let u = vec![1.0; n];
+        arm.step(&mut ws, &mut x, 1e-3, &u, &zero6, &zero6).unwrap();
+        println!("check_step {}", scientific(&x[7..7 + 2 * n]));
+        let t = median_ns(
+            || {
+                x.copy_from_slice(&x0);
+                arm.step(&mut ws, black_box(&mut x), 1e-3, &u, &zero6, &zero6)
+                    .unwrap();
+                black_box(x[0]);
+            },
+            5_000,
+            blocks,
+        );
+        println!("rk4_step {t:.1}");
+    }
+    if wanted("simulate_1e4") {
+        // compare_pinocchio.py's run: at rest, MotorPD kp = 2000, kd = 800 to θ_ref = 0.2.
+        let x0 = arm.state(None, None, None, None, None, None).unwrap();
+        let t = median_ns(
+            || {
+                let mut pd = MotorPD::new(
+                    vec![2000.0; n],
+                    vec![800.0; n],
+                    Schedule::Constant(vec![0.2; n]),
+                    Schedule::Zero,
+                    Schedule::Zero,
+                )
+                .unwrap();
+                let traj = arm
+                    .simulate(
+                        black_box(&x0),
+                        1e-3,
+                        10_000,
+                        &mut pd,
+                        &Schedule::Zero,
+                        &Schedule::Zero,
+                    )
+                    .unwrap();
+                black_box(traj.len());
+            },
+            1,
+            blocks,
+        );
+        println!("simulate_1e4 {t:.1}");
+    }
+}

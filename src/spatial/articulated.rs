@@ -1,0 +1,276 @@
+//! The articulated-body inertia of the ABA: a symmetric 6×6 kept as 3×3 blocks, with the
+//! operations the recursion needs in closed form.
+
+use super::{skew, Force, Inertia, Mat3, Mat6, Motion, Transform, Vec3};
+use std::ops::{Add, AddAssign};
+
+/// A symmetric 3×3 matrix, stored as its upper triangle (six numbers).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Symmetric3 {
+    pub xx: f64,
+    pub xy: f64,
+    pub xz: f64,
+    pub yy: f64,
+    pub yz: f64,
+    pub zz: f64,
+}
+
+impl Symmetric3 {
+    /// The zero matrix.
+    #[inline]
+    pub fn zero() -> Self {
+        Self::default()
+    }
+
+    /// `s 𝟙`.
+    #[inline]
+    pub fn scaled_identity(s: f64) -> Self {
+        Self {
+            xx: s,
+            yy: s,
+            zz: s,
+            ..Self::default()
+        }
+    }
+
+    /// The upper triangle of `m` (`m` is taken to be symmetric).
+    #[inline]
+    pub fn from_upper(m: &Mat3) -> Self {
+        Self {
+            xx: m[(0, 0)],
+            xy: m[(0, 1)],
+            xz: m[(0, 2)],
+            yy: m[(1, 1)],
+            yz: m[(1, 2)],
+            zz: m[(2, 2)],
+        }
+    }
+
+    /// Dense form.
+    pub fn matrix(&self) -> Mat3 {
+        Mat3::new(
+            self.xx, self.xy, self.xz, self.xy, self.yy, self.yz, self.xz, self.yz, self.zz,
+        )
+    }
+
+    /// `S v`.
+    #[inline]
+    pub fn mul_vec(&self, v: &Vec3) -> Vec3 {
+        Vec3::new(
+            self.xx * v.x + self.xy * v.y + self.xz * v.z,
+            self.xy * v.x + self.yy * v.y + self.yz * v.z,
+            self.xz * v.x + self.yz * v.y + self.zz * v.z,
+        )
+    }
+
+    /// `S − s a aᵀ`.
+    #[inline]
+    pub fn minus_outer(&self, a: &Vec3, s: f64) -> Self {
+        let sa = a * s;
+        Self {
+            xx: self.xx - sa.x * a.x,
+            xy: self.xy - sa.x * a.y,
+            xz: self.xz - sa.x * a.z,
+            yy: self.yy - sa.y * a.y,
+            yz: self.yz - sa.y * a.z,
+            zz: self.zz - sa.z * a.z,
+        }
+    }
+
+    /// `Rᵀ S R`: entry `(i, j)` is `r_i · (S r_j)` for the columns `r_i` of `R`.
+    #[inline]
+    pub fn rotated_by_transpose(&self, r: &Mat3) -> Self {
+        let (r0, r1, r2) = columns(r);
+        let (s0, s1, s2) = (self.mul_vec(&r0), self.mul_vec(&r1), self.mul_vec(&r2));
+        Self {
+            xx: r0.dot(&s0),
+            xy: r0.dot(&s1),
+            xz: r0.dot(&s2),
+            yy: r1.dot(&s1),
+            yz: r1.dot(&s2),
+            zz: r2.dot(&s2),
+        }
+    }
+}
+
+impl Add for Symmetric3 {
+    type Output = Self;
+    #[inline]
+    fn add(self, o: Self) -> Self {
+        Self {
+            xx: self.xx + o.xx,
+            xy: self.xy + o.xy,
+            xz: self.xz + o.xz,
+            yy: self.yy + o.yy,
+            yz: self.yz + o.yz,
+            zz: self.zz + o.zz,
+        }
+    }
+}
+
+impl AddAssign for Symmetric3 {
+    #[inline]
+    fn add_assign(&mut self, o: Self) {
+        *self = *self + o;
+    }
+}
+
+#[inline]
+fn columns(m: &Mat3) -> (Vec3, Vec3, Vec3) {
+    (
+        m.column(0).into_owned(),
+        m.column(1).into_owned(),
+        m.column(2).into_owned(),
+    )
+}
+
+/// An articulated-body inertia `I^A` (Featherstone's ABA, in the seed's `[ω; v]` ordering):
+///
+/// ```text
+/// I^A = [ angular     coupling ]
+///       [ couplingᵀ   linear   ]
+/// ```
+/// with symmetric `angular` and `linear` blocks. A rigid body's `M_i` (A.9) is the special case
+/// `angular = (I_i)_i`, `coupling = m [p_c]×`, `linear = m 𝟙`; the ABA's rank-one reductions
+/// make the blocks general.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct ArticulatedInertia {
+    pub angular: Symmetric3,
+    pub coupling: Mat3,
+    pub linear: Symmetric3,
+}
+
+impl From<&Inertia> for ArticulatedInertia {
+    /// `M_i` (A.9) in block form.
+    #[inline]
+    fn from(inertia: &Inertia) -> Self {
+        Self {
+            angular: Symmetric3::from_upper(&inertia.rotational),
+            coupling: skew(&(inertia.com * inertia.mass)),
+            linear: Symmetric3::scaled_identity(inertia.mass),
+        }
+    }
+}
+
+impl ArticulatedInertia {
+    /// The zero inertia.
+    #[inline]
+    pub fn zero() -> Self {
+        Self::default()
+    }
+
+    /// From a dense symmetric 6×6 (its upper triangle is used).
+    pub fn from_matrix(m: &Mat6) -> Self {
+        Self {
+            angular: Symmetric3::from_upper(&m.fixed_view::<3, 3>(0, 0).into_owned()),
+            coupling: m.fixed_view::<3, 3>(0, 3).into_owned(),
+            linear: Symmetric3::from_upper(&m.fixed_view::<3, 3>(3, 3).into_owned()),
+        }
+    }
+
+    /// Dense 6×6 form.
+    pub fn matrix(&self) -> Mat6 {
+        super::blocks(
+            &self.angular.matrix(),
+            &self.coupling,
+            &self.coupling.transpose(),
+            &self.linear.matrix(),
+        )
+    }
+
+    /// `I^A V = [A ω + B v; Bᵀ ω + C v]`.
+    #[inline]
+    pub fn apply(&self, m: &Motion) -> Force {
+        Force::new(
+            self.angular.mul_vec(&m.angular) + self.coupling * m.linear,
+            self.coupling.tr_mul(&m.angular) + self.linear.mul_vec(&m.linear),
+        )
+    }
+
+    /// `I^A [h; 0] = [A h; Bᵀ h]`: the ABA's `U = I^A H` for a revolute axis `h`.
+    #[inline]
+    pub fn apply_angular(&self, h: &Vec3) -> Force {
+        Force::new(self.angular.mul_vec(h), self.coupling.tr_mul(h))
+    }
+
+    /// `I^A − s U Uᵀ` for a force-like 6-vector `U` (the ABA's `I^a = I^A − U Uᵀ / D`).
+    #[inline]
+    pub fn minus_outer(&self, u: &Force, s: f64) -> Self {
+        Self {
+            angular: self.angular.minus_outer(&u.angular, s),
+            coupling: self.coupling - (u.angular * s) * u.linear.transpose(),
+            linear: self.linear.minus_outer(&u.linear, s),
+        }
+    }
+
+    /// `Φᵀ I^A Φ` with `phi = Φ_{i+1,i}`: this inertia, given in frame `i+1`, expressed in frame
+    /// `i` (the dense form is [`super::congruence`]).
+    ///
+    /// With `A' = Rᵀ A R`, `B' = Rᵀ B R`, `C' = Rᵀ C R`, `P = [p]×` and `N = B' + ½ P C'`:
+    /// `Φᵀ I^A Φ = [[A' − (N P + (N P)ᵀ), B' + P C'], [(B' + P C')ᵀ, C']]`, since
+    /// `N P + (N P)ᵀ = B' P + (B' P)ᵀ + P C' P` (`P C' P` is symmetric). Row `k` of `N P` is
+    /// `n_k × p` for the rows `n_k` of `N`, and column `k` of `P C'` is `p × c_k`.
+    #[inline]
+    pub fn transformed_to_parent(&self, phi: &Transform) -> Self {
+        let r = &phi.rotation;
+        let p = &phi.translation;
+        let a = self.angular.rotated_by_transpose(r);
+        let c = self.linear.rotated_by_transpose(r);
+        // B' = Rᵀ B R: entry (i, j) is r_i · (B r_j).
+        let (r0, r1, r2) = columns(r);
+        let (b0, b1, b2) = (self.coupling * r0, self.coupling * r1, self.coupling * r2);
+        let b = Mat3::new(
+            r0.dot(&b0),
+            r0.dot(&b1),
+            r0.dot(&b2),
+            r1.dot(&b0),
+            r1.dot(&b1),
+            r1.dot(&b2),
+            r2.dot(&b0),
+            r2.dot(&b1),
+            r2.dot(&b2),
+        );
+        let pc = Mat3::from_columns(&[
+            p.cross(&Vec3::new(c.xx, c.xy, c.xz)),
+            p.cross(&Vec3::new(c.xy, c.yy, c.yz)),
+            p.cross(&Vec3::new(c.xz, c.yz, c.zz)),
+        ]);
+        let coupling = b + pc;
+        let half = b + pc * 0.5;
+        let np0 = half.row(0).transpose().cross(p);
+        let np1 = half.row(1).transpose().cross(p);
+        let np2 = half.row(2).transpose().cross(p);
+        let angular = Symmetric3 {
+            xx: a.xx - 2.0 * np0.x,
+            xy: a.xy - (np0.y + np1.x),
+            xz: a.xz - (np0.z + np2.x),
+            yy: a.yy - 2.0 * np1.y,
+            yz: a.yz - (np1.z + np2.y),
+            zz: a.zz - 2.0 * np2.z,
+        };
+        Self {
+            angular,
+            coupling,
+            linear: c,
+        }
+    }
+}
+
+impl Add for ArticulatedInertia {
+    type Output = Self;
+    #[inline]
+    fn add(self, o: Self) -> Self {
+        Self {
+            angular: self.angular + o.angular,
+            coupling: self.coupling + o.coupling,
+            linear: self.linear + o.linear,
+        }
+    }
+}
+
+impl AddAssign for ArticulatedInertia {
+    #[inline]
+    fn add_assign(&mut self, o: Self) {
+        *self = *self + o;
+    }
+}
