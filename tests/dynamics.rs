@@ -257,3 +257,48 @@ fn workspace_for_another_robot_is_rejected() {
     let err = algorithms::crba(&robot, &mut data, &[0.0; 3]).unwrap_err();
     assert!(err.to_string().contains("3 joints"), "{err}");
 }
+
+/// Regression (review): a model whose mass matrix is regular at q = 0 but singular elsewhere gave
+/// q̈ ~ 1e31 without an error. Link 1 is massless about z; link 2 is a point mass at (0, 1, 0)
+/// turning about x, so at q₂ = π/2 it sits on the z axis and joint 1 moves no inertia.
+#[test]
+fn configuration_dependent_singularity_is_an_error() {
+    use orbitflex::spatial::{Inertia, Mat3, Transform, Vec3};
+    let base = Inertia::from_com(50.0, Vec3::zeros(), Mat3::identity() * 5.0);
+    let point = Inertia::from_com(1.0, Vec3::new(0.0, 1.0, 0.0), Mat3::zeros());
+    let robot = orbitflex::RobotBuilder::new("singular", "base", base)
+        .joint(
+            "j1",
+            Transform::identity(),
+            Vec3::z(),
+            "l1",
+            Inertia::zero(),
+        )
+        .joint("j2", Transform::identity(), Vec3::x(), "l2", point)
+        .build()
+        .unwrap();
+    let ok = robot.forward_dynamics(
+        &[0.0, 0.0],
+        &[0.0; 6],
+        &[0.0; 2],
+        &[1.0, 1.0],
+        None,
+        None,
+        Method::Recursive,
+    );
+    assert!(ok.is_ok());
+    let q = [0.0, std::f64::consts::FRAC_PI_2];
+    let err = robot
+        .forward_dynamics(
+            &q,
+            &[0.0; 6],
+            &[0.0; 2],
+            &[1.0, 1.0],
+            None,
+            None,
+            Method::Recursive,
+        )
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("singular") && err.contains("'j1'"), "{err}");
+}

@@ -70,6 +70,19 @@ pub(crate) fn aba_from_velocities(
         // U = I^A H, D = Hᵀ U, u = τ − Hᵀ p^A
         let u_col = ia.apply_angular(h);
         let d = h.dot(&u_col.angular);
+        // D_i > 0 for every physical model; a pivot at round-off level means the links beyond
+        // joint i have no inertia about its axis here, and q̈ would be garbage (~1/ε).
+        let scale = ia.angular.xx + ia.angular.yy + ia.angular.zz;
+        if d.is_nan() || d <= 1e-12 * scale {
+            return Err(Error::InvalidArgument {
+                what: "mass matrix".into(),
+                message: format!(
+                    "singular at this configuration: the links moved by joint '{}' have no \
+                     inertia about its axis (articulated pivot D = {d:e})",
+                    joints[i - 1].name
+                ),
+            });
+        }
         let u = tau[i - 1] - h.dot(&pa.angular);
         // I^a = I^A − U Uᵀ/D and p^a = p^A + I^a a + U u/D = p^A + I^A a + U (u − Uᵀ a)/D
         let c = &data.c[i];
