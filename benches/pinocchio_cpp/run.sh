@@ -100,6 +100,14 @@ for line in open(log):
         except ValueError:
             pass
 med = {k: statistics.median(v) for k, v in times.items()}
+
+
+def ratio(model, ours, theirs):
+    """Median over rounds of the ratio within each round (the two ran back to back)."""
+    a, b = times.get((model, "rust", ours), []), times.get((model, "cpp", theirs), [])
+    return statistics.median(x / y for x, y in zip(a, b)) if a and b else None
+
+
 for model in ("panda", "space_arm"):
     for name in ("check_qdd", "check_step"):
         a, b = checks.get((model, "rust", name)), checks.get((model, "cpp", name))
@@ -109,6 +117,7 @@ for model in ("panda", "space_arm"):
             print(f"agreement {model} {name[6:]}: max rel diff {err:.1e} ({status})", file=sys.stderr)
 print(f"\nRust vs Pinocchio C++ (g++ -O3 -DNDEBUG; cargo --release), {cpu}, "
       f"median of {len(next(iter(times.values())))} rounds\n")
+print("Times are medians over rounds; the ratio is the median of the per-round ratios.\n")
 print("| model | algorithm | orbitflex (µs) | Pinocchio (µs) | ratio |")
 print("|---|---|---:|---:|---:|")
 pairs = [("aba", "aba_local", "forward dynamics: `aba` vs `aba` (LOCAL)"),
@@ -120,13 +129,12 @@ for model in ("panda", "space_arm"):
     for ours, theirs, label in pairs:
         a, b = med.get((model, "rust", ours)), med.get((model, "cpp", theirs))
         if a and b:
-            print(f"| {model} | {label} | {a / 1e3:.2f} | {b / 1e3:.2f} | {a / b:.2f} |")
+            print(f"| {model} | {label} | {a / 1e3:.2f} | {b / 1e3:.2f} | {ratio(model, ours, theirs):.2f} |")
 for model in ("panda", "space_arm"):
-    a, s = med.get((model, "rust", "aba")), med.get((model, "rust", "rk4_step"))
-    if a and s:
-        print(f"\n{model}: orbitflex RK4 step / aba = {s / a:.2f}", end="")
-    a, s = med.get((model, "cpp", "aba_local")), med.get((model, "cpp", "rk4_step"))
-    if a and s:
-        print(f" (Pinocchio: {s / a:.2f})", end="")
+    per_round = lambda side, fd: statistics.median(
+        s / a for s, a in zip(times[(model, side, "rk4_step")], times[(model, side, fd)]))
+    if (model, "rust", "rk4_step") in times and (model, "cpp", "rk4_step") in times:
+        print(f"\n{model}: RK4 step / forward dynamics = {per_round('rust', 'aba'):.2f} for orbitflex, "
+              f"{per_round('cpp', 'aba_local'):.2f} for Pinocchio", end="")
 print()
 EOF
