@@ -2,16 +2,19 @@
 
 use super::ModelError;
 use crate::error::check_finite;
-use numpy::{PyArray1, PyArray2, PyReadonlyArray1, PyReadonlyArray2, PyUntypedArrayMethods};
+use numpy::{PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 
 /// Any 1-D float array-like (numpy array, list, tuple) as a `Vec<f64>` of `expected` length
 /// (`None`: any length), all finite.
 pub fn vector(obj: &Bound<'_, PyAny>, what: &str, expected: Option<usize>) -> PyResult<Vec<f64>> {
-    let values = if let Ok(a) = obj.extract::<PyReadonlyArray1<f64>>() {
-        match a.as_slice() {
+    let values = if let Ok(a) = obj.downcast::<PyArray1<f64>>() {
+        // SAFETY: the values are copied out at once while this thread holds the GIL, so no
+        // Python code can mutate the array meanwhile; this skips rust-numpy's borrow tracking,
+        // which is most of the per-call cost of a small array.
+        match unsafe { a.as_slice() } {
             Ok(s) => s.to_vec(),
-            Err(_) => a.as_array().to_vec(),
+            Err(_) => a.readonly().as_array().to_vec(), // strided: the checked, slower view
         }
     } else {
         let a = as_float_array(obj, what)?;
