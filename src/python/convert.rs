@@ -2,7 +2,9 @@
 
 use super::ModelError;
 use crate::error::check_finite;
-use numpy::{PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2, PyUntypedArrayMethods};
+use numpy::{
+    PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2, PyUntypedArrayMethods,
+};
 use pyo3::prelude::*;
 
 /// Any 1-D float array-like (numpy array, list, tuple) as a `Vec<f64>` of `expected` length
