@@ -6,7 +6,8 @@
 #   QUICK=1 bash benches/run_all.sh      # shorter criterion runs, fewer rounds (about 10 minutes)
 #   INSTALL=1 bash benches/run_all.sh    # first rebuild and install the wheel from this tree
 #
-# Steps: (1) criterion, `cargo bench --bench dynamics`; (2) Rust vs Pinocchio's C++,
+# Steps: (1) criterion, `cargo bench --bench dynamics`, and the ratio targets measured interleaved,
+# `cargo run --release --example bench_ratios`; (2) Rust vs Pinocchio's C++,
 # benches/pinocchio_cpp/run.sh; (3) Python vs Pinocchio's bindings, benches/compare_pinocchio.py
 # (uses the installed `orbitflex`); (4) the target-cpu check, benches/target_cpu.sh.
 # Needs: cargo, g++, python3 with orbitflex, pin, example-robot-data and numpy; Eigen 3 and urdfdom
@@ -40,6 +41,8 @@ fi
 echo "== (1) criterion: cargo bench --bench dynamics ${crit[*]}" >&2
 cargo bench --bench dynamics "${crit[@]}" >"$res/criterion.log" 2>&1
 python3 benches/criterion_table.py "$CARGO_TARGET_DIR/criterion" >"$res/criterion.md"
+echo "== (1b) interleaved ratios: cargo run --release --example bench_ratios" >&2
+{ echo; cargo run --quiet --release --example bench_ratios; } >>"$res/criterion.md"
 
 echo "== (2) Rust vs Pinocchio C++: benches/pinocchio_cpp/run.sh $rounds" >&2
 bash benches/pinocchio_cpp/run.sh "$rounds" >"$res/cpp.md"

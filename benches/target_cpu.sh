@@ -31,7 +31,7 @@ for round in $(seq 1 "$rounds"); do
   order=$(for i in $(seq 0 2); do k=$(( (i + round) % 3 + 1 )); eval echo \$$k; done)
   for cpu in $order; do
     "$out/$cpu/release/examples/bench_cpp_match" "$urdf" - --only aba,rnea,crba,rk4_step --blocks 9 |
-      sed "s/^/$cpu /" >>"$log"
+      sed "s/^/$round $cpu /" >>"$log"
   done
   echo "round $round/$rounds done" >&2
 done
@@ -40,24 +40,26 @@ python3 - "$log" "$(lscpu | sed -n 's/^Model name: *//p')" "$rounds" <<'EOF'
 import statistics, sys
 from collections import defaultdict
 log, cpu_name, rounds = sys.argv[1], sys.argv[2], sys.argv[3]
-t = defaultdict(list)
+t = defaultdict(dict)  # (cpu, name) -> {round: ns}
 for line in open(log):
     parts = line.split()
-    if len(parts) == 3:
+    if len(parts) == 4:
         try:
-            t[(parts[0], parts[1])].append(float(parts[2]))
+            t[(parts[1], parts[2])][parts[0]] = float(parts[3])
         except ValueError:
             pass
 cpus = ["x86-64", "x86-64-v3", "native"]
 print(f"\norbitflex on the space arm by -C target-cpu ({cpu_name}; median of {rounds} rounds, µs; "
-      "ratio to the x86-64 baseline)\n")
+      "in brackets the median of the per-round ratios to the x86-64 baseline)\n")
 print("| call | " + " | ".join(cpus) + " |")
 print("|---|" + "---:|" * len(cpus))
 for name in ("aba", "rnea", "crba", "rk4_step"):
-    base = statistics.median(t[("x86-64", name)])
+    base = t[("x86-64", name)]
     cells = []
     for cpu in cpus:
-        m = statistics.median(t[(cpu, name)])
-        cells.append(f"{m / 1e3:.2f}" + ("" if cpu == "x86-64" else f" ({m / base:.2f})"))
+        cur = t[(cpu, name)]
+        m = statistics.median(cur.values())
+        r = statistics.median(cur[k] / base[k] for k in cur if k in base)
+        cells.append(f"{m / 1e3:.2f}" + ("" if cpu == "x86-64" else f" ({r:.2f})"))
     print(f"| {name} | " + " | ".join(cells) + " |")
 EOF
