@@ -25,6 +25,13 @@ impl Param {
         }
         Ok(Param::PerJoint(vector(obj, what, None)?))
     }
+    /// An optional parameter: absent or None means 0 for every joint (SPEC §8 defaults).
+    fn optional(obj: Option<&Bound<'_, PyAny>>, what: &str) -> PyResult<Self> {
+        match obj {
+            Some(o) if !o.is_none() => Self::parse(o, what),
+            _ => Ok(Param::Scalar(0.0)),
+        }
+    }
     fn resolve(&self, n: usize) -> Vec<f64> {
         match self {
             Param::Scalar(v) => vec![*v; n],
@@ -112,15 +119,11 @@ impl PyFlexibleJoints {
         damping: Option<&Bound<'_, PyAny>>,
         motor_damping: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Self> {
-        let opt = |o: Option<&Bound<'_, PyAny>>, what: &str| match o {
-            Some(o) if !o.is_none() => Param::parse(o, what),
-            _ => Ok(Param::Scalar(0.0)),
-        };
         Self::validate([
             Param::parse(stiffness, "stiffness")?,
             Param::parse(motor_inertia, "motor_inertia")?,
-            opt(damping, "damping")?,
-            opt(motor_damping, "motor_damping")?,
+            Param::optional(damping, "damping")?,
+            Param::optional(motor_damping, "motor_damping")?,
         ])
     }
 
@@ -165,15 +168,11 @@ impl PyFlexibleJoints {
         } else {
             Param::PerJoint(j)
         };
-        let opt = |o: Option<&Bound<'_, PyAny>>, what: &str| match o {
-            Some(o) if !o.is_none() => Param::parse(o, what),
-            _ => Ok(Param::Scalar(0.0)),
-        };
         Self::validate([
             Param::parse(stiffness, "stiffness")?,
             inertia,
-            opt(damping, "damping")?,
-            opt(motor_damping, "motor_damping")?,
+            Param::optional(damping, "damping")?,
+            Param::optional(motor_damping, "motor_damping")?,
         ])
     }
 
