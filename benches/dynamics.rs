@@ -17,7 +17,10 @@ use criterion::{
 };
 use orbitflex::algorithms::{self, Data};
 use orbitflex::testing::{random_chain, random_state, Rng};
-use orbitflex::{ArmWorkspace, FlexibleArm, FlexibleJoints, MotorPD, Operators, Robot, Schedule};
+use orbitflex::{
+    ArmWorkspace, FlexibleArm, FlexibleJoints, Inputs, Loads, MotorPD, Operators, RigidState,
+    Robot, Schedule, StateSpec, Wrenches,
+};
 use std::hint::black_box;
 use std::time::Duration;
 
@@ -76,7 +79,7 @@ fn mass_matrix(c: &mut Criterion) {
         group.sample_size(operator_sample_size(n));
         group.bench_with_input(BenchmarkId::new("operator", n), &n, |b, _| {
             b.iter(|| {
-                Operators::new(&s.robot, black_box(&s.q), &[0.0; 6], &zeros)
+                Operators::new(&s.robot, &RigidState::at_rest(black_box(&s.q), &zeros))
                     .unwrap()
                     .mass_matrix()
             })
@@ -93,14 +96,18 @@ fn bias_forces(c: &mut Criterion) {
         group.sample_size(100);
         group.bench_with_input(BenchmarkId::new("recursive", n), &n, |b, _| {
             b.iter(|| {
-                algorithms::bias_forces(&s.robot, &mut data, black_box(&s.q), &s.v, &s.qd).unwrap()
-                    [0]
+                algorithms::bias_forces(
+                    &s.robot,
+                    &mut data,
+                    &RigidState::new(black_box(&s.q), &s.v, &s.qd),
+                )
+                .unwrap()[0]
             })
         });
         group.sample_size(operator_sample_size(n));
         group.bench_with_input(BenchmarkId::new("operator", n), &n, |b, _| {
             b.iter(|| {
-                Operators::new(&s.robot, black_box(&s.q), &s.v, &s.qd)
+                Operators::new(&s.robot, &RigidState::new(black_box(&s.q), &s.v, &s.qd))
                     .unwrap()
                     .bias_forces()
             })
@@ -113,6 +120,7 @@ fn forward_dynamics(c: &mut Criterion) {
     let mut group = c.benchmark_group("forward_dynamics");
     for n in SIZES {
         let s = case(n);
+        let loads = Loads::from_slices(Some(&s.fb), Some(&s.f)).unwrap();
         let mut data = Data::new(&s.robot);
         group.sample_size(100);
         group.bench_with_input(BenchmarkId::new("recursive", n), &n, |b, _| {
@@ -120,12 +128,9 @@ fn forward_dynamics(c: &mut Criterion) {
                 algorithms::aba(
                     &s.robot,
                     &mut data,
-                    black_box(&s.q),
-                    &s.v,
-                    &s.qd,
+                    &RigidState::new(black_box(&s.q), &s.v, &s.qd),
                     &s.tau,
-                    &s.fb,
-                    &s.f,
+                    &loads,
                 )
                 .unwrap()[0]
             })
@@ -133,9 +138,9 @@ fn forward_dynamics(c: &mut Criterion) {
         group.sample_size(operator_sample_size(n));
         group.bench_with_input(BenchmarkId::new("operator", n), &n, |b, _| {
             b.iter(|| {
-                Operators::new(&s.robot, black_box(&s.q), &s.v, &s.qd)
+                Operators::new(&s.robot, &RigidState::new(black_box(&s.q), &s.v, &s.qd))
                     .unwrap()
-                    .forward_dynamics(&s.tau, &s.fb, &s.f)
+                    .forward_dynamics(&s.tau, &loads)
                     .unwrap()
             })
         });
@@ -155,9 +160,7 @@ fn inverse_dynamics(c: &mut Criterion) {
                 algorithms::rnea(
                     &s.robot,
                     &mut data,
-                    black_box(&s.q),
-                    &s.v,
-                    &s.qd,
+                    &RigidState::new(black_box(&s.q), &s.v, &s.qd),
                     &base_acc,
                     &qdd,
                     &s.f,
@@ -182,7 +185,13 @@ fn flexible_arm(robot: Robot) -> FlexibleArm {
 
 /// A stable time step: a quarter of the arm's RK4 stability limit, at most 1 ms.
 fn stable_dt(arm: &FlexibleArm, q: &[f64]) -> f64 {
-    (0.25 * arm.rk4_stability_limit(q).unwrap()).min(1e-3)
+    let x = arm
+        .state(&StateSpec {
+            q: Some(q),
+            ..StateSpec::default()
+        })
+        .unwrap();
+    (0.25 * arm.rk4_stability_limit(&x, &Schedule::Zero).unwrap().dt).min(1e-3)
 }
 
 fn rk4_step(c: &mut Criterion) {
@@ -192,15 +201,15 @@ fn rk4_step(c: &mut Criterion) {
         let arm = flexible_arm(s.robot);
         let theta: Vec<f64> = s.q.iter().map(|q| q + 0.01).collect();
         let x0 = arm
-            .state(
-                Some(&s.q),
-                Some(&theta),
-                Some(&s.qd),
-                None,
-                None,
-                Some(&s.v),
-            )
+            .state(&StateSpec {
+                q: Some(&s.q),
+                theta: Some(&theta),
+                qd: Some(&s.qd),
+                base_twist: Some(&s.v),
+                ..StateSpec::default()
+            })
             .unwrap();
+        let loads = Loads::from_slices(Some(&s.fb), Some(&s.f)).unwrap();
         let dt = stable_dt(&arm, &s.q);
         let mut ws = ArmWorkspace::new(&arm);
         let mut x = x0.clone();
@@ -208,7 +217,7 @@ fn rk4_step(c: &mut Criterion) {
         group.bench_with_input(BenchmarkId::from_parameter(n), &n, |b, _| {
             b.iter(|| {
                 x.copy_from_slice(&x0);
-                arm.step(&mut ws, black_box(&mut x), dt, &u, &s.fb, &s.f)
+                arm.step(&mut ws, black_box(&mut x), dt, &Inputs { u: &u, loads })
                     .unwrap();
                 x[0]
             })
@@ -239,21 +248,19 @@ fn simulate(c: &mut Criterion) {
     for n in SIZES {
         let s = case(n);
         let arm = flexible_arm(s.robot);
-        let x0 = arm.state(Some(&s.q), None, None, None, None, None).unwrap();
+        let x0 = arm
+            .state(&StateSpec {
+                q: Some(&s.q),
+                ..StateSpec::default()
+            })
+            .unwrap();
         let dt = stable_dt(&arm, &s.q);
         group.bench_with_input(BenchmarkId::from_parameter(n), &n, |b, _| {
             b.iter(|| {
                 let mut pd = motor_pd(n, 0.2);
-                arm.simulate(
-                    black_box(&x0),
-                    dt,
-                    STEPS,
-                    &mut pd,
-                    &Schedule::Zero,
-                    &Schedule::Zero,
-                )
-                .unwrap()
-                .len()
+                arm.simulate(black_box(&x0), dt, STEPS, &mut pd, &Wrenches::ZERO)
+                    .unwrap()
+                    .len()
             })
         });
     }
@@ -278,12 +285,9 @@ fn space_arm(c: &mut Criterion) {
             algorithms::aba(
                 &robot,
                 &mut data,
-                black_box(&q),
-                &v,
-                &qd,
+                &RigidState::new(black_box(&q), &v, &qd),
                 &tau,
-                &zero6,
-                &zero6,
+                &Loads::ZERO,
             )
             .unwrap()[0]
         })
@@ -293,9 +297,7 @@ fn space_arm(c: &mut Criterion) {
             algorithms::rnea(
                 &robot,
                 &mut data,
-                black_box(&q),
-                &v,
-                &qd,
+                &RigidState::new(black_box(&q), &v, &qd),
                 &zero6,
                 &tau,
                 &zero6,
@@ -318,14 +320,14 @@ fn space_arm(c: &mut Criterion) {
         .unwrap(),
     )
     .unwrap();
-    let x0 = arm.state(None, None, None, None, None, None).unwrap();
+    let x0 = arm.rest_state();
     let mut ws = ArmWorkspace::new(&arm);
     let mut x = x0.clone();
     let u = vec![1.0; n];
     group.bench_function("rk4_step", |b| {
         b.iter(|| {
             x.copy_from_slice(&x0);
-            arm.step(&mut ws, black_box(&mut x), 1e-3, &u, &zero6, &zero6)
+            arm.step(&mut ws, black_box(&mut x), 1e-3, &Inputs::torques(&u))
                 .unwrap();
             x[0]
         })
@@ -343,16 +345,9 @@ fn space_arm(c: &mut Criterion) {
                 Schedule::Zero,
             )
             .unwrap();
-            arm.simulate(
-                black_box(&x0),
-                1e-3,
-                STEPS,
-                &mut pd,
-                &Schedule::Zero,
-                &Schedule::Zero,
-            )
-            .unwrap()
-            .len()
+            arm.simulate(black_box(&x0), 1e-3, STEPS, &mut pd, &Wrenches::ZERO)
+                .unwrap()
+                .len()
         })
     });
     group.finish();

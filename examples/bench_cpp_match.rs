@@ -11,7 +11,10 @@
 //! from Python). Medians are over blocks of calls, after a warm-up.
 
 use orbitflex::algorithms::{self, Data};
-use orbitflex::{ArmWorkspace, FlexibleArm, FlexibleJoints, MotorPD, Robot, Schedule, UrdfOptions};
+use orbitflex::{
+    ArmWorkspace, FlexibleArm, FlexibleJoints, Inputs, Loads, MotorPD, RigidState, Robot, Schedule,
+    StateSpec, UrdfOptions, Wrenches,
+};
 use std::hint::black_box;
 use std::time::Instant;
 
@@ -76,7 +79,14 @@ fn main() {
 
     let mut data = Data::new(&robot);
     // The joint accelerations and one RK4 step's (q, θ) for run.sh's agreement check.
-    let check = algorithms::aba(&robot, &mut data, &q, &twist, &qd, &tau, &zero6, &zero6).unwrap();
+    let check = algorithms::aba(
+        &robot,
+        &mut data,
+        &RigidState::new(&q, &twist, &qd),
+        &tau,
+        &Loads::ZERO,
+    )
+    .unwrap();
     println!("check_qdd {}", scientific(&check.as_slice()[6..]));
     if wanted("aba") {
         let t = median_ns(
@@ -85,12 +95,9 @@ fn main() {
                     algorithms::aba(
                         &robot,
                         &mut data,
-                        black_box(&q),
-                        &twist,
-                        &qd,
+                        &RigidState::new(black_box(&q), &twist, &qd),
                         &tau,
-                        &zero6,
-                        &zero6,
+                        &Loads::ZERO,
                     )
                     .unwrap()[0],
                 );
@@ -107,9 +114,7 @@ fn main() {
                     algorithms::rnea(
                         &robot,
                         &mut data,
-                        black_box(&q),
-                        &twist,
-                        &qd,
+                        &RigidState::new(black_box(&q), &twist, &qd),
                         &acc,
                         &qdd,
                         &zero6,
@@ -145,17 +150,23 @@ fn main() {
     let arm = FlexibleArm::new(robot, joints).unwrap();
     if wanted("rk4_step") {
         let x0 = arm
-            .state(Some(&q), Some(&q), Some(&qd), None, None, Some(&twist))
+            .state(&StateSpec {
+                q: Some(&q),
+                qd: Some(&qd),
+                base_twist: Some(&twist),
+                ..StateSpec::default()
+            })
             .unwrap();
         let mut ws = ArmWorkspace::new(&arm);
         let mut x = x0.clone();
         let u = vec![1.0; n];
-        arm.step(&mut ws, &mut x, 1e-3, &u, &zero6, &zero6).unwrap();
+        arm.step(&mut ws, &mut x, 1e-3, &Inputs::torques(&u))
+            .unwrap();
         println!("check_step {}", scientific(&x[7..7 + 2 * n]));
         let t = median_ns(
             || {
                 x.copy_from_slice(&x0);
-                arm.step(&mut ws, black_box(&mut x), 1e-3, &u, &zero6, &zero6)
+                arm.step(&mut ws, black_box(&mut x), 1e-3, &Inputs::torques(&u))
                     .unwrap();
                 black_box(x[0]);
             },
@@ -166,7 +177,7 @@ fn main() {
     }
     if wanted("simulate_1e4") {
         // compare_pinocchio.py's run: at rest, MotorPD kp = 2000, kd = 800 to θ_ref = 0.2.
-        let x0 = arm.state(None, None, None, None, None, None).unwrap();
+        let x0 = arm.rest_state();
         let t = median_ns(
             || {
                 let mut pd = MotorPD::new(
@@ -178,14 +189,7 @@ fn main() {
                 )
                 .unwrap();
                 let traj = arm
-                    .simulate(
-                        black_box(&x0),
-                        1e-3,
-                        10_000,
-                        &mut pd,
-                        &Schedule::Zero,
-                        &Schedule::Zero,
-                    )
+                    .simulate(black_box(&x0), 1e-3, 10_000, &mut pd, &Wrenches::ZERO)
                     .unwrap();
                 black_box(traj.len());
             },

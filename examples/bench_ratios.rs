@@ -11,7 +11,9 @@
 
 use orbitflex::algorithms::{self, Data};
 use orbitflex::testing::{random_chain, random_state, Rng};
-use orbitflex::{ArmWorkspace, FlexibleArm, FlexibleJoints};
+use orbitflex::{
+    ArmWorkspace, FlexibleArm, FlexibleJoints, Inputs, Loads, RigidState, Schedule, StateSpec,
+};
 use std::hint::black_box;
 use std::time::Instant;
 
@@ -41,8 +43,7 @@ struct Case {
     v: Vec<f64>,
     qd: Vec<f64>,
     tau: Vec<f64>,
-    fb: Vec<f64>,
-    f: Vec<f64>,
+    loads: Loads,
     x0: Vec<f64>,
     x: Vec<f64>,
     dt: f64,
@@ -65,9 +66,27 @@ fn case(n: usize) -> Case {
     .unwrap();
     let theta: Vec<f64> = q.iter().map(|q| q + 0.01).collect();
     let x0 = arm
-        .state(Some(&q), Some(&theta), Some(&qd), None, None, Some(&v))
+        .state(&StateSpec {
+            q: Some(&q),
+            theta: Some(&theta),
+            qd: Some(&qd),
+            base_twist: Some(&v),
+            ..StateSpec::default()
+        })
         .unwrap();
-    let dt = (0.25 * arm.rk4_stability_limit(&q).unwrap()).min(1e-3);
+    let relaxed = arm
+        .state(&StateSpec {
+            q: Some(&q),
+            ..StateSpec::default()
+        })
+        .unwrap();
+    let dt = (0.25
+        * arm
+            .rk4_stability_limit(&relaxed, &Schedule::Zero)
+            .unwrap()
+            .dt)
+        .min(1e-3);
+    let loads = Loads::from_slices(Some(&fb), Some(&f)).unwrap();
     Case {
         n,
         data: Data::new(&robot),
@@ -79,8 +98,7 @@ fn case(n: usize) -> Case {
         v,
         qd,
         tau,
-        fb,
-        f,
+        loads,
         x0,
         dt,
     }
@@ -101,12 +119,9 @@ fn main() {
                 let out = algorithms::aba(
                     &c.robot,
                     &mut c.data,
-                    black_box(&c.q),
-                    &c.v,
-                    &c.qd,
+                    &RigidState::new(black_box(&c.q), &c.v, &c.qd),
                     &c.tau,
-                    &c.fb,
-                    &c.f,
+                    &c.loads,
                 )
                 .unwrap();
                 black_box(out[0]);
@@ -114,7 +129,15 @@ fn main() {
             let s = block(iters / 4 + 1, || {
                 c.x.copy_from_slice(&c.x0);
                 c.arm
-                    .step(&mut c.ws, black_box(&mut c.x), c.dt, &c.tau, &c.fb, &c.f)
+                    .step(
+                        &mut c.ws,
+                        black_box(&mut c.x),
+                        c.dt,
+                        &Inputs {
+                            u: &c.tau,
+                            loads: c.loads,
+                        },
+                    )
                     .unwrap();
                 black_box(c.x[0]);
             });

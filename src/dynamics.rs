@@ -1,16 +1,161 @@
-//! The floating-base dynamics as methods of [`Robot`], with the names of SPEC §8.
+//! The one place that chooses between the recursive algorithms and the operator form
+//! ([`Method`]), and the floating-base dynamics as methods of [`Robot`] with their public names.
 //!
-//! These allocate a fresh [`Data`] (or [`Operators`]) per call, for convenience. Loops that call
-//! the dynamics many times should keep a [`Data`] and call [`crate::algorithms`] directly.
+//! [`Method`]'s functions work over a caller's [`Data`] and leave their results in it, whichever
+//! implementation runs; the Python bindings and [`crate::FlexibleArm`] call them. The `Robot`
+//! methods allocate a fresh [`Data`] (or [`Operators`]) per call, for convenience: loops that call
+//! the dynamics many times should keep a [`Data`] and call [`Method`] or
+//! [`crate::algorithms`] directly.
+//!
+//! ```
+//! use orbitflex::{Loads, Method, RigidState, Robot};
+//!
+//! let robot = Robot::space_arm();
+//! let n = robot.dof();
+//! let (q, qd, tau) = (vec![0.3; n], vec![0.2; n], vec![1.0; n]);
+//! let state = RigidState::new(&q, &[0.0, 0.0, 0.1, 0.0, 0.0, 0.0], &qd);
+//! let fast = robot.forward_dynamics(&state, &tau, &Loads::ZERO, Method::Recursive)?;
+//! let reference = robot.forward_dynamics(&state, &tau, &Loads::ZERO, Method::Operator)?;
+//! assert!((fast - reference).amax() < 1e-9);
+//! # Ok::<(), orbitflex::Error>(())
+//! ```
 
-use crate::algorithms::{self, Data, Method};
-use crate::error::{check_vector, Result};
+use crate::algorithms::{self, Data};
+use crate::args::{check_base_pose, check_vector, Loads, RigidState};
+use crate::error::Result;
 use crate::model::Robot;
 use crate::operators::Operators;
 use crate::spatial::{quaternion_to_rotation, Force, Mat6, Vec3};
 use nalgebra::{DMatrix, DVector};
 
-const ZERO6: [f64; 6] = [0.0; 6];
+/// Which implementation of the rigid-body dynamics to use.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Method {
+    /// The recursive algorithms of [`crate::algorithms`] (O(n), allocation-free). The default.
+    #[default]
+    Recursive,
+    /// The seed's dense operator form (A.13)–(A.19): O(n³), the reference for validation.
+    Operator,
+}
+
+impl Method {
+    /// `"recursive"` or `"operator"`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Method::Recursive => "recursive",
+            Method::Operator => "operator",
+        }
+    }
+
+    /// Parses [`Method::name`].
+    pub fn from_name(name: &str) -> Result<Method> {
+        match name {
+            "recursive" => Ok(Method::Recursive),
+            "operator" => Ok(Method::Operator),
+            other => Err(crate::Error::InvalidArgument {
+                what: "method".into(),
+                message: format!("expected \"recursive\" or \"operator\", given {other:?}"),
+            }),
+        }
+    }
+
+    /// The mass matrix `𝓜 = [[M_b, M_rb], [M_br, M_r]]` (A.19) into `data.mass_matrix`.
+    pub fn mass_matrix<'a>(
+        self,
+        robot: &Robot,
+        data: &'a mut Data,
+        q: &[f64],
+    ) -> Result<&'a DMatrix<f64>> {
+        match self {
+            Method::Recursive => algorithms::crba(robot, data, q),
+            Method::Operator => {
+                algorithms::check_data(robot, data)?;
+                let zeros = vec![0.0; robot.dof()];
+                let o = Operators::new(robot, &RigidState::at_rest(q, &zeros))?;
+                data.mass_matrix = o.mass_matrix();
+                Ok(&data.mass_matrix)
+            }
+        }
+    }
+
+    /// The bias `[C_B; C_r]` (A.19) into `data.tau`.
+    pub fn bias_forces<'a>(
+        self,
+        robot: &Robot,
+        data: &'a mut Data,
+        state: &RigidState,
+    ) -> Result<&'a DVector<f64>> {
+        match self {
+            Method::Recursive => algorithms::bias_forces(robot, data, state),
+            Method::Operator => {
+                algorithms::check_data(robot, data)?;
+                data.tau = Operators::new(robot, state)?.bias_forces();
+                Ok(&data.tau)
+            }
+        }
+    }
+
+    /// Forward dynamics `[α_B; q̈]` (A.19) into `data.ddq`.
+    pub fn forward_dynamics<'a>(
+        self,
+        robot: &Robot,
+        data: &'a mut Data,
+        state: &RigidState,
+        tau: &[f64],
+        loads: &Loads,
+    ) -> Result<&'a DVector<f64>> {
+        match self {
+            Method::Recursive => algorithms::aba(robot, data, state, tau, loads),
+            Method::Operator => {
+                algorithms::check_data(robot, data)?;
+                data.ddq = Operators::new(robot, state)?.forward_dynamics(tau, loads)?;
+                Ok(&data.ddq)
+            }
+        }
+    }
+
+    /// [`Method::forward_dynamics`] for arguments the caller has already checked; the recursive
+    /// path allocates nothing.
+    pub(crate) fn forward_dynamics_unchecked(
+        self,
+        robot: &Robot,
+        data: &mut Data,
+        state: &RigidState,
+        tau: &[f64],
+        loads: &Loads,
+    ) -> Result<()> {
+        match self {
+            Method::Recursive => algorithms::aba_unchecked(robot, data, state, tau, loads),
+            Method::Operator => {
+                let acc = Operators::new(robot, state)?.forward_dynamics(tau, loads)?;
+                data.ddq.copy_from(&acc);
+                Ok(())
+            }
+        }
+    }
+
+    /// Inverse dynamics `[f_B; τ]` (A.19) into `data.tau`, for the classical base acceleration
+    /// `base_acc = α_B` (base frame), joint accelerations `qdd` and the EE wrench `f`.
+    pub fn inverse_dynamics<'a>(
+        self,
+        robot: &Robot,
+        data: &'a mut Data,
+        state: &RigidState,
+        base_acc: &[f64],
+        qdd: &[f64],
+        ee_wrench: &[f64],
+    ) -> Result<&'a DVector<f64>> {
+        match self {
+            Method::Recursive => algorithms::rnea(robot, data, state, base_acc, qdd, ee_wrench),
+            Method::Operator => {
+                algorithms::check_data(robot, data)?;
+                data.tau =
+                    Operators::new(robot, state)?.inverse_dynamics(base_acc, qdd, ee_wrench)?;
+                Ok(&data.tau)
+            }
+        }
+    }
+}
 
 /// Expresses a momentum about the base origin in base axes (`h_B`) about the inertial origin in
 /// inertial axes, given the base pose `[r_B; quat_B]` (SPEC §1, §6.1): `L = R_B h_lin`,
@@ -20,57 +165,24 @@ pub fn momentum_in_inertial_frame(base_pose: &[f64], h_base: &Force) -> [f64; 6]
     let position = Vec3::new(base_pose[0], base_pose[1], base_pose[2]);
     let linear = r * h_base.linear;
     let angular = r * h_base.angular + position.cross(&linear);
-    [
-        angular.x, angular.y, angular.z, linear.x, linear.y, linear.z,
-    ]
-}
-
-/// Checks a base pose `[r_B (3); quat_B (4) as (x, y, z, w)]`: 7 finite numbers, quaternion of
-/// non-zero norm (it is normalised where used).
-pub(crate) fn check_base_pose(base_pose: &[f64]) -> Result<()> {
-    check_vector("base_pose", base_pose, 7)?;
-    let norm = base_pose[3..7].iter().map(|v| v * v).sum::<f64>().sqrt();
-    if norm < 1e-9 {
-        return Err(crate::Error::InvalidArgument {
-            what: "base_pose".into(),
-            message:
-                "the quaternion (elements 3..7, x y z w) has zero norm; expected a unit quaternion"
-                    .into(),
-        });
-    }
-    Ok(())
+    Force::new(angular, linear).to_array()
 }
 
 impl Robot {
     /// The (6+n)×(6+n) mass matrix `𝓜 = [[M_b, M_rb], [M_br, M_r]]` (A.19), symmetric positive
     /// definite. Rows/columns: base `[ω; v]`, then joints.
     pub fn mass_matrix(&self, q: &[f64], method: Method) -> Result<DMatrix<f64>> {
-        match method {
-            Method::Recursive => Ok(algorithms::crba(self, &mut Data::new(self), q)?.clone()),
-            Method::Operator => {
-                let zeros = vec![0.0; self.dof()];
-                Ok(Operators::new(self, q, &ZERO6, &zeros)?.mass_matrix())
-            }
-        }
+        Ok(method.mass_matrix(self, &mut Data::new(self), q)?.clone())
     }
 
-    /// The bias `[C_B; C_r]` (A.19) at base twist `[ω_B; v_B]` (base frame) and joint rates.
-    pub fn bias_forces(
-        &self,
-        q: &[f64],
-        base_twist: &[f64],
-        qd: &[f64],
-        method: Method,
-    ) -> Result<DVector<f64>> {
-        match method {
-            Method::Recursive => {
-                Ok(algorithms::bias_forces(self, &mut Data::new(self), q, base_twist, qd)?.clone())
-            }
-            Method::Operator => Ok(Operators::new(self, q, base_twist, qd)?.bias_forces()),
-        }
+    /// The bias `[C_B; C_r]` (A.19): the generalized force that holds the accelerations at zero.
+    pub fn bias_forces(&self, state: &RigidState, method: Method) -> Result<DVector<f64>> {
+        Ok(method
+            .bias_forces(self, &mut Data::new(self), state)?
+            .clone())
     }
 
-    /// `J` (6×n): joint rates to EE twist `[ω; v]` in the EE frame with the base at rest
+    /// `J` (6×n): joint rates to the EE twist `[ω; v]` in the EE frame with the base at rest
     /// (SPEC §2: `J = Bᵀ Φ H`).
     pub fn ee_jacobian(&self, q: &[f64]) -> Result<DMatrix<f64>> {
         let mut data = Data::new(self);
@@ -80,101 +192,56 @@ impl Robot {
 
     /// `Φ_{n+1,B}` (6×6): base twist to EE twist, both in their own frames.
     pub fn ee_base_operator(&self, q: &[f64]) -> Result<Mat6> {
-        let mut data = Data::new(self);
-        algorithms::ee_jacobian(self, &mut data, q)?;
-        Ok(data.ee_base)
+        check_vector("q", q, self.dof())?;
+        Ok(algorithms::ee_from_base(self, q).matrix())
     }
 
     /// Forward dynamics `[α_B; q̈]` (A.19): `α_B` is the base's classical acceleration
-    /// `[ω̇_B; v̇_B]` in the base frame (SPEC §1). `base_wrench = f_B` (base frame, about the base
-    /// origin) and `ee_wrench = f` (EE frame; the force the EE exerts on its environment) default to
-    /// zero.
-    #[allow(clippy::too_many_arguments)]
+    /// `[ω̇_B; v̇_B]` in the base frame (SPEC §1), for joint torques `tau` (N·m) and the external
+    /// [`Loads`].
     pub fn forward_dynamics(
         &self,
-        q: &[f64],
-        base_twist: &[f64],
-        qd: &[f64],
+        state: &RigidState,
         tau: &[f64],
-        base_wrench: Option<&[f64]>,
-        ee_wrench: Option<&[f64]>,
+        loads: &Loads,
         method: Method,
     ) -> Result<DVector<f64>> {
-        let base_wrench = base_wrench.unwrap_or(&ZERO6);
-        let ee_wrench = ee_wrench.unwrap_or(&ZERO6);
-        match method {
-            Method::Recursive => Ok(algorithms::aba(
-                self,
-                &mut Data::new(self),
-                q,
-                base_twist,
-                qd,
-                tau,
-                base_wrench,
-                ee_wrench,
-            )?
-            .clone()),
-            Method::Operator => Operators::new(self, q, base_twist, qd)?.forward_dynamics(
-                tau,
-                base_wrench,
-                ee_wrench,
-            ),
-        }
+        Ok(method
+            .forward_dynamics(self, &mut Data::new(self), state, tau, loads)?
+            .clone())
     }
 
-    /// Inverse dynamics `[f_B; τ]` (A.19) for base acceleration `α_B` (classical, base frame) and
-    /// joint accelerations `q̈`, with the EE wrench `f` (default zero).
-    #[allow(clippy::too_many_arguments)]
+    /// Inverse dynamics `[f_B; τ]` (A.19) for the classical base acceleration `α_B` (base frame)
+    /// and joint accelerations `q̈`, with the EE wrench `f` (the force the EE exerts on its
+    /// environment, EE frame).
     pub fn inverse_dynamics(
         &self,
-        q: &[f64],
-        base_twist: &[f64],
-        qd: &[f64],
+        state: &RigidState,
         base_acc: &[f64],
         qdd: &[f64],
-        ee_wrench: Option<&[f64]>,
+        ee_wrench: &[f64],
         method: Method,
     ) -> Result<DVector<f64>> {
-        let ee_wrench = ee_wrench.unwrap_or(&ZERO6);
-        match method {
-            Method::Recursive => Ok(algorithms::rnea(
-                self,
-                &mut Data::new(self),
-                q,
-                base_twist,
-                qd,
-                base_acc,
-                qdd,
-                ee_wrench,
-            )?
-            .clone()),
-            Method::Operator => {
-                Operators::new(self, q, base_twist, qd)?.inverse_dynamics(base_acc, qdd, ee_wrench)
-            }
-        }
+        Ok(method
+            .inverse_dynamics(self, &mut Data::new(self), state, base_acc, qdd, ee_wrench)?
+            .clone())
     }
 
     /// The dense operators of the seed at this state (A.13)–(A.19).
-    pub fn operators(&self, q: &[f64], base_twist: &[f64], qd: &[f64]) -> Result<Operators> {
-        Operators::new(self, q, base_twist, qd)
+    pub fn operators(&self, state: &RigidState) -> Result<Operators> {
+        Operators::new(self, state)
     }
 
     /// Total spatial momentum of base and links `[angular; linear]` in the inertial frame, about
     /// the inertial origin (SPEC §6.1); `base_pose = [r_B; quat_B (x, y, z, w)]`.
-    pub fn momentum(
-        &self,
-        base_pose: &[f64],
-        q: &[f64],
-        base_twist: &[f64],
-        qd: &[f64],
-    ) -> Result<[f64; 6]> {
+    pub fn momentum(&self, base_pose: &[f64], state: &RigidState) -> Result<[f64; 6]> {
         check_base_pose(base_pose)?;
-        let h = algorithms::momentum(self, &mut Data::new(self), q, base_twist, qd)?;
+        let h = algorithms::momentum(self, &mut Data::new(self), state)?;
         Ok(momentum_in_inertial_frame(base_pose, &h))
     }
 
     /// Kinetic energy of base and links `½ νᵀ 𝓜 ν`, `ν = [V_B; q̇]` (J).
-    pub fn kinetic_energy(&self, q: &[f64], base_twist: &[f64], qd: &[f64]) -> Result<f64> {
-        algorithms::kinetic_energy(self, &mut Data::new(self), q, base_twist, qd)
+    pub fn kinetic_energy(&self, state: &RigidState) -> Result<f64> {
+        algorithms::kinetic_energy(self, &mut Data::new(self), state)
     }
 }

@@ -91,30 +91,6 @@ pub enum Error {
 /// Shorthand used throughout the crate.
 pub type Result<T> = std::result::Result<T, Error>;
 
-/// Checks that `values` has `expected` elements, all finite.
-pub(crate) fn check_vector(what: &str, values: &[f64], expected: usize) -> Result<()> {
-    if values.len() != expected {
-        return Err(Error::Dimension {
-            what: what.to_string(),
-            expected: format!("length {expected}"),
-            given: format!("length {}", values.len()),
-        });
-    }
-    check_finite(what, values)
-}
-
-/// Checks that every element of `values` is finite.
-pub(crate) fn check_finite(what: &str, values: &[f64]) -> Result<()> {
-    match values.iter().position(|v| !v.is_finite()) {
-        Some(index) => Err(Error::NonFinite {
-            what: what.to_string(),
-            index,
-            value: values[index],
-        }),
-        None => Ok(()),
-    }
-}
-
 /// Times in messages without float noise (`0.30000000000000004` prints as `0.3`).
 fn round_time(t: f64) -> f64 {
     (t * 1e9).round() / 1e9

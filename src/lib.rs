@@ -1,23 +1,27 @@
 #![doc = include_str!("../README.md")]
 //!
-//! Conventions, equations and names follow `SPEC.md`; equation numbers (A.n) in the documentation
-//! refer to Appendix A of the seed derivation.
+//! The model (conventions, equations with their (A.n) numbers, state layout, integrator and
+//! invariants) is documented in `docs/model.md`; "model §n" in these docs refers to its sections.
 
 pub mod algorithms;
+pub mod args;
 pub mod dynamics;
 pub mod error;
 pub mod flex;
 pub mod integrate;
+pub mod linalg;
 pub mod model;
 pub mod operators;
 pub mod spatial;
 #[doc(hidden)]
 pub mod testing;
 
-pub use algorithms::{Data, Method};
+pub use algorithms::Data;
+pub use args::{Loads, RigidState};
+pub use dynamics::Method;
 pub use error::{Error, Result};
-pub use flex::{ArmWorkspace, FlexibleArm, FlexibleJoints, StateLayout};
-pub use integrate::{Controller, MotorPD, Schedule, SimulationFailure, Trajectory};
+pub use flex::{ArmWorkspace, FlexibleArm, FlexibleJoints, Inputs, StateLayout, StateSpec};
+pub use integrate::{Controller, MotorPD, Schedule, SimulationFailure, Trajectory, Wrenches};
 pub use model::{JointModel, Robot, RobotBuilder, UrdfOptions, SPACE_ARM_URDF};
 pub use operators::Operators;
 

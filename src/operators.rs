@@ -4,13 +4,17 @@
 //! This is the literal, O(n³), allocating reference. Every recursive algorithm in
 //! [`crate::algorithms`] is tested against it.
 
-use crate::error::{check_vector, Error, Result};
+use crate::args::{check_vector, Loads, RigidState};
+use crate::error::{Error, Result};
 use crate::model::Robot;
 use crate::spatial::{bias_force, coriolis_acceleration, Force, Mat6, Motion, Transform};
 use nalgebra::{DMatrix, DVector};
 
 /// Dense operators of the seed at one state `(q, V_B, q̇)`. Stacked quantities run over links
 /// `1..n`, six rows per link, `[angular; linear]` per block.
+///
+/// Block `(i, k)` of `Φ` is `Φ_{ik}` when body `k` is body `i` or one of its ancestors (every
+/// `k ≤ i` on a chain) and zero otherwise, so the same assembly serves a tree.
 #[derive(Debug, Clone)]
 pub struct Operators {
     /// `Φ` (6n×6n), lower block-triangular, block `(i,k) = Φ_{ik}` for `i ≥ k` (A.13 ff.).
@@ -23,7 +27,7 @@ pub struct Operators {
     pub a: DVector<f64>,
     /// `b` (6n), stacked bias forces `b_i` (A.10).
     pub b: DVector<f64>,
-    /// `B` (6n×6): zero blocks and last block `Φ_{n+1,n}ᵀ`.
+    /// `B` (6n×6): zero blocks except the EE body's, `Φ_{n+1,e}ᵀ` (the last block on a chain).
     pub b_ee: DMatrix<f64>,
     /// `Φ̂₁` (6n×6), blocks `Φ_{iB}` (A.17).
     pub phi_hat1: DMatrix<f64>,
@@ -47,49 +51,46 @@ pub struct Operators {
     pub c_r: DVector<f64>,
     /// `J = Bᵀ Φ H` (6×n): the seed's `J = Hᵀ Φᵀ B` is a typo (SPEC §2); `Jᵀ = Hᵀ Φᵀ B`.
     pub j: DMatrix<f64>,
-    /// `Φ_{n+1,B} = Φ_{n+1,n} Φ_{nB}` (6×6).
+    /// `Φ_{n+1,B} = Φ_{n+1,e} Φ_{eB}` (6×6), `e` the EE body.
     pub phi_ee_base: Mat6,
 }
 
-/// Checks `q`, `V_B` and `q̇` against the model.
-pub(crate) fn check_state(robot: &Robot, q: &[f64], base_twist: &[f64], qd: &[f64]) -> Result<()> {
-    let n = robot.dof();
-    check_vector("q", q, n)?;
-    check_vector("base_twist", base_twist, 6)?;
-    check_vector("qd", qd, n)
-}
-
 impl Operators {
-    /// Assembles every operator at `(q, V_B = base_twist, q̇ = qd)`; `base_twist` is `[ω_B; v_B]`
-    /// in the base frame.
+    /// Assembles every operator at `state`: `q`, `V_B = [ω_B; v_B]` (base frame) and `q̇`.
     // Block indices (i, k) are the equations' indices; iterator chains would hide them.
     #[allow(clippy::needless_range_loop)]
-    pub fn new(robot: &Robot, q: &[f64], base_twist: &[f64], qd: &[f64]) -> Result<Self> {
-        check_state(robot, q, base_twist, qd)?;
+    pub fn new(robot: &Robot, state: &RigidState) -> Result<Self> {
+        state.check(robot)?;
+        let (q, qd) = (state.q, state.qd);
         let n = robot.dof();
         let inertias = robot.inertias();
+        let parents = robot.parents();
 
-        // Per-link Φ_{i,i-1}, velocities (A.4), a_i (A.7), b_i (A.10).
-        let mut step = Vec::with_capacity(n);
-        let mut velocity = vec![Motion::from_slice(base_twist)];
+        // Per-link Φ_{i,λ(i)}, velocities (A.4), a_i (A.7), b_i (A.10).
+        let mut step = vec![Transform::identity()];
+        let mut velocity = vec![Motion::from_slice(state.base_twist)];
         let mut a = DVector::zeros(6 * n);
         let mut b = DVector::zeros(6 * n);
         for (i, joint) in robot.joints().iter().enumerate() {
             let phi = joint.transform(q[i]);
             let h = Motion::new(joint.axis, nalgebra::Vector3::zeros());
-            let v = phi.apply_motion(&velocity[i]) + h * qd[i];
-            coriolis_acceleration(&phi, &velocity[i].angular, &v.angular)
+            let parent = &velocity[parents[i + 1]];
+            let v = phi.apply_motion(parent) + h * qd[i];
+            coriolis_acceleration(&phi, &parent.angular, &v.angular)
                 .write_to(&mut a.as_mut_slice()[6 * i..]);
             bias_force(&inertias[i + 1], &v.angular).write_to(&mut b.as_mut_slice()[6 * i..]);
             step.push(phi);
             velocity.push(v);
         }
 
-        // Φ_{ik} = Φ_{i,i-1} ⋯ Φ_{k+1,k}, with k = 0 the base.
-        let mut phi_to = vec![vec![Transform::identity(); n + 1]; n + 1];
+        // Φ_{ik} = Φ_{i,λ(i)} Φ_{λ(i),k} for k an ancestor of i (k = 0 is the base), Φ_{ii} = I;
+        // None where k does not support i.
+        let mut phi_to: Vec<Vec<Option<Transform>>> = vec![vec![None; n + 1]; n + 1];
+        phi_to[0][0] = Some(Transform::identity());
         for i in 1..=n {
+            phi_to[i][i] = Some(Transform::identity());
             for k in 0..i {
-                phi_to[i][k] = step[i - 1].compose(&phi_to[i - 1][k]);
+                phi_to[i][k] = phi_to[parents[i]][k].map(|t| step[i].compose(&t));
             }
         }
 
@@ -100,23 +101,28 @@ impl Operators {
         for i in 1..=n {
             let r = 6 * (i - 1);
             for k in 1..=i {
-                phi.view_mut((r, 6 * (k - 1)), (6, 6))
-                    .copy_from(&phi_to[i][k].matrix());
+                if let Some(t) = &phi_to[i][k] {
+                    phi.view_mut((r, 6 * (k - 1)), (6, 6))
+                        .copy_from(&t.matrix());
+                }
             }
             h.view_mut((r, i - 1), (3, 1))
                 .copy_from(&robot.joints()[i - 1].axis);
             m.view_mut((r, r), (6, 6)).copy_from(&inertias[i].matrix());
+            let to_base = phi_to[i][0].expect("the base supports every body");
             phi_hat1
                 .view_mut((r, 0), (6, 6))
-                .copy_from(&phi_to[i][0].matrix());
+                .copy_from(&to_base.matrix());
         }
         let ee = robot.ee_transform();
+        let ee_body = robot.ee_body();
         let mut b_ee = DMatrix::zeros(6 * n, 6);
-        if n > 0 {
-            b_ee.view_mut((6 * (n - 1), 0), (6, 6))
+        if ee_body > 0 {
+            b_ee.view_mut((6 * (ee_body - 1), 0), (6, 6))
                 .copy_from(&ee.matrix().transpose());
         }
-        let phi_ee_base = ee.compose(&phi_to[n][0]).matrix();
+        let ee_to_base = phi_to[ee_body][0].expect("the base supports every body");
+        let phi_ee_base = ee.compose(&ee_to_base).matrix();
 
         let phi_hat2 = phi_hat1.transpose();
         let m_base = inertias[0].matrix();
@@ -189,20 +195,16 @@ impl Operators {
 
     /// Forward dynamics from (A.19) by a Cholesky solve:
     /// `[α_B; q̈] = 𝓜⁻¹ ([f_B; τ] − [C_B; C_r] − [Φ_{n+1,B}ᵀ; Jᵀ] f)`.
-    pub fn forward_dynamics(
-        &self,
-        tau: &[f64],
-        base_wrench: &[f64],
-        ee_wrench: &[f64],
-    ) -> Result<DVector<f64>> {
+    pub fn forward_dynamics(&self, tau: &[f64], loads: &Loads) -> Result<DVector<f64>> {
         let n = self.m_r.nrows();
         check_vector("tau", tau, n)?;
-        check_vector("base_wrench", base_wrench, 6)?;
-        check_vector("ee_wrench", ee_wrench, 6)?;
+        loads.check()?;
         let mut rhs = DVector::zeros(6 + n);
-        rhs.rows_mut(0, 6).copy_from_slice(base_wrench);
+        rhs.rows_mut(0, 6)
+            .copy_from_slice(&loads.base_wrench.to_array());
         rhs.rows_mut(6, n).copy_from_slice(tau);
-        rhs -= self.bias_forces() + self.ee_force_map() * DVector::from_column_slice(ee_wrench);
+        let f = DVector::from_column_slice(&loads.ee_wrench.to_array());
+        rhs -= self.bias_forces() + self.ee_force_map() * f;
         let chol = self
             .mass_matrix()
             .cholesky()

@@ -4,7 +4,7 @@
 use nalgebra::{DMatrix, DVector};
 use orbitflex::algorithms::{self, Data};
 use orbitflex::testing::{random_chain, random_state, Rng};
-use orbitflex::{Method, Operators, Robot};
+use orbitflex::{Loads, Method, Operators, RigidState, Robot};
 use proptest::prelude::*;
 
 fn rel_err_m(a: &DMatrix<f64>, b: &DMatrix<f64>) -> f64 {
@@ -34,7 +34,9 @@ fn inputs(robot: &Robot, seed: u64) -> Inputs {
 fn check_agreement(n: usize, seed: u64) {
     let robot = random_chain(n, seed);
     let (q, v, qd, tau, fb, f) = inputs(&robot, seed);
-    let ops = Operators::new(&robot, &q, &v, &qd).unwrap();
+    let state = RigidState::new(&q, &v, &qd);
+    let loads = Loads::from_slices(Some(&fb), Some(&f)).unwrap();
+    let ops = Operators::new(&robot, &state).unwrap();
     let mut data = Data::new(&robot);
 
     let m = algorithms::crba(&robot, &mut data, &q).unwrap().clone();
@@ -43,15 +45,15 @@ fn check_agreement(n: usize, seed: u64) {
         "mass matrix n={n} seed={seed}"
     );
 
-    let c = algorithms::bias_forces(&robot, &mut data, &q, &v, &qd)
+    let c = algorithms::bias_forces(&robot, &mut data, &state)
         .unwrap()
         .clone();
     assert!(rel_err_v(&c, &ops.bias_forces()) < 1e-10, "bias n={n}");
 
-    let acc = algorithms::aba(&robot, &mut data, &q, &v, &qd, &tau, &fb, &f)
+    let acc = algorithms::aba(&robot, &mut data, &state, &tau, &loads)
         .unwrap()
         .clone();
-    let acc_op = ops.forward_dynamics(&tau, &fb, &f).unwrap();
+    let acc_op = ops.forward_dynamics(&tau, &loads).unwrap();
     assert!(
         rel_err_v(&acc, &acc_op) < 1e-10,
         "forward dynamics n={n}: {}",
@@ -61,9 +63,7 @@ fn check_agreement(n: usize, seed: u64) {
     let gen = algorithms::rnea(
         &robot,
         &mut data,
-        &q,
-        &v,
-        &qd,
+        &state,
         &acc.as_slice()[..6],
         &acc.as_slice()[6..],
         &f,
@@ -86,7 +86,7 @@ fn check_agreement(n: usize, seed: u64) {
     let ee_base_op = DMatrix::from_column_slice(6, 6, ops.phi_ee_base.as_slice());
     assert!(rel_err_m(&ee_base, &ee_base_op) < 1e-10, "Φ_(n+1,B) n={n}");
 
-    let h = algorithms::momentum(&robot, &mut data, &q, &v, &qd).unwrap();
+    let h = algorithms::momentum(&robot, &mut data, &state).unwrap();
     let h_op = ops.base_momentum(&v, &qd);
     assert!(
         rel_err_v(
@@ -98,7 +98,7 @@ fn check_agreement(n: usize, seed: u64) {
     let mut nu = DVector::zeros(6 + n);
     nu.rows_mut(0, 6).copy_from_slice(&v);
     nu.rows_mut(6, n).copy_from_slice(&qd);
-    let ke = algorithms::kinetic_energy(&robot, &mut data, &q, &v, &qd).unwrap();
+    let ke = algorithms::kinetic_energy(&robot, &mut data, &state).unwrap();
     let ke_op = 0.5 * nu.dot(&(ops.mass_matrix() * &nu));
     assert!((ke - ke_op).abs() < 1e-10 * ke_op.abs().max(1.0));
 }
@@ -120,27 +120,13 @@ fn agreement_on_short_chains_and_the_space_arm() {
     }
     let robot = Robot::space_arm();
     let (q, v, qd) = random_state(&robot, 3);
+    let state = RigidState::new(&q, &v, &qd);
+    let loads = Loads::from_slices(Some(&[1.0, 2.0, 3.0, 4.0, 5.0, 6.0]), Some(&[0.5; 6])).unwrap();
     let a = robot
-        .forward_dynamics(
-            &q,
-            &v,
-            &qd,
-            &[1.0; 7],
-            Some(&[1.0, 2.0, 3.0, 4.0, 5.0, 6.0]),
-            Some(&[0.5; 6]),
-            Method::Recursive,
-        )
+        .forward_dynamics(&state, &[1.0; 7], &loads, Method::Recursive)
         .unwrap();
     let b = robot
-        .forward_dynamics(
-            &q,
-            &v,
-            &qd,
-            &[1.0; 7],
-            Some(&[1.0, 2.0, 3.0, 4.0, 5.0, 6.0]),
-            Some(&[0.5; 6]),
-            Method::Operator,
-        )
+        .forward_dynamics(&state, &[1.0; 7], &loads, Method::Operator)
         .unwrap();
     assert!(rel_err_v(&a, &b) < 1e-10);
 }
@@ -150,13 +136,14 @@ fn mass_matrix_is_symmetric_positive_definite() {
     for seed in 0..20 {
         let robot = random_chain(1 + (seed as usize % 12), seed);
         let (q, _, _) = random_state(&robot, seed);
-        let m = Operators::new(&robot, &q, &[0.0; 6], &vec![0.0; robot.dof()])
+        let m = Operators::new(&robot, &RigidState::at_rest(&q, &vec![0.0; robot.dof()]))
             .unwrap()
             .mass_matrix();
         assert!((&m - m.transpose()).norm() <= 1e-12 * m.norm());
         assert!(m.clone().cholesky().is_some());
         // the operator form's M_br really is M_rbᵀ (A.19)
-        let ops = Operators::new(&robot, &q, &[0.0; 6], &vec![0.0; robot.dof()]).unwrap();
+        let ops =
+            Operators::new(&robot, &RigidState::at_rest(&q, &vec![0.0; robot.dof()])).unwrap();
         assert!((&ops.m_br - ops.m_rb.transpose()).norm() <= 1e-12 * ops.m_rb.norm().max(1.0));
     }
 }
@@ -172,7 +159,7 @@ fn fixed_base_reduction_matches_newton_euler() {
         let robot = random_chain(n, 100 + seed);
         let (q, _, qd) = random_state(&robot, seed);
         let qdd = Rng::new(seed).vector(n, -2.0, 2.0);
-        let ops = Operators::new(&robot, &q, &[0.0; 6], &qd).unwrap();
+        let ops = Operators::new(&robot, &RigidState::new(&q, &[0.0; 6], &qd)).unwrap();
         let tau_op = &ops.m_r * DVector::from_column_slice(&qdd) + &ops.c_r;
 
         // Inertial-frame kinematics: rotation E_i (body -> world), origin o_i, ω_i, ω̇_i, ö_i.
@@ -244,7 +231,7 @@ fn ee_twist_from_jacobian_matches_velocity_recursion() {
             + nalgebra::Vector6::from_column_slice(
                 (&data.jacobian * DVector::from_column_slice(&qd)).as_slice(),
             );
-        algorithms::velocities(&robot, &mut data, &q, &v, &qd).unwrap();
+        algorithms::velocities(&robot, &mut data, &RigidState::new(&q, &v, &qd)).unwrap();
         let ee = robot.ee_transform().apply_motion(&data.v[robot.dof()]);
         assert!((twist - ee.to_vector()).norm() < 1e-12 * (1.0 + twist.norm()));
     }
@@ -278,24 +265,18 @@ fn configuration_dependent_singularity_is_an_error() {
         .build()
         .unwrap();
     let ok = robot.forward_dynamics(
-        &[0.0, 0.0],
-        &[0.0; 6],
-        &[0.0; 2],
+        &RigidState::new(&[0.0, 0.0], &[0.0; 6], &[0.0; 2]),
         &[1.0, 1.0],
-        None,
-        None,
+        &Loads::ZERO,
         Method::Recursive,
     );
     assert!(ok.is_ok());
     let q = [0.0, std::f64::consts::FRAC_PI_2];
     let err = robot
         .forward_dynamics(
-            &q,
-            &[0.0; 6],
-            &[0.0; 2],
+            &RigidState::new(&q, &[0.0; 6], &[0.0; 2]),
             &[1.0, 1.0],
-            None,
-            None,
+            &Loads::ZERO,
             Method::Recursive,
         )
         .unwrap_err()

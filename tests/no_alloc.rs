@@ -2,7 +2,10 @@
 
 use orbitflex::algorithms::{self, Data};
 use orbitflex::testing::{random_chain, random_state};
-use orbitflex::{ArmWorkspace, FlexibleArm, FlexibleJoints, MotorPD, Schedule};
+use orbitflex::{
+    ArmWorkspace, FlexibleArm, FlexibleJoints, Inputs, Loads, MotorPD, RigidState, Schedule,
+    StateSpec, Wrenches,
+};
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
 
@@ -48,20 +51,31 @@ fn hot_paths_do_not_allocate() {
     let (q, v, qd) = random_state(&robot, 3);
     let tau = vec![0.5; n];
     let w = [0.1; 6];
+    let state = RigidState::new(&q, &v, &qd);
+    let loads = Loads::from_slices(Some(&w), Some(&w)).unwrap();
     let mut data = Data::new(&robot);
     assert_eq!(
         allocations(|| {
-            algorithms::aba(&robot, &mut data, &q, &v, &qd, &tau, &w, &w).unwrap();
+            algorithms::aba(&robot, &mut data, &state, &tau, &loads).unwrap();
         }),
         0,
         "aba"
     );
     assert_eq!(
         allocations(|| {
-            algorithms::rnea(&robot, &mut data, &q, &v, &qd, &w, &tau, &w).unwrap();
+            algorithms::rnea(&robot, &mut data, &state, &w, &tau, &w).unwrap();
         }),
         0,
         "rnea"
+    );
+    // The dense mass matrix is the one O(n²) buffer: allocated by the first crba, not by Data::new.
+    assert_eq!(data.mass_matrix.len(), 0, "Data::new made a dense matrix");
+    assert_eq!(
+        allocations(|| {
+            algorithms::crba(&robot, &mut data, &q).unwrap();
+        }),
+        1,
+        "first crba"
     );
     assert_eq!(
         allocations(|| {
@@ -72,7 +86,7 @@ fn hot_paths_do_not_allocate() {
     );
     assert_eq!(
         allocations(|| {
-            algorithms::bias_forces(&robot, &mut data, &q, &v, &qd).unwrap();
+            algorithms::bias_forces(&robot, &mut data, &state).unwrap();
         }),
         0,
         "bias"
@@ -86,7 +100,7 @@ fn hot_paths_do_not_allocate() {
     );
     assert_eq!(
         allocations(|| {
-            algorithms::momentum(&robot, &mut data, &q, &v, &qd).unwrap();
+            algorithms::momentum(&robot, &mut data, &state).unwrap();
         }),
         0,
         "momentum"
@@ -99,18 +113,22 @@ fn hot_paths_do_not_allocate() {
     .unwrap();
     let mut ws = ArmWorkspace::new(&arm);
     let mut x = arm
-        .state(Some(&q), None, Some(&qd), None, None, Some(&v))
+        .state(&StateSpec {
+            q: Some(&q),
+            qd: Some(&qd),
+            base_twist: Some(&v),
+            ..StateSpec::default()
+        })
         .unwrap();
+    let inputs = Inputs { u: &tau, loads };
     let mut xdot = vec![0.0; x.len()];
     assert_eq!(
-        allocations(|| arm
-            .derivative(&mut ws, &x, &tau, &w, &w, &mut xdot)
-            .unwrap()),
+        allocations(|| arm.derivative(&mut ws, &x, &inputs, &mut xdot).unwrap()),
         0,
         "derivative"
     );
     assert_eq!(
-        allocations(|| arm.step(&mut ws, &mut x, 1e-3, &tau, &w, &w).unwrap()),
+        allocations(|| arm.step(&mut ws, &mut x, 1e-3, &inputs).unwrap()),
         0,
         "step"
     );
@@ -140,8 +158,10 @@ fn hot_paths_do_not_allocate() {
                 1e-4,
                 steps,
                 &mut pd,
-                &Schedule::Zero,
-                &Schedule::Constant(w.to_vec()),
+                &Wrenches {
+                    base: Schedule::Zero,
+                    ee: Schedule::Constant(w.to_vec()),
+                },
             )
             .unwrap();
         })

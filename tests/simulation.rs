@@ -1,7 +1,10 @@
 //! The flexible-joint simulator checked through the invariants of SPEC §6.
 
 use orbitflex::testing::{random_chain, Rng};
-use orbitflex::{ArmWorkspace, Controller, FlexibleArm, FlexibleJoints, MotorPD, Robot, Schedule};
+use orbitflex::{
+    ArmWorkspace, Controller, FlexibleArm, FlexibleJoints, Inputs, Loads, MotorPD, RigidState,
+    Robot, Schedule, StateSpec, Wrenches,
+};
 
 fn arm(n: usize, seed: u64, damping: f64, motor_damping: f64) -> FlexibleArm {
     let robot = random_chain(n, seed);
@@ -21,14 +24,19 @@ fn moving_state(arm: &FlexibleArm, seed: u64) -> Vec<f64> {
     let mut rng = Rng::new(seed + 7);
     let q = rng.vector(n, -1.0, 1.0);
     let theta: Vec<f64> = q.iter().map(|v| v + rng.range(-0.05, 0.05)).collect();
-    arm.state(
-        Some(&q),
-        Some(&theta),
-        Some(&rng.vector(n, -0.5, 0.5)),
-        Some(&rng.vector(n, -0.5, 0.5)),
-        Some(&[0.3, -0.2, 0.1, 0.1, 0.2, -0.3, 0.9]),
-        Some(&rng.vector(6, -0.3, 0.3)),
-    )
+    let (qd, theta_dot, twist) = (
+        rng.vector(n, -0.5, 0.5),
+        rng.vector(n, -0.5, 0.5),
+        rng.vector(6, -0.3, 0.3),
+    );
+    arm.state(&StateSpec {
+        q: Some(&q),
+        theta: Some(&theta),
+        qd: Some(&qd),
+        theta_dot: Some(&theta_dot),
+        base_pose: Some(&[0.3, -0.2, 0.1, 0.1, 0.2, -0.3, 0.9]),
+        base_twist: Some(&twist),
+    })
     .unwrap()
 }
 
@@ -51,16 +59,9 @@ fn momentum_is_constant_when_free_floating_with_any_torques() {
     let x0 = moving_state(&arm, 1);
     let drift = |dt: f64| {
         let traj = arm
-            .simulate(
-                &x0,
-                dt,
-                (1.0 / dt) as usize,
-                &mut Sines,
-                &Schedule::Zero,
-                &Schedule::Zero,
-            )
+            .simulate(&x0, dt, (1.0 / dt) as usize, &mut Sines, &Wrenches::ZERO)
             .unwrap();
-        let h = arm.momentum_along(&traj);
+        let h = traj.rows().momentum(&arm);
         let scale = h[..6].iter().map(|v| v.abs()).fold(1.0, f64::max);
         let worst = (6..h.len())
             .map(|k| (h[k] - h[k % 6]).abs())
@@ -77,9 +78,18 @@ fn momentum_is_constant_when_free_floating_with_any_torques() {
     // and a base wrench does change it: the test can fail
     let push = Schedule::Constant(vec![0.0, 0.0, 0.0, 1.0, 0.0, 0.0]);
     let traj = arm
-        .simulate(&x0, 1e-3, 100, &mut Sines, &push, &Schedule::Zero)
+        .simulate(
+            &x0,
+            1e-3,
+            100,
+            &mut Sines,
+            &Wrenches {
+                base: push,
+                ee: Schedule::Zero,
+            },
+        )
         .unwrap();
-    let h2 = arm.momentum_along(&traj);
+    let h2 = traj.rows().momentum(&arm);
     let r0 = orbitflex::spatial::quaternion_to_rotation(&x0[3..7]);
     // 1 N along the base x axis for 0.1 s: the base turns slowly, so nearly R_B e_x × 0.1 N s
     let expected = r0.column(0) * 0.1;
@@ -103,16 +113,9 @@ fn energy_is_conserved_without_input_or_damping_up_to_rk4_error() {
     let drift = |dt: f64| {
         let steps = (0.5 / dt) as usize;
         let traj = arm
-            .simulate(
-                &x0,
-                dt,
-                steps,
-                &mut Schedule::Zero,
-                &Schedule::Zero,
-                &Schedule::Zero,
-            )
+            .simulate(&x0, dt, steps, &mut Schedule::Zero, &Wrenches::ZERO)
             .unwrap();
-        let e = arm.energy_along(&traj);
+        let e = traj.rows().energy(&arm);
         e.iter().map(|v| (v - e0).abs()).fold(0.0, f64::max)
     };
     let (coarse, fine) = (drift(2e-3), drift(1e-3));
@@ -157,7 +160,9 @@ fn power_balance_holds_pointwise_with_all_inputs() {
             rng.vector(6, -5.0, 5.0),
         );
         let mut xdot = vec![0.0; x.len()];
-        arm.derivative(&mut ws, &x, &u, &fb, &f, &mut xdot).unwrap();
+        let loads = Loads::from_slices(Some(&fb), Some(&f)).unwrap();
+        arm.derivative(&mut ws, &x, &Inputs { u: &u, loads }, &mut xdot)
+            .unwrap();
         let h = 1e-6;
         let shifted =
             |s: f64| -> Vec<f64> { x.iter().zip(&xdot).map(|(a, b)| a + s * h * b).collect() };
@@ -194,11 +199,13 @@ fn power_balance_integrates_along_a_run() {
                 dt,
                 steps,
                 &mut u,
-                &Schedule::Constant(fb.clone()),
-                &Schedule::Constant(f.clone()),
+                &Wrenches {
+                    base: Schedule::Constant(fb.clone()),
+                    ee: Schedule::Constant(f.clone()),
+                },
             )
             .unwrap();
-        let e = arm.energy_along(&traj);
+        let e = traj.rows().energy(&arm);
         let mut work = 0.0;
         for k in 0..steps {
             let uk = &u_table[k * n..(k + 1) * n];
@@ -228,8 +235,7 @@ fn rk4_error_falls_sixteenfold_per_halving() {
                 dt,
                 steps,
                 &mut Schedule::Constant(vec![1.0, -2.0, 0.5]),
-                &Schedule::Zero,
-                &Schedule::Zero,
+                &Wrenches::ZERO,
             )
             .unwrap();
         traj.state(steps).to_vec()
@@ -266,7 +272,12 @@ fn stiff_joints_track_the_rigid_arm() {
         let dt = 1e-4;
         let f = |q: &[f64], v: &[f64], qd: &[f64]| -> Vec<f64> {
             robot
-                .forward_dynamics(q, v, qd, &u, None, None, orbitflex::Method::Recursive)
+                .forward_dynamics(
+                    &RigidState::new(q, v, qd),
+                    &u,
+                    &Loads::ZERO,
+                    orbitflex::Method::Recursive,
+                )
                 .unwrap()
                 .as_slice()
                 .to_vec()
@@ -320,17 +331,21 @@ fn stiff_joints_track_the_rigid_arm() {
             FlexibleJoints::uniform(3, k, j, d, 0.0).unwrap(),
         )
         .unwrap();
-        let dt = 0.2 * arm.rk4_stability_limit(&[0.0; 3]).unwrap().min(j / d);
+        let dt = 0.2
+            * arm
+                .rk4_stability_limit(&arm.rest_state(), &Schedule::Zero)
+                .unwrap()
+                .dt
+                .min(j / d);
         let steps = (t_end / dt).ceil() as usize;
         let dt = t_end / steps as f64;
         let traj = arm
             .simulate(
-                &arm.state(None, None, None, None, None, None).unwrap(),
+                &arm.rest_state(),
                 dt,
                 steps,
                 &mut Schedule::Constant(u.to_vec()),
-                &Schedule::Zero,
-                &Schedule::Zero,
+                &Wrenches::ZERO,
             )
             .unwrap();
         let q = &traj.state(steps)[7..10];
@@ -366,9 +381,9 @@ fn motor_pd_drives_the_motor_to_its_reference() {
         Schedule::Zero,
     )
     .unwrap();
-    let x0 = arm.state(None, None, None, None, None, None).unwrap();
+    let x0 = arm.rest_state();
     let traj = arm
-        .simulate(&x0, 2e-3, 15000, &mut pd, &Schedule::Zero, &Schedule::Zero)
+        .simulate(&x0, 2e-3, 15000, &mut pd, &Wrenches::ZERO)
         .unwrap();
     let theta = &traj.state(15000)[14..21];
     for (a, b) in theta.iter().zip(&target) {
@@ -380,16 +395,9 @@ fn motor_pd_drives_the_motor_to_its_reference() {
 fn diverging_run_keeps_the_finite_steps() {
     let arm = arm(3, 8, 0.0, 0.0);
     let x0 = moving_state(&arm, 8);
-    let dt = 20.0 * arm.rk4_stability_limit(&x0[7..10]).unwrap();
+    let dt = 20.0 * arm.rk4_stability_limit(&x0, &Schedule::Zero).unwrap().dt;
     let failure = arm
-        .simulate(
-            &x0,
-            dt,
-            10_000,
-            &mut Schedule::Zero,
-            &Schedule::Zero,
-            &Schedule::Zero,
-        )
+        .simulate(&x0, dt, 10_000, &mut Schedule::Zero, &Wrenches::ZERO)
         .unwrap_err();
     let message = failure.error.to_string();
     assert!(
@@ -420,11 +428,12 @@ fn joint_parameters_from_toml() {
     assert!(err.to_string().contains("stiffness"), "{err}");
 }
 
-/// A controller or input table of the wrong size is an error, not a panic or a silent misread.
+/// A controller or input table of the wrong size is an error before the run starts, not a panic or
+/// a silent misread.
 #[test]
 fn wrongly_sized_controllers_are_errors() {
     let arm = arm(4, 9, 0.1, 0.1);
-    let x0 = arm.state(None, None, None, None, None, None).unwrap();
+    let x0 = arm.rest_state();
     let mut small_pd = MotorPD::new(
         vec![1.0; 3],
         vec![1.0; 3],
@@ -452,13 +461,92 @@ fn wrongly_sized_controllers_are_errors() {
         (&mut narrow as &mut dyn Controller, "u"),
         (&mut short as &mut dyn Controller, "u"),
     ] {
-        let failure = arm
-            .simulate(&x0, 1e-3, 10, u, &Schedule::Zero, &Schedule::Zero)
-            .unwrap_err();
+        let failure = arm.simulate(&x0, 1e-3, 10, u, &Wrenches::ZERO).unwrap_err();
         let message = failure.error.to_string();
         assert!(
-            message.contains("controller failed") && message.contains(what),
+            message.contains(what) && message.contains("expected"),
             "{message}"
         );
     }
+}
+
+/// Regression (issue: the stability check missed a divergence): the built-in arm with its joints
+/// and `MotorPD(kp = 2000, kd = 800)` diverges at dt = 1 ms (at step 195), but the earlier
+/// per-joint estimate put the limit at 1.34 ms and gave no warning. The PD holds its torque over
+/// each step, so its derivative gain acts like forward Euler on the motor pole; the sampled-data
+/// analysis finds the true limit, and a run just inside it is stable while one just outside
+/// diverges.
+#[test]
+fn stability_limit_catches_the_held_motor_pd_divergence() {
+    let arm = FlexibleArm::new(Robot::space_arm(), FlexibleJoints::space_arm()).unwrap();
+    let pd = MotorPD::new(
+        vec![2000.0; 7],
+        vec![800.0; 7],
+        Schedule::Constant(vec![0.2; 7]),
+        Schedule::Zero,
+        Schedule::Zero,
+    )
+    .unwrap();
+    let x0 = arm.rest_state();
+    let warning = orbitflex::integrate::stability_warning(&arm, &x0, 1e-3, &pd).unwrap();
+    assert!(
+        warning
+            .as_deref()
+            .is_some_and(|w| w.contains("closed loop")),
+        "{warning:?}"
+    );
+    let limit = arm.rk4_stability_limit(&x0, &pd).unwrap();
+    assert!(!limit.open_loop && !limit.estimated);
+    // the motor pole −(k_d + β)/j of the light wrist motors dominates
+    let j = FlexibleJoints::space_arm().motor_inertia[6];
+    assert!(
+        (limit.fastest_mode.re + 801.0 / j).abs() < 0.01 * 801.0 / j,
+        "{limit:?}"
+    );
+    let run = |dt: f64| {
+        let mut pd = pd.clone();
+        arm.simulate(&x0, dt, 20_000, &mut pd, &Wrenches::ZERO)
+    };
+    assert!(
+        run(0.98 * limit.dt).is_ok(),
+        "unstable inside the limit {}",
+        limit.dt
+    );
+    let failure = run(1.02 * limit.dt).unwrap_err();
+    assert!(failure.error.to_string().contains("diverged"));
+    let message = run(1e-3).unwrap_err().error.to_string();
+    assert!(message.contains("step 195"), "{message}");
+    // Open loop (no feedback), the joints alone allow a step ten times larger.
+    let open = arm.rk4_stability_limit(&x0, &Schedule::Zero).unwrap();
+    assert!(open.dt > 10.0 * limit.dt, "{open:?}");
+}
+
+/// Above the dense limit each joint is analysed alone. On a chain at the limit, moving, the
+/// dense analysis is right (a run just inside it is stable, one just outside diverges) and the
+/// joint-by-joint estimate is within 35 % of it.
+#[test]
+fn joint_by_joint_stability_estimate_tracks_the_dense_analysis() {
+    use orbitflex::flex::stability::{joint_by_joint_limit, DENSE_LIMIT};
+    let n = DENSE_LIMIT;
+    let arm = arm(n, 21, 0.5, 0.2);
+    let x0 = moving_state(&arm, 21);
+    let pd = MotorPD::new(
+        vec![300.0; n],
+        vec![60.0; n],
+        Schedule::Constant(x0[arm.layout().theta()].to_vec()),
+        Schedule::Zero,
+        Schedule::Zero,
+    )
+    .unwrap();
+    let dense = arm.rk4_stability_limit(&x0, &pd).unwrap();
+    assert!(!dense.estimated);
+    let (estimate, _) = joint_by_joint_limit(&arm, &x0, &pd.feedback()).unwrap();
+    let ratio = estimate / dense.dt;
+    assert!((0.65..1.35).contains(&ratio), "{dense:?} vs {estimate}");
+    let run = |dt: f64| {
+        let mut pd = pd.clone();
+        arm.simulate(&x0, dt, (2.0 / dt) as usize, &mut pd, &Wrenches::ZERO)
+    };
+    assert!(run(0.98 * dense.dt).is_ok());
+    assert!(run(1.05 * dense.dt).is_err());
 }

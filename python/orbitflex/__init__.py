@@ -1,12 +1,17 @@
 """orbitflex: flexible-joint robot arms on a floating base (spacecraft manipulators).
 
-Rigid floating-base dynamics in the operator form of the seed derivation (Appendix A, eqs.
-A.1-A.19) and in O(n) recursive form, Spong flexible joints, and a fixed-step RK4 simulator.
+Rigid floating-base dynamics in the operator form of the source derivation (Appendix A, eqs.
+A.1-A.19, of "Trajectory Generation for Flexible-Joint Space Manipulators", Frontiers in Robotics
+and AI, 2022) and in O(n) recursive form, Spong flexible joints, and a fixed-step RK4 simulator.
+The model, its conventions and equations are documented in docs/model.md.
 
-Conventions (SPEC.md section 1): spatial vectors are ``[angular; linear]`` in the body's own
-frame; the base twist is ``[omega_B; v_B]`` in base-frame components; quaternions are
-``(x, y, z, w)``, scalar last, mapping base-frame to inertial-frame components; the base
-acceleration ``alpha_B`` is "classical"; SI units; no gravity.
+Conventions: spatial vectors are ``[angular; linear]`` in the body's own frame; the base twist is
+``[omega_B; v_B]`` in base-frame components; quaternions are ``(x, y, z, w)``, scalar last,
+mapping base-frame to inertial-frame components; the base acceleration ``alpha_B`` is
+"classical"; SI units; no gravity.
+
+Everything here is implemented in the compiled module ``orbitflex._core``; this package
+re-exports it.
 
 >>> import orbitflex
 >>> robot = orbitflex.models.space_arm()
@@ -16,13 +21,15 @@ acceleration ``alpha_B`` is "classical"; SI units; no gravity.
 
 from ._core import (
     SPACE_ARM_URDF,
+    FlexibleArm,
     FlexibleJoints,
     ModelError,
     MotorPD,
     Robot,
+    SimulationError,
+    Trajectory,
     __version__,
 )
-from ._arm import FlexibleArm, SimulationError, Trajectory
 from . import models
 
 __all__ = [

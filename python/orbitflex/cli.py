@@ -39,70 +39,65 @@ def pd_gains(arm: FlexibleArm, q0: np.ndarray, bandwidth_hz: float, dt: float, d
     return w**2 * (m + j), np.minimum(2 * damping_ratio * w * (m + j), 0.5 * j / dt)
 
 
-def run_slew(arm: FlexibleArm, slew: np.ndarray, duration: float, dt: float, slew_time: float,
-             bandwidth_hz: float, progress: bool = True):
-    """Simulates the slew in chunks (for the progress bar); returns (trajectory, u per step, seconds)."""
-    n = arm.dof
-    steps = int(round(duration / dt))
+def slew_controller(arm: FlexibleArm, slew: np.ndarray, steps: int, dt: float, slew_time: float,
+                    bandwidth_hz: float) -> MotorPD:
+    """The motor PD that follows a quintic slew of ``slew`` (rad per joint) over ``slew_time``
+    seconds, tabulated for ``steps`` steps of ``dt``."""
     t = np.arange(steps) * dt
     shape, dshape = quintic(t / slew_time)
     theta_ref = np.outer(shape, slew)
     theta_dot_ref = np.outer(dshape / slew_time, slew)
-    x0 = arm.state()
-    kp, kd = pd_gains(arm, np.zeros(n), bandwidth_hz, dt)
+    kp, kd = pd_gains(arm, np.zeros(arm.dof), bandwidth_hz, dt)
+    return MotorPD(kp, kd, theta_ref, theta_dot_ref)
 
-    chunk = max(1, steps // 50)
-    ts, xs = [np.zeros(1)], [x0[None, :]]
+
+def run_slew(arm: FlexibleArm, pd: MotorPD, steps: int, dt: float, progress: bool = True):
+    """Simulates ``steps`` steps under ``pd`` in one ``simulate`` call, with a progress bar;
+    returns ``(trajectory, seconds)``. A run that stops early keeps the steps computed before it."""
     bar = _progress(steps, progress)
-    x, elapsed, done = x0, 0.0, 0
-    error = None
-    while done < steps:
-        k = min(chunk, steps - done)
-        pd = MotorPD(kp, kd, theta_ref[done:done + k], theta_dot_ref[done:done + k])
-        start = time.perf_counter()
-        try:
-            part = arm.simulate(x, dt, k, u=pd)
-        except SimulationError as e:
-            part = e.trajectory
-            error = (done + e.step, (done + e.step) * dt, e)
-        elapsed += time.perf_counter() - start
-        ts.append(part.t[1:] + done * dt)
-        xs.append(part.x[1:])
-        done += len(part.t) - 1
-        bar.update(len(part.t) - 1)
-        if error is not None:
-            break
-        x = part.x[-1]
-    bar.close()
-    from ._arm import Trajectory
-
-    traj = Trajectory(arm, np.concatenate(ts), np.concatenate(xs))
-    rows = len(traj.t) - 1
-    u = kp * (theta_ref[:rows] - traj.theta[:rows]) + kd * (theta_dot_ref[:rows] - traj.theta_dot[:rows])
-    if error is not None:
-        step, when, e = error
+    start = time.perf_counter()
+    try:
+        traj = arm.simulate(arm.state(), dt, steps, u=pd, progress=bar.to)
+    except SimulationError as e:
+        traj = e.trajectory
         reason = str(e).split(": ", 1)[-1]
-        print(f"warning: the run stopped at step {step} (t = {when:.6g} s): {reason}; "
-              f"keeping the {rows} steps computed", file=sys.stderr)
-    return traj, u, elapsed
+        print(f"warning: the run stopped at step {e.step} (t = {e.time:.6g} s): {reason}; "
+              f"keeping the {len(traj) - 1} steps computed", file=sys.stderr)
+    elapsed = time.perf_counter() - start
+    bar.close()
+    return traj, elapsed
 
 
 class _NoBar:
-    def update(self, k):
+    def to(self, done: int, total: int) -> None:
         pass
 
-    def close(self):
+    def close(self) -> None:
         pass
+
+
+class _Bar:
+    """A tqdm bar driven by ``simulate``'s ``progress(done, total)`` callback."""
+
+    def __init__(self, total: int):
+        from tqdm import tqdm
+
+        self.bar = tqdm(total=total, unit="step", desc="simulating", file=sys.stderr, mininterval=0.25)
+
+    def to(self, done: int, total: int) -> None:
+        self.bar.update(done - self.bar.n)
+
+    def close(self) -> None:
+        self.bar.close()
 
 
 def _progress(total: int, enabled: bool):
     if not enabled:
         return _NoBar()
     try:
-        from tqdm import tqdm
+        return _Bar(total)
     except ImportError:  # tqdm is a dependency, but keep the simulator usable without it
         return _NoBar()
-    return tqdm(total=total, unit="step", desc="simulating", file=sys.stderr, mininterval=0.25)
 
 
 def rotation_angle_deg(q0: np.ndarray, q1: np.ndarray) -> float:
@@ -110,10 +105,12 @@ def rotation_angle_deg(q0: np.ndarray, q1: np.ndarray) -> float:
     return float(np.degrees(2 * np.arccos(np.clip(abs(np.dot(q0, q1)), -1.0, 1.0))))
 
 
-def energy_balance(traj, u: np.ndarray) -> tuple:
-    """Energy bookkeeping of SPEC 6.3 with the trapezoid rule on the recorded states (``u`` held
-    over each step): returns ``(E(T) - E(0), motor work, dissipated energy)``. With no external
-    wrench, ``E(T) - E(0) = motor work - dissipated`` up to the quadrature and RK4 errors."""
+def energy_balance(traj) -> tuple:
+    """Energy bookkeeping of the power balance (docs/model.md, section 6) with the trapezoid rule
+    on the recorded states (``traj.u`` held over each step): returns
+    ``(E(T) - E(0), motor work, dissipated energy)``. With no external wrench,
+    ``E(T) - E(0) = motor work - dissipated`` up to the quadrature and RK4 errors."""
+    u = traj.u
     _, _, d, beta = traj.arm.parameters
     td, qd = traj.theta_dot, traj.qd
     rows = len(u)
@@ -125,11 +122,11 @@ def energy_balance(traj, u: np.ndarray) -> tuple:
     return float(traj.energy[rows] - traj.energy[0]), work, dissipated
 
 
-def summarise(name: str, traj, u: np.ndarray, elapsed: float) -> dict:
+def summarise(name: str, traj, elapsed: float) -> dict:
     steps = len(traj.t) - 1
     h = traj.momentum
     h_drift = np.abs(h - h[0]).max(axis=0)
-    de, work, dissipated = energy_balance(traj, u)
+    de, work, dissipated = energy_balance(traj)
     gross = float(np.sum(np.abs(np.diff(traj.energy)))) or 1.0
     summary = {
         "model": name,
@@ -232,12 +229,13 @@ def plot(traj, out: Path) -> List[Path]:
 def _run(arm, name, slew, args) -> int:
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    limit = arm.rk4_stability_limit()
+    steps = int(round(args.duration / args.dt))
+    pd = slew_controller(arm, slew, steps, args.dt, args.slew_time, args.bandwidth)
+    limit = arm.rk4_stability_limit(u=pd)
     print(f"{name}: {arm.dof} joints, total mass {arm.robot.total_mass:.1f} kg, "
-          f"dt = {args.dt:g} s (RK4 limit of the stiffest joint mode: {limit:.3g} s)")
-    traj, u, elapsed = run_slew(arm, slew, args.duration, args.dt, args.slew_time, args.bandwidth,
-                                progress=not args.quiet)
-    summary = summarise(name, traj, u, elapsed)
+          f"dt = {args.dt:g} s (RK4 limit of the closed loop at rest: {limit:.3g} s)")
+    traj, elapsed = run_slew(arm, pd, steps, args.dt, progress=not args.quiet)
+    summary = summarise(name, traj, elapsed)
     traj.save_npz(out / "trajectory.npz")
     files = [] if args.no_plots else plot(traj, out)
     print(f"\nwrote {out / 'trajectory.npz'}" + "".join(f"\n      {f}" for f in files))

@@ -27,16 +27,9 @@ def space_arm_joints() -> FlexibleJoints:
 
     Stiffness 1e4 N m/rad at the shoulder, 5e3 at the elbow, 2e3 in the wrist (space-arm joints
     are compliant: long output shafts and light gearboxes); reflected motor inertia from gear
-    ratio 160 and rotor inertia 1.5e-5 ... 4e-5 kg m^2 (j = 0.38 ... 1.0 kg m^2); light joint
+    ratio 160 and rotor inertia 4e-5 ... 1.5e-5 kg m^2 (j = 1.02 ... 0.38 kg m^2); light joint
     damping (0.2 N m s/rad) so that residual vibration is visible; motor friction 1 N m s/rad.
-    The stiffest mode is near 270 rad/s, so RK4 is stable up to dt of about 10 ms.
+    Open loop, RK4 is stable up to dt of about 10 ms; a stiff motor PD lowers that (see
+    ``FlexibleArm.rk4_stability_limit``).
     """
-    stiffness = [1.0e4, 1.0e4, 1.0e4, 5.0e3, 2.0e3, 2.0e3, 2.0e3]
-    rotor = [4.0e-5, 4.0e-5, 4.0e-5, 3.0e-5, 1.5e-5, 1.5e-5, 1.5e-5]
-    return FlexibleJoints.from_gear(
-        stiffness,
-        gear_ratio=[160.0] * 7,
-        rotor_inertia=rotor,
-        damping=[0.2] * 7,
-        motor_damping=[1.0] * 7,
-    )
+    return FlexibleJoints.space_arm()

@@ -31,16 +31,19 @@ impl RobotBuilder {
                 source: "<builder>".to_string(),
                 link_names: vec![base_name.to_string()],
                 joints: Vec::new(),
+                parents: vec![0],
                 inertias: vec![base_inertia],
+                ee_body: 0,
                 ee_link: base_name.to_string(),
                 ee_transform: Transform::identity(),
             },
         }
     }
 
-    /// Appends revolute joint `i` with `origin = Φ_{i,i-1}` at `q = 0`, axis `h_i` in frame `i`
-    /// (normalised by [`build`](Self::build)), and the inertia of link `i` in its own frame.
-    /// The EE frame moves to the new link (identity) until [`ee`](Self::ee) says otherwise.
+    /// Appends revolute joint `i`, carried by the last body added (a serial chain): `origin =
+    /// Φ_{i,i-1}` at `q = 0`, axis `h_i` in frame `i` (normalised by [`build`](Self::build)), and
+    /// the inertia of link `i` in its own frame. The EE frame moves to the new link (identity)
+    /// until [`ee`](Self::ee) says otherwise.
     pub fn joint(
         mut self,
         name: &str,
@@ -49,6 +52,8 @@ impl RobotBuilder {
         link_name: &str,
         inertia: Inertia,
     ) -> Self {
+        let parent = self.robot.joints.len();
+        self.robot.parents.push(parent);
         self.robot.joints.push(JointModel {
             name: name.to_string(),
             axis,
@@ -56,12 +61,13 @@ impl RobotBuilder {
         });
         self.robot.link_names.push(link_name.to_string());
         self.robot.inertias.push(inertia);
+        self.robot.ee_body = self.robot.joints.len();
         self.robot.ee_link = link_name.to_string();
         self.robot.ee_transform = Transform::identity();
         self
     }
 
-    /// Sets the EE frame `n+1`: `transform = Φ_{n+1,n}` relative to the last link.
+    /// Sets the EE frame `n+1`: `transform = Φ_{n+1,n}` relative to the last link added.
     pub fn ee(mut self, name: &str, transform: Transform) -> Self {
         self.robot.ee_link = name.to_string();
         self.robot.ee_transform = transform;
@@ -183,6 +189,7 @@ fn check_mass_matrix(robot: &Robot) -> Result<()> {
         .max(f64::MIN_POSITIVE);
     for i in (1..=n).rev() {
         let joint = &robot.joints[i - 1];
+        let parent = robot.parents[i];
         let h = Vec6::new(joint.axis.x, joint.axis.y, joint.axis.z, 0.0, 0.0, 0.0);
         let u = articulated[i] * h;
         let d = h.dot(&u);
@@ -193,12 +200,12 @@ fn check_mass_matrix(robot: &Robot) -> Result<()> {
                     "joint '{}' moves links with no inertia about its axis ({}): the mass matrix \
                      is singular; give these links mass and inertia, or lock the joint",
                     joint.name,
-                    robot.link_names[i..].join(", ")
+                    subtree(robot, i).join(", ")
                 ),
             });
         }
         let reduced = articulated[i] - u * u.transpose() / d;
-        articulated[i - 1] += congruence(&joint.transform(0.0), &reduced);
+        articulated[parent] += congruence(&joint.transform(0.0), &reduced);
     }
     if articulated[0].cholesky().is_none() {
         return Err(Error::InvalidModel {
@@ -211,4 +218,12 @@ fn check_mass_matrix(robot: &Robot) -> Result<()> {
         });
     }
     Ok(())
+}
+
+/// The names of body `i` and of every body below it.
+fn subtree(robot: &Robot, i: usize) -> Vec<&str> {
+    (i..=robot.dof())
+        .filter(|&b| b == i || robot.path_to_base(b).any(|a| a == i))
+        .map(|b| robot.link_names[b].as_str())
+        .collect()
 }

@@ -23,8 +23,13 @@ impl JointModel {
     }
 }
 
-/// A floating-base serial chain: base `B` (body 0), links `1..=n`, and the EE frame `n+1` rigidly
-/// attached to link `n` (SPEC §1).
+/// A floating-base chain of revolute joints: base `B` (body 0), links `1..=n`, and the EE frame
+/// `n+1` rigidly attached to the EE body (link `n` of the chain).
+///
+/// Bodies are numbered so that each parent comes before its children: body `i` hangs from body
+/// [`parents()[i]`](Robot::parents) through joint `i`. Every recursion reads the parent from there
+/// rather than assuming `i − 1`, so the loops already work on a tree; the models built today are
+/// chains (`parents()[i] = i − 1`).
 ///
 /// Built by [`crate::RobotBuilder`] or loaded from a URDF; validated on construction (physical
 /// inertias, unit axes, a positive-definite mass matrix at `q = 0`). Immutable afterwards.
@@ -34,7 +39,11 @@ pub struct Robot {
     pub(crate) source: String,
     pub(crate) link_names: Vec<String>,
     pub(crate) joints: Vec<JointModel>,
+    /// `parents[i]` for body `i ≥ 1`; `parents[0] = 0` is unused.
+    pub(crate) parents: Vec<usize>,
     pub(crate) inertias: Vec<Inertia>,
+    /// The body carrying the EE frame.
+    pub(crate) ee_body: usize,
     pub(crate) ee_link: String,
     pub(crate) ee_transform: Transform,
 }
@@ -72,6 +81,28 @@ impl Robot {
         &self.link_names
     }
 
+    /// The parent body of each body: `parents()[i] < i` for body `i ≥ 1` (joint `i` connects
+    /// `parents()[i]` to `i`); entry 0, the base's, is 0 and unused. Length `n + 1`.
+    #[inline]
+    pub fn parents(&self) -> &[usize] {
+        &self.parents
+    }
+
+    /// The bodies moved by the joints on the way from `body` to the base, `body` first:
+    /// `body, parents()[body], …`, stopping before the base (empty for the base itself). Joint `k`
+    /// moves `body` exactly when `k` is on this path.
+    pub fn path_to_base(&self, body: usize) -> impl Iterator<Item = usize> + '_ {
+        std::iter::successors(Some(body).filter(|&b| b > 0), move |&b| {
+            Some(self.parents[b]).filter(|&p| p > 0)
+        })
+    }
+
+    /// The body that carries the EE frame `n+1`.
+    #[inline]
+    pub fn ee_body(&self) -> usize {
+        self.ee_body
+    }
+
     /// Spatial inertia of body `i` about its own origin in its own frame (A.9); `0` is the base.
     pub fn inertias(&self) -> &[Inertia] {
         &self.inertias
@@ -82,7 +113,7 @@ impl Robot {
         &self.ee_link
     }
 
-    /// `Φ_{n+1,n}`: the EE frame in the frame of link `n` (constant).
+    /// `Φ_{n+1,e}`: the EE frame in the frame of the EE body `e` (constant).
     pub fn ee_transform(&self) -> &Transform {
         &self.ee_transform
     }

@@ -1,7 +1,7 @@
 //! numpy ⇄ Rust conversions with shape and finiteness checks.
 
-use super::ModelError;
-use crate::error::check_finite;
+use super::errors::ModelError;
+use crate::args::check_finite;
 use numpy::{
     PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2, PyUntypedArrayMethods,
 };
@@ -78,21 +78,30 @@ pub fn matrix(obj: &Bound<'_, PyAny>, what: &str, width: usize) -> PyResult<(usi
     Ok((shape[0], values))
 }
 
-/// `numpy.asarray(obj, dtype=float64)` with a clear error.
+/// `numpy.asarray(obj, dtype=float64)` for integer or floating-point input, with a clear error
+/// for anything else (strings, bools, complex numbers, objects), which numpy would otherwise
+/// convert or reject with a message that does not name the argument.
 pub fn as_float_array<'py>(obj: &Bound<'py, PyAny>, what: &str) -> PyResult<Bound<'py, PyAny>> {
     let np = obj.py().import("numpy")?;
-    if np.call_method1("iscomplexobj", (obj,))?.is_truthy()? {
+    let raw = np.call_method1("asarray", (obj,)).map_err(|e| {
+        ModelError::new_err(format!(
+            "{what}: expected an array of numbers, given {} ({e})",
+            type_name(obj)
+        ))
+    })?;
+    let kind: String = raw.getattr("dtype")?.getattr("kind")?.extract()?;
+    if !matches!(kind.as_str(), "i" | "u" | "f") {
+        let given = match kind.as_str() {
+            "c" => "a complex array".to_string(),
+            "b" => "bools".to_string(),
+            "U" | "S" => "text".to_string(),
+            _ => format!("{} of dtype {}", type_name(obj), raw.getattr("dtype")?),
+        };
         return Err(ModelError::new_err(format!(
-            "{what}: expected real numbers, given a complex array"
+            "{what}: expected real numbers, given {given}"
         )));
     }
-    np.call_method1("asarray", (obj, np.getattr("float64")?))
-        .map_err(|e| {
-            ModelError::new_err(format!(
-                "{what}: expected an array of numbers, given {} ({e})",
-                type_name(obj)
-            ))
-        })
+    np.call_method1("asarray", (raw, np.getattr("float64")?))
 }
 
 fn type_name(obj: &Bound<'_, PyAny>) -> String {
@@ -133,11 +142,47 @@ pub fn row_major(
 
 /// Parses `method="recursive" | "operator"`.
 pub fn method(name: &str) -> PyResult<crate::Method> {
-    match name {
-        "recursive" => Ok(crate::Method::Recursive),
-        "operator" => Ok(crate::Method::Operator),
-        other => Err(ModelError::new_err(format!(
-            "method: expected \"recursive\" or \"operator\", given {other:?}"
-        ))),
+    Ok(crate::Method::from_name(name)?)
+}
+
+/// A real number given as a Python int, float or numpy scalar: not a bool, a string or a
+/// complex number, which Python would otherwise convert or reject with a message that does not
+/// name the argument.
+pub fn real(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<f64> {
+    let wrong = || {
+        ModelError::new_err(format!(
+            "{what}: expected a real number, given {} ({})",
+            type_name(obj),
+            obj.repr().map(|r| r.to_string()).unwrap_or_default()
+        ))
+    };
+    if obj.is_instance_of::<pyo3::types::PyBool>()
+        || obj.is_instance_of::<pyo3::types::PyString>()
+        || obj.is_instance_of::<pyo3::types::PyBytes>()
+        || obj.is_instance_of::<pyo3::types::PyComplex>()
+        || obj.is_none()
+    {
+        return Err(wrong());
     }
+    obj.extract::<f64>().map_err(|_| wrong())
+}
+
+/// A count (an integer ≥ 0) given as a Python int or numpy integer, not a bool or a float.
+pub fn count(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<usize> {
+    let given = || obj.repr().map(|r| r.to_string()).unwrap_or_default();
+    if obj.is_instance_of::<pyo3::types::PyBool>() || obj.hasattr("__index__").ok() != Some(true) {
+        return Err(ModelError::new_err(format!(
+            "{what}: expected an integer >= 0, given {} ({})",
+            type_name(obj),
+            given()
+        )));
+    }
+    let index = obj.call_method0("__index__")?;
+    index.extract::<usize>().map_err(|_| {
+        ModelError::new_err(format!(
+            "{what}: expected an integer from 0 to {}, given {}",
+            usize::MAX,
+            given()
+        ))
+    })
 }

@@ -1,43 +1,38 @@
-//! Python bindings (feature `python`): the `orbitflex._core` extension module.
+//! Python bindings (feature `python`): the `orbitflex._core` extension module, which the
+//! `orbitflex` package re-exports.
 //!
 //! Arrays cross as numpy float64, are converted once to Rust values, the work runs in Rust and
 //! results return as new arrays. Long-running calls (URDF loading, `simulate` without a Python
 //! controller, trajectory diagnostics) release the GIL; per-call dynamics keep it, as releasing
 //! it would cost more than the call.
+//!
+//! One file per class: `robot` (`Robot`), `joints` (`FlexibleJoints`), `control` (`MotorPD`,
+//! input schedules, Python controllers), `arm` (`FlexibleArm`), `trajectory` (`Trajectory`);
+//! `run` drives a simulation with or without the GIL; `errors` maps [`crate::Error`] onto the
+//! Python exceptions; `convert` turns numpy arrays into Rust values.
 
 mod arm;
+mod control;
 mod convert;
+mod errors;
+mod joints;
 mod robot;
+mod run;
+mod trajectory;
 
-use crate::error::Error;
-use pyo3::create_exception;
-use pyo3::exceptions::{PyFileNotFoundError, PyValueError};
 use pyo3::prelude::*;
-
-create_exception!(
-    orbitflex,
-    ModelError,
-    PyValueError,
-    "An invalid model, model file or argument (a ValueError)."
-);
-
-impl From<Error> for PyErr {
-    fn from(e: Error) -> PyErr {
-        match e {
-            Error::FileNotFound { .. } => PyFileNotFoundError::new_err(e.to_string()),
-            _ => ModelError::new_err(e.to_string()),
-        }
-    }
-}
 
 #[pymodule]
 fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
-    m.add("ModelError", m.py().get_type::<ModelError>())?;
+    let py = m.py();
+    m.add("ModelError", py.get_type::<errors::ModelError>())?;
+    m.add("SimulationError", py.get_type::<errors::SimulationError>())?;
     m.add("SPACE_ARM_URDF", crate::SPACE_ARM_URDF)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     m.add_class::<robot::PyRobot>()?;
-    m.add_class::<arm::PyFlexibleJoints>()?;
+    m.add_class::<joints::PyFlexibleJoints>()?;
+    m.add_class::<control::PyMotorPD>()?;
     m.add_class::<arm::PyFlexibleArm>()?;
-    m.add_class::<arm::PyMotorPD>()?;
+    m.add_class::<trajectory::PyTrajectory>()?;
     Ok(())
 }

@@ -1,8 +1,9 @@
 //! `orbitflex.Robot`.
 
 use super::convert::{array1, array2, vector, vector_or};
-use super::ModelError;
+use super::errors::ModelError;
 use crate::algorithms::{self, Data};
+use crate::args::{check_base_pose, Loads, RigidState};
 use crate::model::{Robot, UrdfOptions};
 use numpy::{PyArray1, PyArray2};
 use pyo3::prelude::*;
@@ -30,18 +31,32 @@ impl PyRobot {
         self.data.lock().unwrap_or_else(|p| p.into_inner())
     }
 
+    /// `q`, `V_B` and `q̇` as vectors of the robot's sizes, checked.
     fn state(
         &self,
         q: &Bound<'_, PyAny>,
         base_twist: &Bound<'_, PyAny>,
         qd: &Bound<'_, PyAny>,
-    ) -> PyResult<(Vec<f64>, Vec<f64>, Vec<f64>)> {
+    ) -> PyResult<StateArgs> {
         let n = self.robot.dof();
-        Ok((
-            vector(q, "q", Some(n))?,
-            vector(base_twist, "base_twist", Some(6))?,
-            vector(qd, "qd", Some(n))?,
-        ))
+        Ok(StateArgs {
+            q: vector(q, "q", Some(n))?,
+            base_twist: vector(base_twist, "base_twist", Some(6))?,
+            qd: vector(qd, "qd", Some(n))?,
+        })
+    }
+}
+
+/// Owned `q`, `V_B`, `q̇` from Python, lent out as a [`RigidState`].
+struct StateArgs {
+    q: Vec<f64>,
+    base_twist: Vec<f64>,
+    qd: Vec<f64>,
+}
+
+impl StateArgs {
+    fn rigid(&self) -> RigidState<'_> {
+        RigidState::new(&self.q, &self.base_twist, &self.qd)
     }
 }
 
@@ -74,14 +89,15 @@ impl PyRobot {
     #[staticmethod]
     #[pyo3(signature = (xml, ee_link=None, locked_joints=None))]
     fn from_urdf_string(
+        py: Python<'_>,
         xml: &str,
         ee_link: Option<String>,
         locked_joints: Option<Vec<String>>,
     ) -> PyResult<Self> {
-        Ok(Self::wrap(Robot::from_urdf_string(
-            xml,
-            &options(ee_link, locked_joints),
-        )?))
+        let opts = options(ee_link, locked_joints);
+        Ok(Self::wrap(
+            py.allow_threads(|| Robot::from_urdf_string(xml, &opts))?,
+        ))
     }
 
     /// Rebuilds a model from :meth:`__reduce__`'s parts (for pickling).
@@ -234,13 +250,9 @@ impl PyRobot {
         method: &str,
     ) -> PyResult<Bound<'py, PyArray2<f64>>> {
         let q = vector(q, "q", Some(self.robot.dof()))?;
-        let m = match super::convert::method(method)? {
-            crate::Method::Recursive => {
-                algorithms::crba(&self.robot, &mut self.data(), &q)?.clone()
-            }
-            other => self.robot.mass_matrix(&q, other)?,
-        };
-        Ok(array2(py, &m))
+        let method = super::convert::method(method)?;
+        let mut data = self.data();
+        Ok(array2(py, method.mass_matrix(&self.robot, &mut data, &q)?))
     }
 
     /// Bias ``[C_B; C_r]``, shape (6+n,) (A.19): the generalized force needed for zero
@@ -254,13 +266,10 @@ impl PyRobot {
         qd: &Bound<'py, PyAny>,
         method: &str,
     ) -> PyResult<Bound<'py, PyArray1<f64>>> {
-        let (q, v, qd) = self.state(q, base_twist, qd)?;
-        let c = match super::convert::method(method)? {
-            crate::Method::Recursive => {
-                algorithms::bias_forces(&self.robot, &mut self.data(), &q, &v, &qd)?.clone()
-            }
-            other => self.robot.bias_forces(&q, &v, &qd, other)?,
-        };
+        let state = self.state(q, base_twist, qd)?;
+        let method = super::convert::method(method)?;
+        let mut data = self.data();
+        let c = method.bias_forces(&self.robot, &mut data, &state.rigid())?;
         Ok(array1(py, c.as_slice()))
     }
 
@@ -284,9 +293,7 @@ impl PyRobot {
         q: &Bound<'py, PyAny>,
     ) -> PyResult<Bound<'py, PyArray2<f64>>> {
         let q = vector(q, "q", Some(self.robot.dof()))?;
-        let mut data = self.data();
-        algorithms::ee_jacobian(&self.robot, &mut data, &q)?;
-        Ok(array2(py, &data.ee_base))
+        Ok(array2(py, &self.robot.ee_base_operator(&q)?))
     }
 
     /// Forward dynamics ``[α_B; q̈]``, shape (6+n,) (A.19). ``tau``: joint torques (N·m);
@@ -306,19 +313,15 @@ impl PyRobot {
         ee_wrench: Option<&Bound<'py, PyAny>>,
         method: &str,
     ) -> PyResult<Bound<'py, PyArray1<f64>>> {
-        let (q, v, qd) = self.state(q, base_twist, qd)?;
+        let state = self.state(q, base_twist, qd)?;
         let tau = vector(tau, "tau", Some(self.robot.dof()))?;
         let fb = vector_or(base_wrench, "base_wrench", 6, 0.0)?;
         let f = vector_or(ee_wrench, "ee_wrench", 6, 0.0)?;
-        let out = match super::convert::method(method)? {
-            crate::Method::Recursive => {
-                algorithms::aba(&self.robot, &mut self.data(), &q, &v, &qd, &tau, &fb, &f)?.clone()
-            }
-            other => self
-                .robot
-                .forward_dynamics(&q, &v, &qd, &tau, Some(&fb), Some(&f), other)?,
-        };
-        Ok(array1(py, out.as_slice()))
+        let loads = Loads::from_slices(Some(&fb), Some(&f))?;
+        let method = super::convert::method(method)?;
+        let mut data = self.data();
+        let acc = method.forward_dynamics(&self.robot, &mut data, &state.rigid(), &tau, &loads)?;
+        Ok(array1(py, acc.as_slice()))
     }
 
     /// Inverse dynamics ``[f_B; τ]``, shape (6+n,) (A.19), for classical base acceleration
@@ -336,20 +339,15 @@ impl PyRobot {
         ee_wrench: Option<&Bound<'py, PyAny>>,
         method: &str,
     ) -> PyResult<Bound<'py, PyArray1<f64>>> {
-        let (q, v, qd) = self.state(q, base_twist, qd)?;
+        let state = self.state(q, base_twist, qd)?;
         let acc = vector(base_acc, "base_acc", Some(6))?;
         let qdd = vector(qdd, "qdd", Some(self.robot.dof()))?;
         let f = vector_or(ee_wrench, "ee_wrench", 6, 0.0)?;
-        let out = match super::convert::method(method)? {
-            crate::Method::Recursive => {
-                algorithms::rnea(&self.robot, &mut self.data(), &q, &v, &qd, &acc, &qdd, &f)?
-                    .clone()
-            }
-            other => self
-                .robot
-                .inverse_dynamics(&q, &v, &qd, &acc, &qdd, Some(&f), other)?,
-        };
-        Ok(array1(py, out.as_slice()))
+        let method = super::convert::method(method)?;
+        let mut data = self.data();
+        let gen =
+            method.inverse_dynamics(&self.robot, &mut data, &state.rigid(), &acc, &qdd, &f)?;
+        Ok(array1(py, gen.as_slice()))
     }
 
     /// The seed's dense operators at this state, as a dict of numpy arrays: ``Phi``, ``H``,
@@ -363,8 +361,8 @@ impl PyRobot {
         base_twist: &Bound<'py, PyAny>,
         qd: &Bound<'py, PyAny>,
     ) -> PyResult<Bound<'py, PyDict>> {
-        let (q, v, qd) = self.state(q, base_twist, qd)?;
-        let o = self.robot.operators(&q, &v, &qd)?;
+        let state = self.state(q, base_twist, qd)?;
+        let o = self.robot.operators(&state.rigid())?;
         let d = PyDict::new(py);
         d.set_item("Phi", array2(py, &o.phi))?;
         d.set_item("H", array2(py, &o.h))?;
@@ -398,9 +396,9 @@ impl PyRobot {
         qd: &Bound<'py, PyAny>,
     ) -> PyResult<Bound<'py, PyArray1<f64>>> {
         let pose = vector(base_pose, "base_pose", Some(7))?;
-        let (q, v, qd) = self.state(q, base_twist, qd)?;
-        crate::dynamics::check_base_pose(&pose)?;
-        let h = algorithms::momentum(&self.robot, &mut self.data(), &q, &v, &qd)?;
+        let state = self.state(q, base_twist, qd)?;
+        check_base_pose(&pose)?;
+        let h = algorithms::momentum(&self.robot, &mut self.data(), &state.rigid())?;
         Ok(array1(
             py,
             &crate::dynamics::momentum_in_inertial_frame(&pose, &h),
@@ -414,13 +412,11 @@ impl PyRobot {
         base_twist: &Bound<'_, PyAny>,
         qd: &Bound<'_, PyAny>,
     ) -> PyResult<f64> {
-        let (q, v, qd) = self.state(q, base_twist, qd)?;
+        let state = self.state(q, base_twist, qd)?;
         Ok(algorithms::kinetic_energy(
             &self.robot,
             &mut self.data(),
-            &q,
-            &v,
-            &qd,
+            &state.rigid(),
         )?)
     }
 

@@ -93,6 +93,38 @@ impl Symmetric3 {
     }
 }
 
+impl Symmetric3 {
+    /// `L` of the Cholesky factorisation `S = L Lᵀ` (lower triangle, row by row:
+    /// `[l00, l10, l11, l20, l21, l22]`), or `None` unless `S` is positive definite.
+    #[inline]
+    fn cholesky(&self) -> Option<[f64; 6]> {
+        let l00 = self.xx.sqrt();
+        let l10 = self.xy / l00;
+        let l20 = self.xz / l00;
+        let d1 = self.yy - l10 * l10;
+        let l11 = d1.sqrt();
+        let l21 = (self.yz - l20 * l10) / l11;
+        let d2 = self.zz - l20 * l20 - l21 * l21;
+        let l22 = d2.sqrt();
+        // `x > 0` is false for NaN: a non-positive or non-finite pivot fails here.
+        (self.xx > 0.0 && d1 > 0.0 && d2 > 0.0 && l22.is_finite())
+            .then_some([l00, l10, l11, l20, l21, l22])
+    }
+}
+
+/// Solves `L Lᵀ x = b` for the factor of [`Symmetric3::cholesky`].
+#[inline]
+fn cholesky_solve(l: &[f64; 6], b: &Vec3) -> Vec3 {
+    let [l00, l10, l11, l20, l21, l22] = *l;
+    let y0 = b.x / l00;
+    let y1 = (b.y - l10 * y0) / l11;
+    let y2 = (b.z - l20 * y0 - l21 * y1) / l22;
+    let x2 = y2 / l22;
+    let x1 = (y1 - l21 * x2) / l11;
+    let x0 = (y0 - l10 * x1 - l20 * x2) / l00;
+    Vec3::new(x0, x1, x2)
+}
+
 impl Add for Symmetric3 {
     type Output = Self;
     #[inline]
@@ -185,6 +217,34 @@ impl ArticulatedInertia {
             self.angular.mul_vec(&m.angular) + self.coupling * m.linear,
             self.coupling.tr_mul(&m.angular) + self.linear.mul_vec(&m.linear),
         )
+    }
+
+    /// Solves `I^A α = f` for a positive-definite `I^A` (the ABA's base step), or `None` when it
+    /// is not positive definite.
+    ///
+    /// By blocks, with the Schur complement of the linear block `C`: `W = C⁻¹ Bᵀ`,
+    /// `S = A − B W`, then `α_ω = S⁻¹ (f_n − B C⁻¹ f_F)` and `α_v = C⁻¹ f_F − W α_ω`; both 3×3
+    /// systems are solved by Cholesky.
+    pub fn solve(&self, f: &Force) -> Option<Motion> {
+        let c = self.linear.cholesky()?;
+        let b = &self.coupling;
+        // W = C⁻¹ Bᵀ, column by column: column k solves C w = (row k of B)ᵀ.
+        let w0 = cholesky_solve(&c, &b.row(0).transpose());
+        let w1 = cholesky_solve(&c, &b.row(1).transpose());
+        let w2 = cholesky_solve(&c, &b.row(2).transpose());
+        let (b0, b1, b2) = (b.row(0), b.row(1), b.row(2));
+        let schur = Symmetric3 {
+            xx: self.angular.xx - (b0 * w0)[0],
+            xy: self.angular.xy - (b0 * w1)[0],
+            xz: self.angular.xz - (b0 * w2)[0],
+            yy: self.angular.yy - (b1 * w1)[0],
+            yz: self.angular.yz - (b1 * w2)[0],
+            zz: self.angular.zz - (b2 * w2)[0],
+        };
+        let y = cholesky_solve(&c, &f.linear);
+        let angular = cholesky_solve(&schur.cholesky()?, &(f.angular - b * y));
+        let w = Mat3::from_columns(&[w0, w1, w2]);
+        Some(Motion::new(angular, y - w * angular))
     }
 
     /// `I^A [h; 0] = [A h; Bᵀ h]`: the ABA's `U = I^A H` for a revolute axis `h`.

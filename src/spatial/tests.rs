@@ -179,6 +179,9 @@ fn articulated_inertia_operations_equal_their_matrices() {
         let other = articulated(&mut rng);
         close66(&(ia + other).matrix(), &(dense + other.matrix()));
 
+        let solved = ia.solve(&f).expect("positive definite");
+        close6(&(dense * solved.to_vector()), &f.to_vector());
+
         let rigid = inertia(&mut rng);
         close66(&ArticulatedInertia::from(&rigid).matrix(), &rigid.matrix());
 
@@ -189,6 +192,22 @@ fn articulated_inertia_operations_equal_their_matrices() {
             (rotated - r.transpose() * s.matrix() * r).norm() <= 1e-12 * (1.0 + rotated.norm())
         );
         assert!((s.mul_vec(&h) - s.matrix() * h).norm() <= 1e-12);
+    }
+}
+
+#[test]
+fn articulated_solve_rejects_what_is_not_positive_definite() {
+    let mut rng = ChaCha8Rng::seed_from_u64(12);
+    let f = Force::new(vec3(&mut rng), vec3(&mut rng));
+    // indefinite linear block, indefinite Schur complement, and NaN
+    let mut linear_bad = articulated(&mut rng);
+    linear_bad.linear.yy = -1.0;
+    let mut angular_bad = articulated(&mut rng);
+    angular_bad.angular.zz = -100.0;
+    let mut nan = articulated(&mut rng);
+    nan.coupling[(1, 2)] = f64::NAN;
+    for ia in [linear_bad, angular_bad, nan, ArticulatedInertia::zero()] {
+        assert!(ia.solve(&f).is_none(), "{ia:?}");
     }
 }
 

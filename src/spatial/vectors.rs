@@ -24,6 +24,12 @@ pub struct Force {
 macro_rules! spatial_vector_impl {
     ($t:ident) => {
         impl $t {
+            /// The zero vector, as a constant.
+            pub const ZERO: Self = Self {
+                angular: Vec3::new(0.0, 0.0, 0.0),
+                linear: Vec3::new(0.0, 0.0, 0.0),
+            };
+
             /// The zero vector.
             #[inline]
             pub fn zero() -> Self {
@@ -64,6 +70,18 @@ macro_rules! spatial_vector_impl {
                     self.linear.y,
                     self.linear.z,
                 )
+            }
+            /// `[angular; linear]` as an array.
+            #[inline]
+            pub fn to_array(&self) -> [f64; 6] {
+                [
+                    self.angular.x,
+                    self.angular.y,
+                    self.angular.z,
+                    self.linear.x,
+                    self.linear.y,
+                    self.linear.z,
+                ]
             }
             /// Writes `[angular; linear]` into the first six elements of `out`.
             #[inline]

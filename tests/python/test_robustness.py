@@ -92,7 +92,7 @@ def test_stability_warning_accounts_for_a_stiff_motor_pd():
     assert dt < arm.rk4_stability_limit()  # the joint modes alone are fine at this dt
     j = arm.parameters[1]
     hot = MotorPD(kp=10.0, kd=5.0 * j / dt, theta_ref=np.full(7, 0.1))  # pole at -5/dt: unstable
-    with pytest.warns(RuntimeWarning, match="motor PD"):
+    with pytest.warns(RuntimeWarning, match="closed loop"):
         with pytest.raises(SimulationError):
             arm.simulate(arm.state(), dt, 2000, u=hot)
     calm = MotorPD(kp=10.0, kd=0.2 * j / dt, theta_ref=np.full(7, 0.1))

@@ -1,0 +1,154 @@
+//! The arguments every dynamics function takes, as small types, and the checks each public entry
+//! point runs on them.
+//!
+//! This module sits below both the recursive algorithms ([`crate::algorithms`]) and the operator
+//! form ([`crate::operators`]), so neither depends on the other for its argument checks.
+
+use crate::error::{Error, Result};
+use crate::model::Robot;
+use crate::spatial::Force;
+
+/// The rigid system's configuration and velocity: joint angles `q` (rad, n), the base twist
+/// `V_B = [ω_B; v_B]` (rad/s, m/s; base-frame components, 6) and joint rates `q̇` (rad/s, n).
+///
+/// The base pose is not part of it: without gravity the dynamics do not depend on it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RigidState<'a> {
+    /// Joint angles `q` (rad), base to tip.
+    pub q: &'a [f64],
+    /// Base twist `[ω_B; v_B]` in base-frame components.
+    pub base_twist: &'a [f64],
+    /// Joint rates `q̇` (rad/s).
+    pub qd: &'a [f64],
+}
+
+/// Zero twist, for states at rest.
+const ZERO6: [f64; 6] = [0.0; 6];
+
+impl<'a> RigidState<'a> {
+    /// Bundles `q`, `V_B` and `q̇`; [`RigidState::check`] validates them against a robot.
+    pub fn new(q: &'a [f64], base_twist: &'a [f64], qd: &'a [f64]) -> Self {
+        Self { q, base_twist, qd }
+    }
+
+    /// The system at rest at angles `q`: `V_B = 0`, and `q̇ = zeros` (a slice of `q.len()` zeros
+    /// supplied by the caller, so that nothing is allocated).
+    pub fn at_rest(q: &'a [f64], zeros: &'a [f64]) -> Self {
+        Self {
+            q,
+            base_twist: &ZERO6,
+            qd: zeros,
+        }
+    }
+
+    /// Checks the lengths against `robot` (n, 6, n) and that every element is finite.
+    pub fn check(&self, robot: &Robot) -> Result<()> {
+        let n = robot.dof();
+        check_vector("q", self.q, n)?;
+        check_vector("base_twist", self.base_twist, 6)?;
+        check_vector("qd", self.qd, n)
+    }
+}
+
+/// External loads on the rigid system (A.19).
+///
+/// - `base_wrench` is `f_B`: the spatial force `[moment; force]` the base's own actuators apply
+///   to it (thrusters, reaction-wheel torque), base frame, about the base origin (N·m, N).
+/// - `ee_wrench` is `f`: the spatial force the end-effector exerts ON its environment, EE frame,
+///   about the EE origin. A load the environment applies to the EE is `−f`.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Loads {
+    /// `f_B`, base frame.
+    pub base_wrench: Force,
+    /// `f`, EE frame (exerted by the EE on its environment).
+    pub ee_wrench: Force,
+}
+
+impl Loads {
+    /// No external load: `f_B = 0`, `f = 0` (free floating).
+    pub const ZERO: Loads = Loads {
+        base_wrench: Force::ZERO,
+        ee_wrench: Force::ZERO,
+    };
+
+    /// From `[moment; force]` slices of length 6 (`None`: zero), checked for length and
+    /// finiteness.
+    pub fn from_slices(base_wrench: Option<&[f64]>, ee_wrench: Option<&[f64]>) -> Result<Self> {
+        let read = |what: &str, v: Option<&[f64]>| -> Result<Force> {
+            match v {
+                Some(v) => {
+                    check_vector(what, v, 6)?;
+                    Ok(Force::from_slice(v))
+                }
+                None => Ok(Force::ZERO),
+            }
+        };
+        Ok(Self {
+            base_wrench: read("base_wrench", base_wrench)?,
+            ee_wrench: read("ee_wrench", ee_wrench)?,
+        })
+    }
+
+    /// Checks that both wrenches are finite.
+    pub fn check(&self) -> Result<()> {
+        check_finite("base_wrench", &self.base_wrench.to_array())?;
+        check_finite("ee_wrench", &self.ee_wrench.to_array())
+    }
+}
+
+/// Checks that `values` has `expected` elements, all finite.
+pub fn check_vector(what: &str, values: &[f64], expected: usize) -> Result<()> {
+    check_length(what, values.len(), expected)?;
+    check_finite(what, values)
+}
+
+/// Checks a length: `what: expected length N, given length M`.
+pub fn check_length(what: &str, given: usize, expected: usize) -> Result<()> {
+    if given != expected {
+        return Err(Error::Dimension {
+            what: what.to_string(),
+            expected: format!("length {expected}"),
+            given: format!("length {given}"),
+        });
+    }
+    Ok(())
+}
+
+/// Checks that every element of `values` is finite.
+pub fn check_finite(what: &str, values: &[f64]) -> Result<()> {
+    match values.iter().position(|v| !v.is_finite()) {
+        Some(index) => Err(Error::NonFinite {
+            what: what.to_string(),
+            index,
+            value: values[index],
+        }),
+        None => Ok(()),
+    }
+}
+
+/// Checks a base pose `[r_B (3); quat_B (4) as (x, y, z, w)]`: 7 finite numbers and a quaternion
+/// of non-zero norm (it is normalised where it is used).
+pub fn check_base_pose(base_pose: &[f64]) -> Result<()> {
+    check_vector("base_pose", base_pose, 7)?;
+    let norm = base_pose[3..7].iter().map(|v| v * v).sum::<f64>().sqrt();
+    if norm < 1e-9 {
+        return Err(Error::InvalidArgument {
+            what: "base_pose".into(),
+            message:
+                "the quaternion (elements 3..7, x y z w) has zero norm; expected a unit quaternion"
+                    .into(),
+        });
+    }
+    Ok(())
+}
+
+/// Checks a time step: finite and `> 0` (s).
+pub fn check_dt(dt: f64) -> Result<()> {
+    if !(dt.is_finite() && dt > 0.0) {
+        return Err(Error::InvalidArgument {
+            what: "dt".into(),
+            message: format!("expected a finite step > 0 s, given {dt}"),
+        });
+    }
+    Ok(())
+}

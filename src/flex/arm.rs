@@ -1,0 +1,351 @@
+//! [`FlexibleArm`]: a floating-base arm with Spong flexible joints, its state derivative and the
+//! quantities an engineer checks a run against (energy, momentum, EE pose).
+
+use super::joints::FlexibleJoints;
+use super::stability::{self, StabilityLimit};
+use super::state::{normalise_quaternion, quaternion_rate, StateLayout};
+use crate::algorithms::{self, Data};
+use crate::args::{check_base_pose, check_length, check_vector, Loads, RigidState};
+use crate::dynamics::{momentum_in_inertial_frame, Method};
+use crate::error::{Error, Result};
+use crate::integrate::{self, Controller, Rk4, SimulationFailure, Trajectory, Wrenches};
+use crate::model::Robot;
+use crate::spatial::{quaternion_to_rotation, Vec3};
+
+/// A floating-base arm with Spong flexible joints: the robot, its joint parameters and the
+/// rigid-body dynamics method used by [`FlexibleArm::derivative`].
+///
+/// ```
+/// use orbitflex::{FlexibleArm, FlexibleJoints, Inputs, Robot, StateSpec};
+/// let robot = Robot::space_arm();
+/// let n = robot.dof();
+/// let arm = FlexibleArm::new(robot, FlexibleJoints::uniform(n, 2e4, 1.0, 2.0, 1.0)?)?;
+/// let q = vec![0.1; n];
+/// let x = arm.state(&StateSpec { q: Some(&q), ..StateSpec::default() })?;
+/// let mut ws = arm.workspace();
+/// let mut xdot = vec![0.0; x.len()];
+/// arm.derivative(&mut ws, &x, &Inputs::torques(&vec![1.0; n]), &mut xdot)?;
+/// // θ̈ = (u − τ − β θ̇) / j with relaxed springs and motors at rest: u / j = 1
+/// assert!((xdot[arm.layout().theta_dot()][0] - 1.0).abs() < 1e-12);
+/// # Ok::<(), orbitflex::Error>(())
+/// ```
+#[derive(Debug, Clone)]
+pub struct FlexibleArm {
+    robot: Robot,
+    joints: FlexibleJoints,
+    method: Method,
+}
+
+/// The inputs held over a step: motor torques `u` (n, link side, N·m) and the external [`Loads`].
+#[derive(Debug, Clone, Copy)]
+pub struct Inputs<'a> {
+    /// Motor torques `u` (N·m), reflected to the link side.
+    pub u: &'a [f64],
+    /// `f_B` (base frame) and `f` (EE frame, exerted by the EE on its environment).
+    pub loads: Loads,
+}
+
+impl<'a> Inputs<'a> {
+    /// Motor torques `u` and no external load.
+    pub fn torques(u: &'a [f64]) -> Self {
+        Self {
+            u,
+            loads: Loads::ZERO,
+        }
+    }
+
+    /// Checks `u` against `n` joints and the loads for finiteness.
+    pub fn check(&self, n: usize) -> Result<()> {
+        check_vector("u", self.u, n)?;
+        self.loads.check()
+    }
+}
+
+/// The parts of a state given to [`FlexibleArm::state`]; `None` takes the default.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct StateSpec<'a> {
+    /// Link angles `q` (rad); default zero.
+    pub q: Option<&'a [f64]>,
+    /// Motor angles `θ` (rad, link side); default `q` (relaxed springs).
+    pub theta: Option<&'a [f64]>,
+    /// Link rates `q̇` (rad/s); default zero.
+    pub qd: Option<&'a [f64]>,
+    /// Motor rates `θ̇` (rad/s); default zero.
+    pub theta_dot: Option<&'a [f64]>,
+    /// `[r_B; quat_B (x, y, z, w)]`; default the origin with identity attitude.
+    pub base_pose: Option<&'a [f64]>,
+    /// `[ω_B; v_B]` (base frame); default at rest.
+    pub base_twist: Option<&'a [f64]>,
+}
+
+/// Scratch memory for one [`FlexibleArm`]: the rigid-body [`Data`], the spring torques and the
+/// RK4 stages. Made by [`FlexibleArm::workspace`]; one per thread.
+#[derive(Debug, Clone)]
+pub struct ArmWorkspace {
+    pub(crate) data: Data,
+    pub(crate) tau: Vec<f64>,
+    pub(crate) rk4: Rk4,
+}
+
+impl ArmWorkspace {
+    /// Buffers for `arm`.
+    pub fn new(arm: &FlexibleArm) -> Self {
+        Self {
+            data: Data::new(&arm.robot),
+            tau: vec![0.0; arm.robot.dof()],
+            rk4: Rk4::new(arm.layout().len()),
+        }
+    }
+
+    fn check(&self, arm: &FlexibleArm) -> Result<()> {
+        algorithms::check_data(&arm.robot, &self.data)
+    }
+}
+
+impl FlexibleArm {
+    /// Couples a robot with joint parameters of matching length.
+    pub fn new(robot: Robot, joints: FlexibleJoints) -> Result<Self> {
+        if joints.len() != robot.dof() {
+            return Err(Error::Dimension {
+                what: "FlexibleJoints".into(),
+                expected: format!("{} joints (the robot's dof)", robot.dof()),
+                given: format!("{} joints", joints.len()),
+            });
+        }
+        Ok(Self {
+            robot,
+            joints,
+            method: Method::Recursive,
+        })
+    }
+
+    /// Selects the rigid-body dynamics used by the derivative (default: recursive).
+    pub fn with_method(mut self, method: Method) -> Self {
+        self.method = method;
+        self
+    }
+
+    /// The dynamics method in use.
+    pub fn method(&self) -> Method {
+        self.method
+    }
+
+    /// The rigid robot.
+    pub fn robot(&self) -> &Robot {
+        &self.robot
+    }
+
+    /// The joint parameters.
+    pub fn joints(&self) -> &FlexibleJoints {
+        &self.joints
+    }
+
+    /// Number of joints `n`.
+    pub fn dof(&self) -> usize {
+        self.robot.dof()
+    }
+
+    /// The layout of the state vector.
+    pub fn layout(&self) -> StateLayout {
+        StateLayout {
+            n: self.robot.dof(),
+        }
+    }
+
+    /// A workspace for this arm ([`ArmWorkspace::new`]).
+    pub fn workspace(&self) -> ArmWorkspace {
+        ArmWorkspace::new(self)
+    }
+
+    /// Builds a state `x` (model §4) from the parts in `spec`. Defaults: zero angles and rates,
+    /// base at the origin with identity attitude, at rest; `θ = q` (relaxed springs). The
+    /// quaternion is normalised.
+    pub fn state(&self, spec: &StateSpec) -> Result<Vec<f64>> {
+        let layout = self.layout();
+        let mut x = vec![0.0; layout.len()];
+        x[layout.quaternion().end - 1] = 1.0;
+        if let Some(pose) = spec.base_pose {
+            check_base_pose(pose)?;
+        }
+        for (what, value, range) in [
+            ("q", spec.q, layout.q()),
+            ("theta", spec.theta.or(spec.q), layout.theta()),
+            ("qd", spec.qd, layout.qd()),
+            ("theta_dot", spec.theta_dot, layout.theta_dot()),
+            ("base_pose", spec.base_pose, layout.base_pose()),
+            ("base_twist", spec.base_twist, layout.base_twist()),
+        ] {
+            if let Some(v) = value {
+                check_vector(what, v, range.len())?;
+                x[range].copy_from_slice(v);
+            }
+        }
+        normalise_quaternion(&mut x[layout.quaternion()]);
+        Ok(x)
+    }
+
+    /// The state at rest: zero angles and rates, base at the origin, identity attitude.
+    pub fn rest_state(&self) -> Vec<f64> {
+        self.state(&StateSpec::default())
+            .expect("the default state is valid")
+    }
+
+    /// Checks a state vector's length, finiteness and quaternion.
+    pub fn check_state(&self, x: &[f64]) -> Result<()> {
+        let layout = self.layout();
+        check_vector("x (state)", x, layout.len())?;
+        check_base_pose(&x[layout.base_pose()])
+    }
+
+    /// `ẋ` (model §4) into `xdot`:
+    ///
+    /// ```text
+    /// ṙ_B = R_B v_B,   quat_B' = ½ quat_B ⊗ (ω_B, 0)
+    /// τ = k (θ − q) + d (θ̇ − q̇)
+    /// [α_B; q̈] = 𝓜⁻¹ ([f_B; τ] − [C_B; C_r] − [Φ_{n+1,B}ᵀ; Jᵀ] f)          (A.19)
+    /// ω̇_B = α_B[0:3],  v̇_B = α_B[3:6] − ω_B × v_B,  θ̈ = (u − τ − β θ̇) / j
+    /// ```
+    pub fn derivative(
+        &self,
+        ws: &mut ArmWorkspace,
+        x: &[f64],
+        inputs: &Inputs,
+        xdot: &mut [f64],
+    ) -> Result<()> {
+        ws.check(self)?;
+        self.check_state(x)?;
+        inputs.check(self.dof())?;
+        check_length("xdot", xdot.len(), self.layout().len())?;
+        self.derivative_unchecked(&mut ws.data, &mut ws.tau, x, inputs, xdot)
+    }
+
+    /// The derivative without argument checks; allocation-free on the recursive path. `tau`
+    /// receives the spring torques.
+    pub(crate) fn derivative_unchecked(
+        &self,
+        data: &mut Data,
+        tau: &mut [f64],
+        x: &[f64],
+        inputs: &Inputs,
+        xdot: &mut [f64],
+    ) -> Result<()> {
+        let layout = self.layout();
+        let s = layout.split(x);
+        self.spring_torque(x, tau);
+        let rigid = RigidState::new(s.q, s.base_twist, s.qd);
+        self.method
+            .forward_dynamics_unchecked(&self.robot, data, &rigid, tau, &inputs.loads)?;
+        let acc = data.ddq.as_slice();
+
+        let (omega, v) = (s.omega(), s.velocity());
+        let r_dot = quaternion_to_rotation(s.quaternion) * v;
+        xdot[layout.position()].copy_from_slice(r_dot.as_slice());
+        xdot[layout.quaternion()].copy_from_slice(&quaternion_rate(s.quaternion, &omega));
+        xdot[layout.q()].copy_from_slice(s.qd);
+        xdot[layout.theta()].copy_from_slice(s.theta_dot);
+        let v_dot = Vec3::new(acc[3], acc[4], acc[5]) - omega.cross(&v);
+        let twist_rate = &mut xdot[layout.base_twist()];
+        twist_rate[..3].copy_from_slice(&acc[..3]);
+        twist_rate[3..].copy_from_slice(v_dot.as_slice());
+        xdot[layout.qd()].copy_from_slice(&acc[6..]);
+        let p = &self.joints;
+        for (i, motor) in xdot[layout.theta_dot()].iter_mut().enumerate() {
+            *motor =
+                (inputs.u[i] - tau[i] - p.motor_damping[i] * s.theta_dot[i]) / p.motor_inertia[i];
+        }
+        Ok(())
+    }
+
+    /// One classic RK4 step of length `dt` in place, inputs held over the step; the quaternion is
+    /// renormalised afterwards (model §5). Allocation-free. See [`integrate::step`].
+    pub fn step(
+        &self,
+        ws: &mut ArmWorkspace,
+        x: &mut [f64],
+        dt: f64,
+        inputs: &Inputs,
+    ) -> Result<()> {
+        integrate::step(self, ws, x, dt, inputs)
+    }
+
+    /// Integrates `steps` RK4 steps of `dt` from `x0` under the controller `u` and the
+    /// `wrenches`. See [`integrate::simulate`].
+    pub fn simulate(
+        &self,
+        x0: &[f64],
+        dt: f64,
+        steps: usize,
+        u: &mut dyn Controller,
+        wrenches: &Wrenches,
+    ) -> std::result::Result<Trajectory, Box<SimulationFailure>> {
+        integrate::simulate(self, x0, dt, steps, u, wrenches, &mut integrate::Unobserved)
+    }
+
+    /// Spring torques `τ = k (θ − q) + d (θ̇ − q̇)` (N·m) at state `x` into `out` (n).
+    pub fn spring_torque(&self, x: &[f64], out: &mut [f64]) {
+        let s = self.layout().split(x);
+        let p = &self.joints;
+        for (i, tau) in out.iter_mut().enumerate() {
+            *tau =
+                p.stiffness[i] * (s.theta[i] - s.q[i]) + p.damping[i] * (s.theta_dot[i] - s.qd[i]);
+        }
+    }
+
+    /// Total energy (model §6.2): rigid kinetic energy `½ νᵀ 𝓜 ν`, motor kinetic energy
+    /// `½ θ̇ᵀ diag(j) θ̇` and spring energy `½ (θ − q)ᵀ diag(k) (θ − q)` (J).
+    pub fn energy(&self, ws: &mut ArmWorkspace, x: &[f64]) -> f64 {
+        let s = self.layout().split(x);
+        let rigid = RigidState::new(s.q, s.base_twist, s.qd);
+        algorithms::velocities_unchecked(&self.robot, &mut ws.data, &rigid);
+        let mut e = algorithms::kinetic_energy_from_velocities(&self.robot, &ws.data);
+        let p = &self.joints;
+        for i in 0..self.dof() {
+            let stretch = s.theta[i] - s.q[i];
+            e += 0.5 * p.motor_inertia[i] * s.theta_dot[i] * s.theta_dot[i]
+                + 0.5 * p.stiffness[i] * stretch * stretch;
+        }
+        e
+    }
+
+    /// Total spatial momentum `[angular; linear]` of base and links in the inertial frame, about
+    /// the inertial origin (model §6.1). The motors' spin is not included (model §3).
+    pub fn momentum(&self, ws: &mut ArmWorkspace, x: &[f64]) -> [f64; 6] {
+        let layout = self.layout();
+        let s = layout.split(x);
+        let rigid = RigidState::new(s.q, s.base_twist, s.qd);
+        algorithms::velocities_unchecked(&self.robot, &mut ws.data, &rigid);
+        let h = algorithms::momentum_from_velocities(&self.robot, &mut ws.data);
+        momentum_in_inertial_frame(&x[layout.base_pose()], &h)
+    }
+
+    /// The EE pose `[position (m); quaternion (x, y, z, w), w ≥ 0]` in the inertial frame at
+    /// state `x`.
+    pub fn ee_pose(&self, x: &[f64]) -> [f64; 7] {
+        let s = self.layout().split(x);
+        let base_rotation = quaternion_to_rotation(s.quaternion); // base -> inertial
+        let ee = algorithms::ee_from_base(&self.robot, s.q); // Φ_{n+1,B}
+                                                             // The EE origin is at p_{B,n+1} in base axes; R_{n+1,B}ᵀ turns EE axes into base axes.
+        let position = Vec3::from_column_slice(s.position) + base_rotation * ee.translation;
+        let rotation = base_rotation * ee.rotation.transpose();
+        let quat = nalgebra::UnitQuaternion::from_rotation_matrix(
+            &nalgebra::Rotation3::from_matrix_unchecked(rotation),
+        );
+        let c = quat.coords; // (i, j, k, w)
+        let sign = if c[3] < 0.0 { -1.0 } else { 1.0 };
+        [
+            position.x,
+            position.y,
+            position.z,
+            sign * c[0],
+            sign * c[1],
+            sign * c[2],
+            sign * c[3],
+        ]
+    }
+
+    /// The largest stable RK4 step at state `x` for the closed loop of the joints, the arm and
+    /// the controller `u` (its feedback, if it declares one): see [`stability`].
+    pub fn rk4_stability_limit(&self, x: &[f64], u: &dyn Controller) -> Result<StabilityLimit> {
+        stability::rk4_stability_limit(self, x, &u.feedback())
+    }
+}

@@ -1,0 +1,25 @@
+//! Spong (1987) flexible joints on the floating-base arm (model §3, §4).
+//!
+//! Each joint `i` has a motor whose angle, reflected through its gearbox to the link side, is
+//! `θ_i`. The spring torque on link `i` and the motor equation are
+//!
+//! ```text
+//! τ_i = k_i (θ_i − q_i) + d_i (θ̇_i − q̇_i)
+//! j_i θ̈_i + β_i θ̇_i + τ_i = u_i
+//! ```
+//! with `u_i` the motor torque reflected to the link side (N·m).
+//!
+//! - [`joints`]: the parameters `k, d, j, β` ([`FlexibleJoints`]), from arrays, gear data or TOML;
+//! - [`state`]: the state vector's layout ([`StateLayout`]) and quaternion helpers;
+//! - [`arm`]: [`FlexibleArm`], its derivative, energy, momentum and EE pose;
+//! - [`stability`]: the closed-loop RK4 step limit.
+
+pub mod arm;
+pub mod joints;
+pub mod stability;
+pub mod state;
+
+pub use arm::{ArmWorkspace, FlexibleArm, Inputs, StateSpec};
+pub use joints::{reflected_inertia, FlexibleJoints};
+pub use stability::StabilityLimit;
+pub use state::{normalise_quaternion, quaternion_rate, StateLayout, StateParts};

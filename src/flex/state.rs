@@ -1,0 +1,192 @@
+//! The state vector of the flexible floating-base arm (model §4): its layout, the one place where
+//! its offsets live, and the quaternion and base-pose helpers that act on it.
+
+use crate::spatial::Vec3;
+use std::ops::Range;
+
+/// Offsets of the blocks of the state `x ∈ R^{13+4n}` (model §4):
+///
+/// ```text
+/// x = [ r_B (3) | quat_B (4) | q (n) | θ (n) | ω_B (3) | v_B (3) | q̇ (n) | θ̇ (n) ]
+/// ```
+/// configuration first, then velocities. `r_B` is the base origin in the inertial frame (m),
+/// `quat_B = (x, y, z, w)` maps base-frame components to inertial ones, `q` and `θ` are the link
+/// and (link-side) motor angles (rad), `[ω_B; v_B]` is the base twist in base-frame components.
+///
+/// ```
+/// use orbitflex::StateLayout;
+/// let layout = StateLayout { n: 7 };
+/// assert_eq!(layout.len(), 41);
+/// assert_eq!(layout.theta(), 14..21);
+/// ```
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct StateLayout {
+    /// Number of joints.
+    pub n: usize,
+}
+
+impl StateLayout {
+    /// Length `13 + 4n`.
+    pub fn len(&self) -> usize {
+        13 + 4 * self.n
+    }
+    /// Never empty (the base alone has 13 states).
+    pub fn is_empty(&self) -> bool {
+        false
+    }
+    /// `r_B`: base origin in the inertial frame (m).
+    pub fn position(&self) -> Range<usize> {
+        0..3
+    }
+    /// `quat_B = (x, y, z, w)`: base-frame to inertial-frame components.
+    pub fn quaternion(&self) -> Range<usize> {
+        3..7
+    }
+    /// `[r_B; quat_B]`.
+    pub fn base_pose(&self) -> Range<usize> {
+        0..7
+    }
+    /// Link angles `q` (rad).
+    pub fn q(&self) -> Range<usize> {
+        7..7 + self.n
+    }
+    /// Motor angles `θ` (rad, link side).
+    pub fn theta(&self) -> Range<usize> {
+        7 + self.n..7 + 2 * self.n
+    }
+    /// Base twist `[ω_B; v_B]` in base-frame components.
+    pub fn base_twist(&self) -> Range<usize> {
+        7 + 2 * self.n..13 + 2 * self.n
+    }
+    /// Link rates `q̇` (rad/s).
+    pub fn qd(&self) -> Range<usize> {
+        13 + 2 * self.n..13 + 3 * self.n
+    }
+    /// Motor rates `θ̇` (rad/s, link side).
+    pub fn theta_dot(&self) -> Range<usize> {
+        13 + 3 * self.n..13 + 4 * self.n
+    }
+    /// Everything but the base pose: `[q | θ | V_B | q̇ | θ̇]`, the part the dynamics act on.
+    pub fn dynamic(&self) -> Range<usize> {
+        7..13 + 4 * self.n
+    }
+
+    /// The named blocks, in order, with their ranges: `base_pose`, `q`, `theta`, `base_twist`,
+    /// `qd`, `theta_dot`. Bindings build their views from this list.
+    pub fn blocks(&self) -> [(&'static str, Range<usize>); 6] {
+        [
+            ("base_pose", self.base_pose()),
+            ("q", self.q()),
+            ("theta", self.theta()),
+            ("base_twist", self.base_twist()),
+            ("qd", self.qd()),
+            ("theta_dot", self.theta_dot()),
+        ]
+    }
+
+    /// Names of the state's elements, in order: `r_x … quat_w`, `q[joint]`, `theta[joint]`,
+    /// `omega_x … v_z`, `qd[joint]`, `theta_dot[joint]`.
+    pub fn element_names(&self, joint_names: &[&str]) -> Vec<String> {
+        let per_joint =
+            |prefix: &'static str| joint_names.iter().map(move |j| format!("{prefix}[{j}]"));
+        ["r_x", "r_y", "r_z", "quat_x", "quat_y", "quat_z", "quat_w"]
+            .iter()
+            .map(|s| s.to_string())
+            .chain(per_joint("q"))
+            .chain(per_joint("theta"))
+            .chain(
+                ["omega_x", "omega_y", "omega_z", "v_x", "v_y", "v_z"]
+                    .iter()
+                    .map(|s| s.to_string()),
+            )
+            .chain(per_joint("qd"))
+            .chain(per_joint("theta_dot"))
+            .collect()
+    }
+
+    /// The blocks of `x` as named slices.
+    #[inline]
+    pub fn split<'a>(&self, x: &'a [f64]) -> StateParts<'a> {
+        StateParts {
+            position: &x[self.position()],
+            quaternion: &x[self.quaternion()],
+            q: &x[self.q()],
+            theta: &x[self.theta()],
+            base_twist: &x[self.base_twist()],
+            qd: &x[self.qd()],
+            theta_dot: &x[self.theta_dot()],
+        }
+    }
+}
+
+/// The blocks of one state `x`, borrowed ([`StateLayout::split`]).
+#[derive(Debug, Clone, Copy)]
+pub struct StateParts<'a> {
+    /// `r_B` (m, inertial frame).
+    pub position: &'a [f64],
+    /// `quat_B = (x, y, z, w)`.
+    pub quaternion: &'a [f64],
+    /// Link angles `q` (rad).
+    pub q: &'a [f64],
+    /// Motor angles `θ` (rad, link side).
+    pub theta: &'a [f64],
+    /// Base twist `[ω_B; v_B]` (base frame).
+    pub base_twist: &'a [f64],
+    /// Link rates `q̇` (rad/s).
+    pub qd: &'a [f64],
+    /// Motor rates `θ̇` (rad/s).
+    pub theta_dot: &'a [f64],
+}
+
+impl StateParts<'_> {
+    /// `ω_B` (rad/s, base frame).
+    #[inline]
+    pub fn omega(&self) -> Vec3 {
+        Vec3::new(self.base_twist[0], self.base_twist[1], self.base_twist[2])
+    }
+    /// `v_B` (m/s, base frame).
+    #[inline]
+    pub fn velocity(&self) -> Vec3 {
+        Vec3::new(self.base_twist[3], self.base_twist[4], self.base_twist[5])
+    }
+}
+
+/// `d quat / dt = ½ quat ⊗ (ω, 0)` (Hamilton product, scalar last) for a quaternion mapping body
+/// to inertial components and the body-frame angular velocity `ω`.
+#[inline]
+pub fn quaternion_rate(quat: &[f64], omega: &Vec3) -> [f64; 4] {
+    let v = Vec3::new(quat[0], quat[1], quat[2]);
+    let d = (omega * quat[3] + v.cross(omega)) * 0.5;
+    [d.x, d.y, d.z, -0.5 * v.dot(omega)]
+}
+
+/// Scales a quaternion to unit norm. The norm is taken after dividing by the largest component,
+/// so huge but finite components do not overflow into a zero quaternion; a zero or non-finite
+/// quaternion is left as it is (and is then caught as a diverged state).
+pub fn normalise_quaternion(quat: &mut [f64]) {
+    let squares: f64 = quat.iter().map(|v| v * v).sum();
+    let norm = if squares.is_finite() && squares > f64::MIN_POSITIVE {
+        squares.sqrt()
+    } else {
+        let scale = quat.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        if !(scale.is_finite() && scale > 0.0) {
+            return;
+        }
+        scale * quat.iter().map(|v| (v / scale).powi(2)).sum::<f64>().sqrt()
+    };
+    quat.iter_mut().for_each(|v| *v /= norm);
+}
+
+/// Why `x` is not a valid state, if it is not: a non-finite element or a zero quaternion.
+pub(crate) fn state_defect(layout: &StateLayout, x: &[f64]) -> Option<String> {
+    if let Some(i) = x.iter().position(|v| !v.is_finite()) {
+        return Some(format!("element {i} turned non-finite"));
+    }
+    let scale = x[layout.quaternion()]
+        .iter()
+        .fold(0.0f64, |m, v| m.max(v.abs()));
+    if scale == 0.0 {
+        return Some("the base quaternion collapsed to zero".into());
+    }
+    None
+}

@@ -1,0 +1,37 @@
+//! Time integration of the flexible arm (model §5): the RK4 integrator, what drives a run, and
+//! the run itself.
+//!
+//! - [`rk4`]: classic RK4, generic over an [`OdeSystem`], owning its stage buffers;
+//! - [`control`]: input [`Schedule`]s, the [`Controller`] trait and the built-in [`MotorPD`];
+//! - [`simulate`](mod@simulate): one [`step`], a whole run ([`simulate()`]) with its checks,
+//!   stability warning and [`Observer`] hook;
+//! - [`trajectory`]: the [`Trajectory`] a run returns and the diagnostics along it.
+//!
+//! ```
+//! use orbitflex::integrate::{MotorPD, Schedule, Wrenches};
+//! use orbitflex::{FlexibleArm, FlexibleJoints, Robot};
+//!
+//! let robot = Robot::space_arm();
+//! let n = robot.dof();
+//! let arm = FlexibleArm::new(robot, FlexibleJoints::uniform(n, 2e4, 1.0, 2.0, 1.0)?)?;
+//! let mut pd = MotorPD::new(vec![2000.0; n], vec![800.0; n], Schedule::Constant(vec![0.2; n]),
+//!                           Schedule::Zero, Schedule::Zero)?;
+//! let traj = arm.simulate(&arm.rest_state(), 1e-3, 100, &mut pd, &Wrenches::ZERO)?;
+//! assert_eq!(traj.len(), 101);
+//! // free floating from rest: the momentum stays zero up to RK4's truncation error
+//! let h = traj.rows().momentum(&arm);
+//! assert!(h.iter().all(|v| v.abs() < 1e-6));
+//! # Ok::<(), orbitflex::Error>(())
+//! ```
+
+pub mod control;
+pub mod rk4;
+pub mod simulate;
+pub mod trajectory;
+
+pub use control::{Controller, Feedback, MotorPD, Schedule};
+pub use rk4::{OdeSystem, Rk4};
+pub use simulate::{
+    check_run, simulate, stability_warning, step, Observer, SimulationFailure, Unobserved, Wrenches,
+};
+pub use trajectory::{StateRows, Trajectory};

@@ -1,0 +1,129 @@
+//! [`Trajectory`]: the states and inputs of a run; [`StateRows`]: the diagnostics along rows of
+//! states.
+
+use crate::flex::{FlexibleArm, StateLayout};
+
+/// The record of a run: times `t` (rows), states `x` (rows × (13+4n), row-major) and the motor
+/// torques `u` applied during each step (steps × n, row-major; held over the step).
+///
+/// A complete run of `steps` steps has `steps + 1` states and `steps` inputs; a run that failed at
+/// step `k` keeps the `k + 1` states before the failure and the `k` inputs that produced them.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Trajectory {
+    /// Times (s), one per state.
+    pub t: Vec<f64>,
+    /// States, one row per time.
+    pub x: Vec<f64>,
+    /// Motor torques (N·m), one row per completed step.
+    pub u: Vec<f64>,
+    /// The state layout (number of joints).
+    pub layout: StateLayout,
+}
+
+impl Trajectory {
+    /// An empty record for an arm with this layout.
+    pub fn empty(layout: StateLayout) -> Self {
+        Self {
+            t: Vec::new(),
+            x: Vec::new(),
+            u: Vec::new(),
+            layout,
+        }
+    }
+
+    /// Number of stored states (`steps + 1` for a complete run).
+    pub fn len(&self) -> usize {
+        self.t.len()
+    }
+
+    /// True when no state is stored.
+    pub fn is_empty(&self) -> bool {
+        self.t.is_empty()
+    }
+
+    /// State `k`.
+    pub fn state(&self, k: usize) -> &[f64] {
+        self.rows().row(k)
+    }
+
+    /// The states, with the diagnostics along them.
+    pub fn rows(&self) -> StateRows<'_> {
+        StateRows {
+            layout: self.layout,
+            x: &self.x,
+        }
+    }
+}
+
+/// Rows of states (row-major, `13 + 4n` numbers each), borrowed: a trajectory's, or any table of
+/// states. The diagnostics run along them without checking them again; each returns one row per
+/// state.
+#[derive(Debug, Clone, Copy)]
+pub struct StateRows<'a> {
+    /// The layout of each row.
+    pub layout: StateLayout,
+    /// The rows, one after the other (a multiple of `layout.len()` numbers).
+    pub x: &'a [f64],
+}
+
+impl<'a> StateRows<'a> {
+    /// Number of rows.
+    pub fn len(&self) -> usize {
+        self.x.len() / self.layout.len()
+    }
+
+    /// True when there is no row.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Row `k`.
+    pub fn row(&self, k: usize) -> &'a [f64] {
+        let len = self.layout.len();
+        &self.x[k * len..(k + 1) * len]
+    }
+
+    /// The rows one by one.
+    pub fn iter(&self) -> std::slice::ChunksExact<'a, f64> {
+        self.x.chunks_exact(self.layout.len())
+    }
+
+    /// Joint deflection `θ − q` (rad), row-major `len × n`.
+    pub fn deflection(&self) -> Vec<f64> {
+        let mut out = Vec::with_capacity(self.len() * self.layout.n);
+        for x in self.iter() {
+            let s = self.layout.split(x);
+            out.extend(s.theta.iter().zip(s.q).map(|(theta, q)| theta - q));
+        }
+        out
+    }
+
+    /// Spring torques `k (θ − q) + d (θ̇ − q̇)` (N·m), row-major `len × n`.
+    pub fn spring_torque(&self, arm: &FlexibleArm) -> Vec<f64> {
+        let n = self.layout.n;
+        let mut out = vec![0.0; self.len() * n];
+        if n > 0 {
+            for (x, row) in self.iter().zip(out.chunks_exact_mut(n)) {
+                arm.spring_torque(x, row);
+            }
+        }
+        out
+    }
+
+    /// Momentum (model §6.1), row-major `len × 6`.
+    pub fn momentum(&self, arm: &FlexibleArm) -> Vec<f64> {
+        let mut ws = arm.workspace();
+        self.iter().flat_map(|x| arm.momentum(&mut ws, x)).collect()
+    }
+
+    /// Energy (model §6.2), J.
+    pub fn energy(&self, arm: &FlexibleArm) -> Vec<f64> {
+        let mut ws = arm.workspace();
+        self.iter().map(|x| arm.energy(&mut ws, x)).collect()
+    }
+
+    /// EE pose `[p; quat]` in the inertial frame, row-major `len × 7`.
+    pub fn ee_pose(&self, arm: &FlexibleArm) -> Vec<f64> {
+        self.iter().flat_map(|x| arm.ee_pose(x)).collect()
+    }
+}

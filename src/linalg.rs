@@ -1,0 +1,388 @@
+//! Eigenvalues of a real, non-symmetric matrix: balancing, Hessenberg reduction and the
+//! Francis double-shift QR iteration with exceptional shifts.
+//!
+//! nalgebra's `complex_eigenvalues` runs the same QR iteration without exceptional shifts and
+//! without an iteration limit: on the step matrices of a free-floating arm, whose eigenvalues
+//! cluster at 1, it can loop for ever. This version gives up after a bounded number of
+//! iterations and says so.
+
+use nalgebra::{Complex, DMatrix};
+
+/// Iterations allowed per eigenvalue before giving up.
+const MAX_ITERATIONS: usize = 60;
+
+/// The eigenvalues of the square matrix `a`, in no particular order, or `None` when the
+/// iteration does not converge (or `a` holds non-finite numbers).
+///
+/// ```
+/// use nalgebra::DMatrix;
+/// // a rotation by 90° and a scaling by 3: eigenvalues ±i and 3
+/// let a = DMatrix::from_row_slice(3, 3, &[0.0, -1.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 3.0]);
+/// let mut ev = orbitflex::linalg::eigenvalues(&a).unwrap();
+/// ev.sort_by(|x, y| x.re.total_cmp(&y.re).then(x.im.total_cmp(&y.im)));
+/// assert!((ev[0].im + 1.0).abs() < 1e-14 && (ev[1].im - 1.0).abs() < 1e-14);
+/// assert!((ev[2].re - 3.0).abs() < 1e-14);
+/// ```
+pub fn eigenvalues(a: &DMatrix<f64>) -> Option<Vec<Complex<f64>>> {
+    assert!(a.is_square(), "eigenvalues of a non-square matrix");
+    if a.iter().any(|v| !v.is_finite()) {
+        return None;
+    }
+    let n = a.nrows();
+    if n == 0 {
+        return Some(Vec::new());
+    }
+    let mut b = a.clone();
+    balance(&mut b);
+    let h = nalgebra::linalg::Hessenberg::new(b).h();
+    hessenberg_qr(h)
+}
+
+/// Scales rows and columns by powers of two (a diagonal similarity, exact in floating point) so
+/// that each row and its column have similar norms; this improves the accuracy of the
+/// eigenvalues of badly scaled matrices.
+fn balance(a: &mut DMatrix<f64>) {
+    let n = a.nrows();
+    let radix = 2.0_f64;
+    let mut done = false;
+    while !done {
+        done = true;
+        for i in 0..n {
+            let (mut r, mut c) = (0.0, 0.0);
+            for j in (0..n).filter(|&j| j != i) {
+                c += a[(j, i)].abs();
+                r += a[(i, j)].abs();
+            }
+            if c == 0.0 || r == 0.0 {
+                continue;
+            }
+            let (mut g, mut f, s) = (r / radix, 1.0, c + r);
+            while c < g {
+                f *= radix;
+                c *= radix * radix;
+            }
+            g = r * radix;
+            while c > g {
+                f /= radix;
+                c /= radix * radix;
+            }
+            if (c + r) / f < 0.95 * s {
+                done = false;
+                let g = 1.0 / f;
+                for j in 0..n {
+                    a[(i, j)] *= g;
+                }
+                for j in 0..n {
+                    a[(j, i)] *= f;
+                }
+            }
+        }
+    }
+}
+
+/// `|a|` with the sign of `b`.
+fn with_sign(a: f64, b: f64) -> f64 {
+    if b >= 0.0 {
+        a.abs()
+    } else {
+        -a.abs()
+    }
+}
+
+/// The eigenvalues of an upper Hessenberg matrix by the Francis double-shift QR iteration on
+/// its active block, deflating one or two eigenvalues at a time.
+#[allow(clippy::many_single_char_names)]
+fn hessenberg_qr(mut h: DMatrix<f64>) -> Option<Vec<Complex<f64>>> {
+    let n = h.nrows();
+    let mut out = vec![Complex::new(0.0, 0.0); n];
+    let norm: f64 = (0..n)
+        .flat_map(|i| (i.saturating_sub(1)..n).map(move |j| (i, j)))
+        .map(|(i, j)| h[(i, j)].abs())
+        .sum();
+    // `last` is the index of the bottom row of the active block; `shift` accumulates the
+    // exceptional shifts applied to the diagonal.
+    let mut last = n as isize - 1;
+    let mut shift = 0.0;
+    while last >= 0 {
+        let nn = last as usize;
+        let mut iterations = 0;
+        loop {
+            // The top of the active block: the lowest negligible subdiagonal element.
+            let mut l = nn;
+            while l >= 1 {
+                let mut s = h[(l - 1, l - 1)].abs() + h[(l, l)].abs();
+                if s == 0.0 {
+                    s = norm;
+                }
+                if h[(l, l - 1)].abs() + s == s {
+                    h[(l, l - 1)] = 0.0;
+                    break;
+                }
+                l -= 1;
+            }
+            let x = h[(nn, nn)];
+            if l == nn {
+                // one real eigenvalue deflates
+                out[nn] = Complex::new(x + shift, 0.0);
+                last -= 1;
+                break;
+            }
+            let y = h[(nn - 1, nn - 1)];
+            let w = h[(nn, nn - 1)] * h[(nn - 1, nn)];
+            if l == nn - 1 {
+                // a 2×2 block deflates: two real eigenvalues or a complex pair
+                let p = 0.5 * (y - x);
+                let q = p * p + w;
+                let z = q.abs().sqrt();
+                let x = x + shift;
+                if q >= 0.0 {
+                    let z = p + with_sign(z, p);
+                    out[nn - 1] = Complex::new(x + z, 0.0);
+                    out[nn] = Complex::new(if z != 0.0 { x - w / z } else { x + z }, 0.0);
+                } else {
+                    out[nn - 1] = Complex::new(x + p, -z);
+                    out[nn] = Complex::new(x + p, z);
+                }
+                last -= 2;
+                break;
+            }
+            if iterations == MAX_ITERATIONS {
+                return None;
+            }
+            let (mut x, mut y, mut w) = (x, y, w);
+            if iterations == 10 || iterations == 20 {
+                // exceptional shift, to break a cycle
+                shift += x;
+                for i in 0..=nn {
+                    h[(i, i)] -= x;
+                }
+                let s = h[(nn, nn - 1)].abs() + h[(nn - 1, nn - 2)].abs();
+                x = 0.75 * s;
+                y = x;
+                w = -0.4375 * s * s;
+            }
+            iterations += 1;
+            double_shift_step(&mut h, l, nn, x, y, w);
+        }
+    }
+    Some(out)
+}
+
+/// One implicit double-shift QR step on rows and columns `l..=nn` of the Hessenberg matrix `h`,
+/// with the shifts given by `x = h[nn][nn]`, `y = h[nn-1][nn-1]` and
+/// `w = h[nn][nn-1] h[nn-1][nn]`. It starts where two consecutive subdiagonal elements are
+/// small enough to split the block.
+#[allow(clippy::many_single_char_names)]
+fn double_shift_step(h: &mut DMatrix<f64>, l: usize, nn: usize, x: f64, y: f64, w: f64) {
+    let (mut p, mut q, mut r);
+    let mut m = nn - 2;
+    loop {
+        let z = h[(m, m)];
+        let rr = x - z;
+        let s = y - z;
+        p = (rr * s - w) / h[(m + 1, m)] + h[(m, m + 1)];
+        q = h[(m + 1, m + 1)] - z - rr - s;
+        r = h[(m + 2, m + 1)];
+        let scale = p.abs() + q.abs() + r.abs();
+        p /= scale;
+        q /= scale;
+        r /= scale;
+        if m == l {
+            break;
+        }
+        let u = h[(m, m - 1)].abs() * (q.abs() + r.abs());
+        let v = p.abs() * (h[(m - 1, m - 1)].abs() + z.abs() + h[(m + 1, m + 1)].abs());
+        if u + v == v {
+            break;
+        }
+        m -= 1;
+    }
+    for i in m + 2..=nn {
+        h[(i, i - 2)] = 0.0;
+        if i != m + 2 {
+            h[(i, i - 3)] = 0.0;
+        }
+    }
+    let mut xk = 0.0;
+    for k in m..nn {
+        if k != m {
+            p = h[(k, k - 1)];
+            q = h[(k + 1, k - 1)];
+            r = if k != nn - 1 { h[(k + 2, k - 1)] } else { 0.0 };
+            xk = p.abs() + q.abs() + r.abs();
+            if xk != 0.0 {
+                p /= xk;
+                q /= xk;
+                r /= xk;
+            }
+        }
+        let s = with_sign((p * p + q * q + r * r).sqrt(), p);
+        if s == 0.0 {
+            continue;
+        }
+        if k == m {
+            if l != m {
+                h[(k, k - 1)] = -h[(k, k - 1)];
+            }
+        } else {
+            h[(k, k - 1)] = -s * xk;
+        }
+        p += s;
+        let (a, b, c) = (p / s, q / s, r / s);
+        q /= p;
+        r /= p;
+        // rows k, k+1, k+2
+        for j in k..=nn {
+            let mut t = h[(k, j)] + q * h[(k + 1, j)];
+            if k != nn - 1 {
+                t += r * h[(k + 2, j)];
+                h[(k + 2, j)] -= t * c;
+            }
+            h[(k + 1, j)] -= t * b;
+            h[(k, j)] -= t * a;
+        }
+        // columns k, k+1, k+2
+        let bottom = nn.min(k + 3);
+        for i in l..=bottom {
+            let mut t = a * h[(i, k)] + b * h[(i, k + 1)];
+            if k != nn - 1 {
+                t += c * h[(i, k + 2)];
+                h[(i, k + 2)] -= t * r;
+            }
+            h[(i, k + 1)] -= t * q;
+            h[(i, k)] -= t;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::{Rng, SeedableRng};
+    use rand_chacha::ChaCha8Rng;
+
+    fn sorted(mut v: Vec<Complex<f64>>) -> Vec<Complex<f64>> {
+        v.sort_by(|a, b| a.re.total_cmp(&b.re).then(a.im.total_cmp(&b.im)));
+        v
+    }
+
+    fn random(rng: &mut ChaCha8Rng, n: usize) -> DMatrix<f64> {
+        DMatrix::from_fn(n, n, |_, _| rng.gen_range(-1.0..1.0))
+    }
+
+    /// A random orthogonal matrix (QR of a random matrix).
+    fn orthogonal(rng: &mut ChaCha8Rng, n: usize) -> DMatrix<f64> {
+        random(rng, n).qr().q()
+    }
+
+    #[test]
+    fn symmetric_matrices_match_the_symmetric_solver() {
+        let mut rng = ChaCha8Rng::seed_from_u64(1);
+        for n in 1..30 {
+            let a = random(&mut rng, n);
+            let s = &a + a.transpose();
+            let mut want: Vec<f64> = s.clone().symmetric_eigenvalues().iter().copied().collect();
+            want.sort_by(f64::total_cmp);
+            let got = sorted(eigenvalues(&s).unwrap());
+            for (g, w) in got.iter().zip(&want) {
+                assert!((g.re - w).abs() < 1e-11 * (1.0 + w.abs()), "{g} vs {w}");
+                assert!(g.im.abs() < 1e-11);
+            }
+        }
+    }
+
+    /// `Q D Qᵀ` with `D` block-diagonal: known real eigenvalues and complex pairs `a ± ib`.
+    #[test]
+    fn similar_block_diagonal_matrices_give_their_blocks() {
+        let mut rng = ChaCha8Rng::seed_from_u64(2);
+        for n in [2usize, 5, 8, 17, 40] {
+            let mut d = DMatrix::zeros(n, n);
+            let mut want = Vec::new();
+            let mut i = 0;
+            while i < n {
+                if i + 1 < n && rng.gen_bool(0.5) {
+                    let (a, b) = (rng.gen_range(-3.0..3.0), rng.gen_range(0.1..3.0));
+                    d[(i, i)] = a;
+                    d[(i + 1, i + 1)] = a;
+                    d[(i, i + 1)] = b;
+                    d[(i + 1, i)] = -b;
+                    want.extend([Complex::new(a, b), Complex::new(a, -b)]);
+                    i += 2;
+                } else {
+                    let a = rng.gen_range(-3.0..3.0);
+                    d[(i, i)] = a;
+                    want.push(Complex::new(a, 0.0));
+                    i += 1;
+                }
+            }
+            let q = orthogonal(&mut rng, n);
+            let a = &q * d * q.transpose();
+            let got = sorted(eigenvalues(&a).unwrap());
+            for (g, w) in got.iter().zip(sorted(want)) {
+                assert!((g - w).norm() < 1e-10, "n = {n}: {g} vs {w}");
+            }
+        }
+    }
+
+    /// Companion matrices: the roots of `(z − 1)(z + 2)(z² + 1)(z − 0.5)` and a repeated root.
+    #[test]
+    fn companion_matrices_give_the_polynomial_roots() {
+        // z⁵ + 0.5 z⁴ − 1.5 z³ + 1.5 z² − 2.5 z + 1  = (z − 1)(z + 2)(z² + 1)(z − 0.5)
+        let c = [1.0, -2.5, 1.5, -1.5, 0.5];
+        let mut a = DMatrix::zeros(5, 5);
+        for i in 1..5 {
+            a[(i, i - 1)] = 1.0;
+        }
+        for (i, ci) in c.iter().enumerate() {
+            a[(i, 4)] = -ci;
+        }
+        let got = sorted(eigenvalues(&a).unwrap());
+        let want = sorted(vec![
+            Complex::new(-2.0, 0.0),
+            Complex::new(0.0, -1.0),
+            Complex::new(0.0, 1.0),
+            Complex::new(0.5, 0.0),
+            Complex::new(1.0, 0.0),
+        ]);
+        for (g, w) in got.iter().zip(&want) {
+            assert!((g - w).norm() < 1e-12, "{g} vs {w}");
+        }
+    }
+
+    /// Jordan blocks and many equal eigenvalues (the free-floating arm's step matrices have
+    /// eigenvalues clustered at 1): it converges, to the accuracy a defective matrix allows.
+    #[test]
+    fn defective_and_clustered_matrices_converge() {
+        let mut rng = ChaCha8Rng::seed_from_u64(3);
+        for n in [4usize, 12, 30] {
+            let mut j = DMatrix::identity(n, n);
+            for i in 0..n - 1 {
+                if i % 2 == 0 {
+                    j[(i, i + 1)] = 1.0;
+                }
+            }
+            let q = orthogonal(&mut rng, n);
+            let a = &q * j * q.transpose();
+            let got = eigenvalues(&a).unwrap();
+            assert!(
+                got.iter()
+                    .all(|g| (g - Complex::new(1.0, 0.0)).norm() < 1e-6),
+                "{got:?}"
+            );
+        }
+        let permutation = DMatrix::from_fn(6, 6, |i, j| if (i + 1) % 6 == j { 1.0 } else { 0.0 });
+        let got = eigenvalues(&permutation).unwrap();
+        assert!(
+            got.iter().all(|g| (g.norm() - 1.0).abs() < 1e-12),
+            "{got:?}"
+        );
+    }
+
+    #[test]
+    fn non_finite_input_is_refused() {
+        let mut a = DMatrix::identity(3, 3);
+        a[(1, 2)] = f64::NAN;
+        assert!(eigenvalues(&a).is_none());
+        assert_eq!(eigenvalues(&DMatrix::zeros(0, 0)), Some(vec![]));
+    }
+}

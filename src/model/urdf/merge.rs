@@ -1,0 +1,70 @@
+//! Step 4: fixed and locked joints merged away. Each link belongs to a body (the base, or the
+//! child link of a moving joint), and each body's inertia sums those of its links.
+
+use super::parse::{link_inertia, pose_transform};
+use super::tree::Tree;
+use crate::error::Result;
+use crate::spatial::{Inertia, Transform};
+use std::collections::HashMap;
+
+/// One body of the model: its link, the moving joint that carries it with `Φ_{body,parent body}`
+/// at `q = 0` (none for the base), and its merged inertia.
+pub(super) struct Body<'a> {
+    pub link: &'a str,
+    pub joint: Option<(&'a urdf_rs::Joint, Transform)>,
+    pub inertia: Inertia,
+}
+
+/// The bodies, numbered so that each parent comes before its children, and where each link sits:
+/// `placement[link] = (body, Φ_{link,body})`.
+pub(super) struct Bodies<'a> {
+    pub bodies: Vec<Body<'a>>,
+    pub placement: HashMap<&'a str, (usize, Transform)>,
+}
+
+/// Walks the tree from the root. A fixed or locked joint places its child link in its parent's
+/// body (frames composed); a moving joint starts a new body. `chain` holds every moving joint,
+/// so the bodies come out in chain order.
+pub(super) fn merge<'a>(
+    tree: &Tree<'a>,
+    chain: &[&'a urdf_rs::Joint],
+    source: &str,
+) -> Result<Bodies<'a>> {
+    let mut placement: HashMap<&str, (usize, Transform)> = HashMap::new();
+    let mut bodies = vec![Body {
+        link: tree.root,
+        joint: None,
+        inertia: Inertia::zero(),
+    }];
+    placement.insert(tree.root, (0, Transform::identity()));
+    let mut stack = vec![tree.root];
+    while let Some(parent) = stack.pop() {
+        let (parent_body, parent_in_body) = placement[parent];
+        for joint in tree.children(parent) {
+            let child = joint.child.link.as_str();
+            // Φ_{child,body} at q = 0: the joint origin composed with the parent's placement.
+            let origin = pose_transform(&joint.origin).compose(&parent_in_body);
+            if tree.is_fixed(joint) {
+                placement.insert(child, (parent_body, origin));
+            } else {
+                bodies.push(Body {
+                    link: child,
+                    joint: Some((joint, origin)),
+                    inertia: Inertia::zero(),
+                });
+                placement.insert(child, (bodies.len() - 1, Transform::identity()));
+            }
+            stack.push(child);
+        }
+    }
+    debug_assert_eq!(
+        bodies.len(),
+        1 + chain.iter().filter(|j| !tree.is_fixed(j)).count()
+    );
+    for link in &tree.urdf.links {
+        let (body, in_body) = placement[link.name.as_str()];
+        let inertia = link_inertia(link, source)?.transformed_to_parent(&in_body);
+        bodies[body].inertia = bodies[body].inertia.add(&inertia);
+    }
+    Ok(Bodies { bodies, placement })
+}

@@ -1,0 +1,317 @@
+//! `orbitflex.Trajectory`: the record of a run, its views and its diagnostics.
+
+use super::arm::PyFlexibleArm;
+use super::convert::{matrix, row_major, vector};
+use super::errors::ModelError;
+use crate::flex::StateLayout;
+use crate::integrate::{StateRows, Trajectory};
+use numpy::{PyArray1, PyArray2, PyArrayMethods, PyUntypedArrayMethods};
+use pyo3::prelude::*;
+use pyo3::sync::GILOnceCell;
+use pyo3::types::{PyDict, PySlice, PyTuple};
+use std::io::Write;
+
+/// The record of a run: ``t`` (k,), ``x`` (k, 13+4n) and ``u`` (k-1, n), k = steps + 1 for a
+/// complete run. The arrays are read-only.
+///
+/// Views of ``x`` (no copy): ``base_pose`` (k, 7) ``[r_B; quat (x, y, z, w)]``, ``q``, ``theta``
+/// (rad), ``base_twist`` (k, 6) ``[ω_B; v_B]`` in base-frame components, ``qd``, ``theta_dot``
+/// (rad/s). ``u`` holds the motor torques (N·m, link side) applied during each step.
+///
+/// Diagnostics, computed in Rust from the stored rows: ``deflection`` ``θ − q`` (rad),
+/// ``spring_torque`` ``k (θ − q) + d (θ̇ − q̇)`` (N·m), and, computed once on first access,
+/// ``momentum`` (k, 6) ``[angular (N·m·s) about the inertial origin; linear (N·s)]`` in the
+/// inertial frame, ``energy`` (k,) in J (rigid kinetic + motor kinetic + spring), ``ee_pose``
+/// (k, 7) ``[position (m); quat (x, y, z, w)]`` in the inertial frame.
+#[pyclass(name = "Trajectory", module = "orbitflex", frozen)]
+pub struct PyTrajectory {
+    arm: Py<PyFlexibleArm>,
+    t: Py<PyArray1<f64>>,
+    x: Py<PyArray2<f64>>,
+    u: Py<PyArray2<f64>>,
+    layout: StateLayout,
+    momentum: GILOnceCell<Py<PyArray2<f64>>>,
+    energy: GILOnceCell<Py<PyArray1<f64>>>,
+    ee_pose: GILOnceCell<Py<PyArray2<f64>>>,
+}
+
+/// A read-only 2-D array that takes over `values` (no copy).
+fn frozen_rows(
+    py: Python<'_>,
+    rows: usize,
+    cols: usize,
+    values: Vec<f64>,
+) -> PyResult<Py<PyArray2<f64>>> {
+    let array = row_major(py, rows, cols, values);
+    freeze(array.as_any())?;
+    Ok(array.unbind())
+}
+
+fn freeze(array: &Bound<'_, PyAny>) -> PyResult<()> {
+    let kwargs = PyDict::new(array.py());
+    kwargs.set_item("write", false)?;
+    array.call_method("setflags", (), Some(&kwargs))?;
+    Ok(())
+}
+
+impl PyTrajectory {
+    /// Wraps a run's record; the vectors become numpy arrays without a copy.
+    pub(crate) fn from_run(
+        py: Python<'_>,
+        arm: Py<PyFlexibleArm>,
+        traj: Trajectory,
+    ) -> PyResult<Self> {
+        let layout = traj.layout;
+        let rows = traj.len();
+        let t = PyArray1::from_vec(py, traj.t);
+        freeze(t.as_any())?;
+        let steps = traj
+            .u
+            .len()
+            .checked_div(layout.n)
+            .unwrap_or(rows.saturating_sub(1));
+        Ok(Self {
+            arm,
+            t: t.unbind(),
+            x: frozen_rows(py, rows, layout.len(), traj.x)?,
+            u: frozen_rows(py, steps, layout.n, traj.u)?,
+            layout,
+            momentum: GILOnceCell::new(),
+            energy: GILOnceCell::new(),
+            ee_pose: GILOnceCell::new(),
+        })
+    }
+
+    /// Runs `f` on the stored rows without the GIL.
+    fn along<T: Send>(
+        &self,
+        py: Python<'_>,
+        f: impl FnOnce(&crate::FlexibleArm, StateRows<'_>) -> T + Send,
+    ) -> PyResult<T> {
+        let x = self.x.bind(py).readonly();
+        let rows = StateRows {
+            layout: self.layout,
+            x: x.as_slice()?,
+        };
+        let arm = &self.arm.get().arm;
+        Ok(py.allow_threads(|| f(arm, rows)))
+    }
+
+    fn view<'py>(&self, py: Python<'py>, range: std::ops::Range<usize>) -> PyResult<PyObject> {
+        let columns = PySlice::new(py, range.start as isize, range.end as isize, 1);
+        let all = PySlice::full(py);
+        let key = PyTuple::new(py, [all.into_any(), columns.into_any()])?;
+        Ok(self.x.bind(py).get_item(key)?.unbind())
+    }
+
+    fn rows(&self, py: Python<'_>) -> usize {
+        self.t.bind(py).len()
+    }
+}
+
+#[pymethods]
+impl PyTrajectory {
+    /// Rebuilds a record from its arrays (as pickling does): ``t`` (k,), ``x`` (k, 13+4n) and
+    /// ``u`` (k-1, n). The arrays are copied, and checked: finite numbers, and each row of ``x`` a
+    /// valid state (a quaternion of non-zero norm).
+    #[new]
+    fn new(
+        py: Python<'_>,
+        arm: Py<PyFlexibleArm>,
+        t: &Bound<'_, PyAny>,
+        x: &Bound<'_, PyAny>,
+        u: &Bound<'_, PyAny>,
+    ) -> PyResult<Self> {
+        let layout = arm.get().arm.layout();
+        let t = vector(t, "t", None)?;
+        let (rows, x) = matrix(x, "x", layout.len())?;
+        let (steps, u) = matrix(u, "u", layout.n)?;
+        if rows != t.len() || steps != rows.saturating_sub(1) {
+            return Err(ModelError::new_err(format!(
+                "Trajectory: expected t (k,), x (k, {}) and u (k-1, {}), given {} times, {rows} \
+                 states and {steps} inputs",
+                layout.len(),
+                layout.n,
+                t.len()
+            )));
+        }
+        for (k, row) in x.chunks_exact(layout.len()).enumerate() {
+            arm.get()
+                .arm
+                .check_state(row)
+                .map_err(|e| ModelError::new_err(format!("x[{k}]: {e}")))?;
+        }
+        let traj = Trajectory { t, x, u, layout };
+        Self::from_run(py, arm, traj)
+    }
+
+    /// The arm that made the run.
+    #[getter]
+    fn arm(&self, py: Python<'_>) -> Py<PyFlexibleArm> {
+        self.arm.clone_ref(py)
+    }
+    /// Times (s), shape (k,).
+    #[getter]
+    fn t(&self, py: Python<'_>) -> Py<PyArray1<f64>> {
+        self.t.clone_ref(py)
+    }
+    /// States, shape (k, 13+4n): ``[r_B | quat_B | q | θ | ω_B | v_B | q̇ | θ̇]`` per row.
+    #[getter]
+    fn x(&self, py: Python<'_>) -> Py<PyArray2<f64>> {
+        self.x.clone_ref(py)
+    }
+    /// Motor torques (N·m, link side) held during each step, shape (k-1, n).
+    #[getter]
+    fn u(&self, py: Python<'_>) -> Py<PyArray2<f64>> {
+        self.u.clone_ref(py)
+    }
+    /// ``[r_B (m); quat_B (x, y, z, w)]`` per state, (k, 7); a view of ``x``.
+    #[getter]
+    fn base_pose(&self, py: Python<'_>) -> PyResult<PyObject> {
+        self.view(py, self.layout.base_pose())
+    }
+    /// Link angles (rad), (k, n); a view of ``x``.
+    #[getter]
+    fn q(&self, py: Python<'_>) -> PyResult<PyObject> {
+        self.view(py, self.layout.q())
+    }
+    /// Motor angles, link side (rad), (k, n); a view of ``x``.
+    #[getter]
+    fn theta(&self, py: Python<'_>) -> PyResult<PyObject> {
+        self.view(py, self.layout.theta())
+    }
+    /// ``[ω_B (rad/s); v_B (m/s)]`` in base-frame components, (k, 6); a view of ``x``.
+    #[getter]
+    fn base_twist(&self, py: Python<'_>) -> PyResult<PyObject> {
+        self.view(py, self.layout.base_twist())
+    }
+    /// Link rates (rad/s), (k, n); a view of ``x``.
+    #[getter]
+    fn qd(&self, py: Python<'_>) -> PyResult<PyObject> {
+        self.view(py, self.layout.qd())
+    }
+    /// Motor rates, link side (rad/s), (k, n); a view of ``x``.
+    #[getter]
+    fn theta_dot(&self, py: Python<'_>) -> PyResult<PyObject> {
+        self.view(py, self.layout.theta_dot())
+    }
+    /// Joint deflection ``θ − q`` (rad), (k, n).
+    #[getter]
+    fn deflection<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        let values = self.along(py, |_, rows| rows.deflection())?;
+        Ok(row_major(py, self.rows(py), self.layout.n, values))
+    }
+    /// Spring torques ``k (θ − q) + d (θ̇ − q̇)`` (N·m), (k, n).
+    #[getter]
+    fn spring_torque<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        let values = self.along(py, |arm, rows| rows.spring_torque(arm))?;
+        Ok(row_major(py, self.rows(py), self.layout.n, values))
+    }
+    /// Total momentum ``[angular (N·m·s); linear (N·s)]`` of base and links, inertial frame,
+    /// about the inertial origin, (k, 6).
+    #[getter]
+    fn momentum(&self, py: Python<'_>) -> PyResult<Py<PyArray2<f64>>> {
+        self.momentum
+            .get_or_try_init(py, || {
+                let values = self.along(py, |arm, rows| rows.momentum(arm))?;
+                frozen_rows(py, self.rows(py), 6, values)
+            })
+            .map(|a| a.clone_ref(py))
+    }
+    /// Total energy (J): rigid kinetic + motor kinetic + spring, (k,).
+    #[getter]
+    fn energy(&self, py: Python<'_>) -> PyResult<Py<PyArray1<f64>>> {
+        self.energy
+            .get_or_try_init(py, || {
+                let values = self.along(py, |arm, rows| rows.energy(arm))?;
+                let array = PyArray1::from_vec(py, values);
+                freeze(array.as_any())?;
+                Ok::<_, PyErr>(array.unbind())
+            })
+            .map(|a| a.clone_ref(py))
+    }
+    /// EE ``[position (m); quat (x, y, z, w), w ≥ 0]`` in the inertial frame, (k, 7).
+    #[getter]
+    fn ee_pose(&self, py: Python<'_>) -> PyResult<Py<PyArray2<f64>>> {
+        self.ee_pose
+            .get_or_try_init(py, || {
+                let values = self.along(py, |arm, rows| rows.ee_pose(arm))?;
+                frozen_rows(py, self.rows(py), 7, values)
+            })
+            .map(|a| a.clone_ref(py))
+    }
+
+    /// Names of the columns of ``x``, in order (``r_x``, …, ``q[joint]``, …, ``theta_dot[joint]``).
+    fn column_names(&self) -> Vec<String> {
+        let arm = &self.arm.get().arm;
+        self.layout.element_names(&arm.robot().joint_names())
+    }
+
+    /// Writes ``t``, ``x``, ``u``, ``columns`` (the names of ``x``'s columns), ``momentum``,
+    /// ``energy``, ``ee_pose``, ``spring_torque`` and ``deflection`` to a ``.npz`` file.
+    fn save_npz(&self, py: Python<'_>, path: &Bound<'_, PyAny>) -> PyResult<()> {
+        let np = py.import("numpy")?;
+        let kwargs = PyDict::new(py);
+        kwargs.set_item("t", self.t(py))?;
+        kwargs.set_item("x", self.x(py))?;
+        kwargs.set_item("u", self.u(py))?;
+        kwargs.set_item("columns", np.call_method1("array", (self.column_names(),))?)?;
+        kwargs.set_item("momentum", self.momentum(py)?)?;
+        kwargs.set_item("energy", self.energy(py)?)?;
+        kwargs.set_item("ee_pose", self.ee_pose(py)?)?;
+        kwargs.set_item("spring_torque", self.spring_torque(py)?)?;
+        kwargs.set_item("deflection", self.deflection(py)?)?;
+        np.call_method("savez", (path,), Some(&kwargs))?;
+        Ok(())
+    }
+
+    /// Writes one row per state with a header naming each column (``t``, then ``x``'s columns);
+    /// numbers are written in full precision (they read back exactly).
+    fn save_csv(&self, py: Python<'_>, path: std::path::PathBuf) -> PyResult<()> {
+        let header = self.column_names();
+        let t = self.t.bind(py).readonly();
+        let x = self.x.bind(py).readonly();
+        let (t, x) = (t.as_slice()?, x.as_slice()?);
+        let width = self.layout.len();
+        py.allow_threads(|| -> std::io::Result<()> {
+            let mut out = std::io::BufWriter::new(std::fs::File::create(&path)?);
+            writeln!(out, "t,{}", header.join(","))?;
+            for (time, row) in t.iter().zip(x.chunks_exact(width)) {
+                write!(out, "{time:?}")?;
+                for v in row {
+                    write!(out, ",{v:?}")?;
+                }
+                writeln!(out)?;
+            }
+            out.flush()
+        })?;
+        Ok(())
+    }
+
+    fn __len__(&self, py: Python<'_>) -> usize {
+        self.rows(py)
+    }
+
+    fn __reduce__<'py>(slf: &Bound<'py, Self>) -> PyResult<(PyObject, PyObject)> {
+        let py = slf.py();
+        let me = slf.get();
+        let args = (me.arm(py), me.t(py), me.x(py), me.u(py));
+        Ok((
+            slf.get_type().into_any().unbind(),
+            args.into_pyobject(py)?.into_any().unbind(),
+        ))
+    }
+
+    fn __repr__(&self, py: Python<'_>) -> PyResult<String> {
+        let rows = self.rows(py);
+        let t_end = if rows > 0 {
+            self.t.bind(py).readonly().as_slice()?[rows - 1]
+        } else {
+            0.0
+        };
+        Ok(format!(
+            "Trajectory(states={rows}, t_end={t_end} s, dof={})",
+            self.layout.n
+        ))
+    }
+}
