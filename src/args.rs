@@ -142,6 +142,46 @@ pub fn check_base_pose(base_pose: &[f64]) -> Result<()> {
     Ok(())
 }
 
+/// The largest dense buffer allocated on request, in bytes (1 GiB): the operator form of about
+/// 1,800 joints, or the mass matrix of about 11,000.
+pub const MAX_DENSE_BYTES: usize = 1 << 30;
+
+/// Checks, before allocating, that `count` dense `rows × cols` matrices of `f64` fit within
+/// [`MAX_DENSE_BYTES`]; `what` and `instead` say what was asked and what to use otherwise.
+pub fn check_dense(
+    what: &str,
+    rows: usize,
+    cols: usize,
+    count: usize,
+    instead: &str,
+) -> Result<()> {
+    let bytes = rows
+        .checked_mul(cols)
+        .and_then(|v| v.checked_mul(count))
+        .and_then(|v| v.checked_mul(8));
+    match bytes {
+        Some(b) if b <= MAX_DENSE_BYTES => Ok(()),
+        _ => Err(Error::InvalidArgument {
+            what: what.to_string(),
+            message: format!(
+                "the dense form needs {count} matrices of {rows}×{cols} ({}), more than the \
+                 {} allowed; {instead}",
+                describe_bytes(bytes),
+                describe_bytes(Some(MAX_DENSE_BYTES))
+            ),
+        }),
+    }
+}
+
+/// A byte count for messages: `2.6 GB`.
+pub fn describe_bytes(bytes: Option<usize>) -> String {
+    match bytes {
+        Some(b) if b >= 1_000_000_000 => format!("{:.1} GB", b as f64 / 1e9),
+        Some(b) => format!("{:.1} MB", b as f64 / 1e6),
+        None => "more bytes than an address can hold".into(),
+    }
+}
+
 /// Checks a time step: finite and `> 0` (s).
 pub fn check_dt(dt: f64) -> Result<()> {
     if !(dt.is_finite() && dt > 0.0) {

@@ -1,89 +1,135 @@
 //! The one error type of orbitflex.
 //!
 //! Every fallible public function returns [`Result`]. The Python bindings map these variants once
-//! onto Python exceptions (`FileNotFoundError`, `orbitflex.ModelError`, `orbitflex.SimulationError`).
+//! onto Python exceptions: [`Error::FileNotFound`] is `FileNotFoundError`, [`Error::IsADirectory`]
+//! is `IsADirectoryError`, [`Error::Simulation`] is `orbitflex.SimulationError`, and every other
+//! variant is `orbitflex.ModelError` (a `ValueError`).
 
 use std::path::PathBuf;
 
-/// Everything that can go wrong in orbitflex, with enough context to fix it.
+/// Everything that can go wrong in orbitflex, with enough context to fix it: what is wrong,
+/// where, and what was expected against what was given.
 #[derive(Debug, Clone, thiserror::Error)]
 pub enum Error {
     /// A URDF (or parameter) file that does not exist or cannot be read.
     #[error("{}: file not found or not readable: {reason}", path.display())]
-    FileNotFound { path: PathBuf, reason: String },
+    FileNotFound {
+        /// The path given.
+        path: PathBuf,
+        /// The operating system's reason.
+        reason: String,
+    },
 
-    /// A file that is not well-formed XML/URDF (or TOML).
+    /// A directory given where a file was expected.
+    #[error("{}: is a directory; expected a file", path.display())]
+    IsADirectory {
+        /// The path given.
+        path: PathBuf,
+    },
+
+    /// A file that is not well-formed XML/URDF (or TOML), or not text.
     #[error("{source_name}: malformed {format}: {message}")]
     Malformed {
+        /// The file path, or `<urdf string>` / `<toml string>`.
         source_name: String,
+        /// `"URDF"` or `"joint-parameter TOML"`.
         format: &'static str,
+        /// What is wrong, with the line where the parser says.
         message: String,
     },
 
     /// A joint type orbitflex does not model (prismatic, planar, floating, spherical).
     #[error("{source_name}: joint '{joint}' has type '{kind}'; orbitflex models revolute and continuous joints only (lock it with locked_joints=[\"{joint}\"] to treat it as fixed)")]
     UnsupportedJoint {
+        /// The file.
         source_name: String,
+        /// The joint's name.
         joint: String,
+        /// Its URDF type.
         kind: String,
     },
 
     /// The kinematic tree has moving joints off the chain from the root to the EE link.
     #[error("{source_name}: {message}")]
     Branching {
+        /// The file.
         source_name: String,
+        /// Which joint branches where, and what to do.
         message: String,
     },
 
     /// A link or joint name that does not exist in the file.
     #[error("{source_name}: unknown {what} '{name}'; the file has: {available}")]
     UnknownName {
+        /// The file.
         source_name: String,
+        /// What kind of name, and where it was given.
         what: &'static str,
+        /// The name given.
         name: String,
+        /// The names the file has.
         available: String,
     },
 
-    /// Inertial data that is not physical.
+    /// Inertial data that is not physical, or too large to compute with.
     #[error("{source_name}: link '{link}': {message}")]
     InvalidInertia {
+        /// The file.
         source_name: String,
+        /// The link's name.
         link: String,
+        /// What is wrong with its inertia.
         message: String,
     },
 
     /// Any other structural problem with a model (zero axis, cycles, singular mass matrix...).
     #[error("{source_name}: {message}")]
     InvalidModel {
+        /// The file.
         source_name: String,
+        /// What is wrong, naming the element.
         message: String,
     },
 
     /// An argument with the wrong length or shape.
     #[error("{what}: expected {expected}, given {given}")]
     Dimension {
+        /// The argument.
         what: String,
+        /// The length or shape expected.
         expected: String,
+        /// The length or shape given.
         given: String,
     },
 
     /// An argument containing NaN or infinity.
     #[error("{what}: element {index} is not finite ({value})")]
     NonFinite {
+        /// The argument.
         what: String,
+        /// The index of the first bad element.
         index: usize,
+        /// Its value.
         value: f64,
     },
 
     /// An argument outside its domain (non-positive stiffness, dt <= 0, ...).
     #[error("{what}: {message}")]
-    InvalidArgument { what: String, message: String },
+    InvalidArgument {
+        /// The argument (with its element, as `stiffness[2]`).
+        what: String,
+        /// What was expected and what was given.
+        message: String,
+    },
 
     /// A simulation whose state turned non-finite, or whose controller failed.
     #[error("simulation stopped at step {step} (t = {} s): {message}", round_time(*time))]
     Simulation {
+        /// The index `k` of the step that failed (from `t = k dt` to `(k+1) dt`).
         step: usize,
+        /// `k dt` (s).
         time: f64,
+        /// Why.
         message: String,
     },
 }

@@ -9,6 +9,7 @@ pub mod dynamics;
 pub mod error;
 pub mod flex;
 pub mod integrate;
+pub mod io;
 pub mod linalg;
 pub mod model;
 pub mod operators;

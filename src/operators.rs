@@ -63,6 +63,14 @@ impl Operators {
         state.check(robot)?;
         let (q, qd) = (state.q, state.qd);
         let n = robot.dof();
+        // Φ, M and the products formed from them are (6n)² each.
+        crate::args::check_dense(
+            "operators",
+            6 * n,
+            6 * n,
+            4,
+            "the recursive algorithms give the same quantities in O(n) memory",
+        )?;
         let inertias = robot.inertias();
         let parents = robot.parents();
 

@@ -23,8 +23,8 @@ pub fn crba<'a>(robot: &Robot, data: &'a mut Data, q: &[f64]) -> Result<&'a DMat
     for (i, joint) in joints.iter().enumerate() {
         data.x[i + 1] = joint.transform(q[i]);
     }
+    data.mass_matrix_buffer()?;
     data.ic.copy_from_slice(robot.inertias());
-    data.mass_matrix_buffer();
     let m = &mut data.mass_matrix;
     for i in (1..=robot.dof()).rev() {
         let moved = data.ic[i].transformed_to_parent(&data.x[i]);

@@ -78,15 +78,22 @@ impl Data {
         self.x.len() - 1
     }
 
-    /// The mass-matrix buffer, allocated (zeroed) on first use. Entries that the model's
-    /// structure keeps at zero (joints on different branches) are never written, so they stay
-    /// zero.
-    pub(crate) fn mass_matrix_buffer(&mut self) -> &mut DMatrix<f64> {
+    /// The mass-matrix buffer, allocated (zeroed) on first use, or an error if it would exceed
+    /// [`crate::args::MAX_DENSE_BYTES`]. Entries that the model's structure keeps at zero
+    /// (joints on different branches) are never written, so they stay zero.
+    pub(crate) fn mass_matrix_buffer(&mut self) -> crate::Result<&mut DMatrix<f64>> {
         let size = 6 + self.dof();
         if self.mass_matrix.nrows() != size {
+            crate::args::check_dense(
+                "mass matrix",
+                size,
+                size,
+                1,
+                "the recursive algorithms (forward and inverse dynamics) need no dense matrix",
+            )?;
             self.mass_matrix = DMatrix::zeros(size, size);
         }
-        &mut self.mass_matrix
+        Ok(&mut self.mass_matrix)
     }
 }
 

@@ -221,10 +221,7 @@ impl FlexibleJoints {
     /// ```
     pub fn from_toml_file(path: impl AsRef<Path>, joint_names: &[&str]) -> Result<Self> {
         let path = path.as_ref();
-        let text = std::fs::read_to_string(path).map_err(|e| Error::FileNotFound {
-            path: path.to_path_buf(),
-            reason: e.to_string(),
-        })?;
+        let text = crate::io::read_text(path, "joint-parameter TOML")?;
         Self::from_toml_str(&text, joint_names, &path.display().to_string())
     }
 }

@@ -293,19 +293,41 @@ pub fn simulate(
     Ok(traj)
 }
 
-/// An empty record with room for `steps` steps, or a clear error if it cannot fit.
+/// The bytes a record of `steps` steps takes: `t`, `x` and `u` (`None` if it overflows).
+pub fn record_bytes(layout: crate::flex::StateLayout, steps: usize) -> Option<usize> {
+    let rows = steps.checked_add(1)?;
+    let values = rows
+        .checked_mul(layout.len() + 1)?
+        .checked_add(steps.checked_mul(layout.n)?)?;
+    values.checked_mul(8)
+}
+
+/// An empty record with room for `steps` steps, or a clear error, before anything is allocated,
+/// if it needs more memory than the system has available.
 fn reserve(layout: crate::flex::StateLayout, steps: usize) -> Result<Trajectory> {
     let mut traj = Trajectory::empty(layout);
+    let bytes = record_bytes(layout, steps);
+    let available = crate::io::available_memory();
     let too_big = || Error::InvalidArgument {
         what: "steps".into(),
         message: format!(
-            "{steps} steps of a {}-element state do not fit in memory; simulate in shorter pieces",
-            layout.len()
+            "the record of {steps} steps of a {}-element state needs {}, more than the {} of \
+             memory available; simulate in shorter pieces",
+            layout.len(),
+            crate::args::describe_bytes(bytes),
+            available.map_or("memory".into(), |a| crate::args::describe_bytes(Some(
+                a as usize
+            )))
         ),
     };
-    let rows = steps.checked_add(1).ok_or_else(too_big)?;
-    let states = rows.checked_mul(layout.len()).ok_or_else(too_big)?;
-    let inputs = steps.checked_mul(layout.n).ok_or_else(too_big)?;
+    match (bytes, available) {
+        (None, _) => return Err(too_big()),
+        (Some(b), Some(a)) if b as u64 > a => return Err(too_big()),
+        _ => {}
+    }
+    let rows = steps + 1;
+    let states = rows * layout.len();
+    let inputs = steps * layout.n;
     traj.t.try_reserve_exact(rows).map_err(|_| too_big())?;
     traj.x.try_reserve_exact(states).map_err(|_| too_big())?;
     traj.u.try_reserve_exact(inputs).map_err(|_| too_big())?;

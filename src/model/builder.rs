@@ -89,15 +89,13 @@ impl RobotBuilder {
             message,
         };
         for joint in &mut self.robot.joints {
-            let norm = joint.axis.norm();
-            if !norm.is_finite() || norm < 1e-12 {
-                return Err(invalid(format!(
+            joint.axis = unit_axis(&joint.axis).ok_or_else(|| {
+                invalid(format!(
                     "joint '{}': axis {:?} is zero or not finite; expected a non-zero 3-vector",
                     joint.name,
                     joint.axis.as_slice()
-                )));
-            }
-            joint.axis /= norm;
+                ))
+            })?;
             check_transform(&joint.origin)
                 .map_err(|m| invalid(format!("joint '{}': origin {m}", joint.name)))?;
         }
@@ -117,15 +115,52 @@ impl RobotBuilder {
     }
 }
 
-fn check_transform(t: &Transform) -> std::result::Result<(), String> {
-    let finite = t
-        .rotation
-        .iter()
-        .chain(t.translation.iter())
-        .all(|v| v.is_finite());
-    if !finite {
-        return Err("has non-finite numbers".into());
+/// The largest mass accepted (kg). Beyond it, with distances up to [`MAX_LENGTH`], products in
+/// the dynamics could overflow.
+pub const MAX_MASS: f64 = 1e30;
+
+/// The largest distance accepted (m): joint origins, centres of mass, the EE frame.
+pub const MAX_LENGTH: f64 = 1e10;
+
+/// The largest entry of a rotational inertia accepted (kg·m²).
+pub const MAX_INERTIA: f64 = 1e50;
+
+/// `axis` scaled to unit length, or `None` for a zero or non-finite axis. It is divided by its
+/// largest component first, so that a huge but finite axis (`1e200 1e200 0`) does not overflow,
+/// and an axis that is already a unit vector to round-off is kept bit for bit (so that a model
+/// rebuilt from its own numbers, as unpickling does, is the same model).
+fn unit_axis(axis: &Vec3) -> Option<Vec3> {
+    let largest = axis.amax();
+    if !axis.iter().all(|v| v.is_finite()) || largest == 0.0 {
+        return None;
     }
+    if (axis.norm() - 1.0).abs() <= 4.0 * f64::EPSILON {
+        return Some(*axis);
+    }
+    let scaled = axis / largest;
+    Some(scaled / scaled.norm())
+}
+
+/// A finite distance within [`MAX_LENGTH`] (a message naming the value otherwise).
+pub(crate) fn check_length(value: &Vec3) -> std::result::Result<(), String> {
+    if !value.iter().all(|v| v.is_finite()) {
+        return Err(format!("{:?} has non-finite numbers", value.as_slice()));
+    }
+    if value.amax() > MAX_LENGTH {
+        return Err(format!(
+            "{:?} m is farther than the {MAX_LENGTH:e} m supported (beyond it the dynamics \
+             overflow)",
+            value.as_slice()
+        ));
+    }
+    Ok(())
+}
+
+fn check_transform(t: &Transform) -> std::result::Result<(), String> {
+    if !t.rotation.iter().all(|v| v.is_finite()) {
+        return Err("rotation has non-finite numbers".into());
+    }
+    check_length(&t.translation).map_err(|m| format!("translation {m}"))?;
     let error = (t.rotation.transpose() * t.rotation - Mat3::identity()).norm();
     if error > 1e-9 || t.rotation.determinant() < 0.0 {
         return Err(format!(
@@ -148,6 +183,20 @@ pub(crate) fn check_inertia(
     }
     if mass < 0.0 {
         return Err(format!("negative mass {mass} kg; expected mass >= 0"));
+    }
+    if mass > MAX_MASS {
+        return Err(format!(
+            "mass {mass:e} kg is larger than the {MAX_MASS:e} kg supported (beyond it the \
+             dynamics overflow)"
+        ));
+    }
+    check_length(com).map_err(|m| format!("centre of mass {m}"))?;
+    if about_com.amax() > MAX_INERTIA {
+        return Err(format!(
+            "inertia entry {:e} kg·m² is larger than the {MAX_INERTIA:e} kg·m² supported \
+             (beyond it the dynamics overflow)",
+            about_com.amax()
+        ));
     }
     let asym = (about_com - about_com.transpose()).norm();
     let scale = about_com.norm();

@@ -3,7 +3,7 @@
 
 use crate::error::Error;
 use pyo3::create_exception;
-use pyo3::exceptions::{PyFileNotFoundError, PyRuntimeError, PyValueError};
+use pyo3::exceptions::{PyFileNotFoundError, PyIsADirectoryError, PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
 
 create_exception!(
@@ -30,6 +30,7 @@ impl From<Error> for PyErr {
     fn from(e: Error) -> PyErr {
         match e {
             Error::FileNotFound { .. } => PyFileNotFoundError::new_err(e.to_string()),
+            Error::IsADirectory { .. } => PyIsADirectoryError::new_err(e.to_string()),
             _ => ModelError::new_err(e.to_string()),
         }
     }

@@ -3,7 +3,8 @@
 
 use super::parse::{link_inertia, pose_transform};
 use super::tree::Tree;
-use crate::error::Result;
+use crate::error::{Error, Result};
+use crate::model::builder::check_length;
 use crate::spatial::{Inertia, Transform};
 use std::collections::HashMap;
 
@@ -43,7 +44,12 @@ pub(super) fn merge<'a>(
         for joint in tree.children(parent) {
             let child = joint.child.link.as_str();
             // Φ_{child,body} at q = 0: the joint origin composed with the parent's placement.
-            let origin = pose_transform(&joint.origin).compose(&parent_in_body);
+            let own = pose_transform(&joint.origin);
+            check_length(&own.translation).map_err(|m| Error::InvalidModel {
+                source_name: source.to_string(),
+                message: format!("joint '{}': origin xyz {m}", joint.name),
+            })?;
+            let origin = own.compose(&parent_in_body);
             if tree.is_fixed(joint) {
                 placement.insert(child, (parent_body, origin));
             } else {

@@ -18,7 +18,7 @@ mod parse;
 mod tree;
 
 use super::{Robot, RobotBuilder};
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::spatial::Vec3;
 use std::path::Path;
 
@@ -43,10 +43,7 @@ impl Robot {
     /// ```
     pub fn from_urdf(path: impl AsRef<Path>, options: &UrdfOptions) -> Result<Robot> {
         let path = path.as_ref();
-        let text = std::fs::read_to_string(path).map_err(|e| Error::FileNotFound {
-            path: path.to_path_buf(),
-            reason: e.to_string(),
-        })?;
+        let text = crate::io::read_text(path, "URDF")?;
         load(&text, &path.display().to_string(), options)
     }
 
