@@ -13,7 +13,7 @@ gravity. Sections:
 2. Binding overhead (with ``--rust-bin`` and ``--cpp-bin``): the Python per-call time minus the
    native per-call time of the same algorithm, for each library.
 3. Whole simulation: ``arm.simulate`` (10⁴ RK4 steps, ``MotorPD``) vs a flexible-joint RK4 loop
-   written in Python around ``pin.aba`` (SPEC §4 equations, numpy, preallocated arrays).
+   written in Python around ``pin.aba`` (model §4 equations, numpy, preallocated arrays).
 4. ``simulate`` from Python vs the pure-Rust loop (with ``--rust-bin``): the same run timed
    inside ``examples/bench_cpp_match.rs``.
 
@@ -130,7 +130,7 @@ class Pair:
         self.a_pin = np.r_[a_lin, self.base_acc[:3], self.qdd]
 
     def check(self) -> dict:
-        """Largest relative differences of the joint parts (base conventions differ, SPEC §6.5)."""
+        """Largest relative differences of the joint parts (base conventions differ, model §6.5)."""
         r, m, d = self.robot, self.model, self.data
         fd = r.forward_dynamics(self.q, self.twist, self.qd, self.tau)
         ddq = pin.aba(m, d, self.q_pin, self.v_pin, self.tau_pin)
@@ -209,7 +209,7 @@ def motor_pd(n: int):
 
 
 def pin_simulate(model, data, x0: np.ndarray, dt: float, steps: int) -> np.ndarray:
-    """Flexible-joint RK4 in Python around ``pin.aba`` (SPEC §4, §5), as fast as we could write it.
+    """Flexible-joint RK4 in Python around ``pin.aba`` (model §4, §5), as fast as we could write it.
 
     State ``[q_pin (7+n) | θ (n) | v_pin (6+n) | θ̇ (n)]``; Pinocchio's base velocity ``[v; ω]`` is
     in the base frame and its spatial base acceleration is the derivative of those components,

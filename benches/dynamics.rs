@@ -2,7 +2,7 @@
 //!
 //! Random floating-base chains (`orbitflex::testing::random_chain`) with n ∈ {7, 14, 28, 56, 112};
 //! every model, workspace and input is seeded and built outside `b.iter`. Groups:
-//! - `mass_matrix`, `bias_forces`, `forward_dynamics`: the seed's operator form (O(n³), dense)
+//! - `mass_matrix`, `bias_forces`, `forward_dynamics`: the paper's operator form (O(n³), dense)
 //!   against the recursive algorithms (CRBA, RNEA, ABA) on the same inputs;
 //! - `inverse_dynamics`: recursive Newton–Euler;
 //! - `rk4_step`: one `FlexibleArm::step` (four derivatives) with an `ArmWorkspace`;

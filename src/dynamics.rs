@@ -34,7 +34,7 @@ pub enum Method {
     /// The recursive algorithms of [`crate::algorithms`] (O(n), allocation-free). The default.
     #[default]
     Recursive,
-    /// The seed's dense operator form (A.13)–(A.19): O(n³), the reference for validation.
+    /// The paper's dense operator form (A.13)–(A.19): O(n³), the reference for validation.
     Operator,
 }
 
@@ -158,7 +158,7 @@ impl Method {
 }
 
 /// Expresses a momentum about the base origin in base axes (`h_B`) about the inertial origin in
-/// inertial axes, given the base pose `[r_B; quat_B]` (SPEC §1, §6.1): `L = R_B h_lin`,
+/// inertial axes, given the base pose `[r_B; quat_B]` (model §1, §6.1): `L = R_B h_lin`,
 /// `K = R_B h_ang + r_B × L`. Returns `[K; L]`.
 pub fn momentum_in_inertial_frame(base_pose: &[f64], h_base: &Force) -> [f64; 6] {
     let r = quaternion_to_rotation(&base_pose[3..7]);
@@ -183,7 +183,7 @@ impl Robot {
     }
 
     /// `J` (6×n): joint rates to the EE twist `[ω; v]` in the EE frame with the base at rest
-    /// (SPEC §2: `J = Bᵀ Φ H`).
+    /// (model §2: `J = Bᵀ Φ H`).
     pub fn ee_jacobian(&self, q: &[f64]) -> Result<DMatrix<f64>> {
         let mut data = Data::new(self);
         algorithms::ee_jacobian(self, &mut data, q)?;
@@ -197,7 +197,7 @@ impl Robot {
     }
 
     /// Forward dynamics `[α_B; q̈]` (A.19): `α_B` is the base's classical acceleration
-    /// `[ω̇_B; v̇_B]` in the base frame (SPEC §1), for joint torques `tau` (N·m) and the external
+    /// `[ω̇_B; v̇_B]` in the base frame (model §1), for joint torques `tau` (N·m) and the external
     /// [`Loads`].
     pub fn forward_dynamics(
         &self,
@@ -227,13 +227,13 @@ impl Robot {
             .clone())
     }
 
-    /// The dense operators of the seed at this state (A.13)–(A.19).
+    /// The dense operators of the paper's derivation at this state (A.13)–(A.19).
     pub fn operators(&self, state: &RigidState) -> Result<Operators> {
         Operators::new(self, state)
     }
 
     /// Total spatial momentum of base and links `[angular; linear]` in the inertial frame, about
-    /// the inertial origin (SPEC §6.1); `base_pose = [r_B; quat_B (x, y, z, w)]`.
+    /// the inertial origin (model §6.1); `base_pose = [r_B; quat_B (x, y, z, w)]`.
     pub fn momentum(&self, base_pose: &[f64], state: &RigidState) -> Result<[f64; 6]> {
         check_base_pose(base_pose)?;
         let h = algorithms::momentum(self, &mut Data::new(self), state)?;

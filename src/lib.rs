@@ -1,7 +1,11 @@
 #![doc = include_str!("../README.md")]
+#![warn(missing_docs)]
 //!
 //! The model (conventions, equations with their (A.n) numbers, state layout, integrator and
-//! invariants) is documented in `docs/model.md`; "model §n" in these docs refers to its sections.
+//! invariants) is documented in `docs/model.md`, rendered here as [`model_documentation`];
+//! "model §n" in these docs refers to its sections. "The paper" is the source derivation:
+//! Appendix A of "Trajectory Generation for Flexible-Joint Space Manipulators", Frontiers in
+//! Robotics and AI, 2022, whose equations are numbered (A.1)–(A.19).
 
 pub mod algorithms;
 pub mod args;
@@ -28,3 +32,6 @@ pub use operators::Operators;
 
 #[cfg(feature = "python")]
 mod python;
+
+#[doc = include_str!("../docs/model.md")]
+pub mod model_documentation {}

@@ -1,4 +1,4 @@
-//! The seed's operator form (A.11)–(A.19): dense stacked operators and, from them, the
+//! The paper's operator form (A.11)–(A.19): dense stacked operators and, from them, the
 //! floating-base equations of motion.
 //!
 //! This is the literal, O(n³), allocating reference. Every recursive algorithm in
@@ -10,7 +10,7 @@ use crate::model::Robot;
 use crate::spatial::{bias_force, coriolis_acceleration, Force, Mat6, Motion, Transform};
 use nalgebra::{DMatrix, DVector};
 
-/// Dense operators of the seed at one state `(q, V_B, q̇)`. Stacked quantities run over links
+/// Dense operators of the paper's derivation at one state `(q, V_B, q̇)`. Stacked quantities run over links
 /// `1..n`, six rows per link, `[angular; linear]` per block.
 ///
 /// Block `(i, k)` of `Φ` is `Φ_{ik}` when body `k` is body `i` or one of its ancestors (every
@@ -49,7 +49,7 @@ pub struct Operators {
     pub c_b: DVector<f64>,
     /// `C_r = Hᵀ Φᵀ M Φ a + Hᵀ Φᵀ b` (A.19), the fixed-base Coriolis/centrifugal torques.
     pub c_r: DVector<f64>,
-    /// `J = Bᵀ Φ H` (6×n): the seed's `J = Hᵀ Φᵀ B` is a typo (SPEC §2); `Jᵀ = Hᵀ Φᵀ B`.
+    /// `J = Bᵀ Φ H` (6×n): the paper's `J = Hᵀ Φᵀ B` is a typo (model §2); `Jᵀ = Hᵀ Φᵀ B`.
     pub j: DMatrix<f64>,
     /// `Φ_{n+1,B} = Φ_{n+1,e} Φ_{eB}` (6×6), `e` the EE body.
     pub phi_ee_base: Mat6,

@@ -1,5 +1,5 @@
-//! Recursive algorithms against the operator form (SPEC §6.5) and the structural identities of
-//! SPEC §6.4, on random chains with awkward features.
+//! Recursive algorithms against the operator form (model §6.5) and the structural identities of
+//! model §6.4, on random chains with awkward features.
 
 use nalgebra::{DMatrix, DVector};
 use orbitflex::algorithms::{self, Data};
@@ -74,7 +74,7 @@ fn check_agreement(n: usize, seed: u64) {
         .inverse_dynamics(&acc.as_slice()[..6], &acc.as_slice()[6..], &f)
         .unwrap();
     assert!(rel_err_v(&gen, &gen_op) < 1e-10, "inverse dynamics n={n}");
-    // inverse ∘ forward = identity (SPEC §6.4)
+    // inverse ∘ forward = identity (model §6.4)
     let mut given = DVector::zeros(6 + n);
     given.rows_mut(0, 6).copy_from_slice(&fb);
     given.rows_mut(6, n).copy_from_slice(&tau);
@@ -219,7 +219,7 @@ fn fixed_base_reduction_matches_newton_euler() {
     }
 }
 
-/// `V_{n+1} = Φ_{n+1,B} V_B + J q̇` (SPEC §2) against the velocity recursion (A.4).
+/// `V_{n+1} = Φ_{n+1,B} V_B + J q̇` (model §2) against the velocity recursion (A.4).
 #[test]
 fn ee_twist_from_jacobian_matches_velocity_recursion() {
     for seed in 0..10 {

@@ -1,4 +1,4 @@
-//! The flexible-joint simulator checked through the invariants of SPEC §6.
+//! The flexible-joint simulator checked through the invariants of model §6.
 
 use orbitflex::testing::{random_chain, Rng};
 use orbitflex::{
@@ -124,7 +124,7 @@ fn energy_is_conserved_without_input_or_damping_up_to_rk4_error() {
     assert!(coarse / fine > 10.0, "energy drift ratio {}", coarse / fine);
 }
 
-/// Power `dE/dt` from SPEC §6.3 at state `x` with inputs.
+/// Power `dE/dt` from model §6.3 at state `x` with inputs.
 fn power(arm: &FlexibleArm, x: &[f64], u: &[f64], fb: &[f64], f: &[f64]) -> f64 {
     let l = arm.layout();
     let p = arm.joints();

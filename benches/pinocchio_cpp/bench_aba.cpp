@@ -51,10 +51,10 @@ double median_ns(F && f, int iters, int blocks = g_blocks)
   return t[t.size() / 2];
 }
 
-// Flexible joints (SPEC §3, §4) on Pinocchio: x = [q_pin (nq) | θ (n) | v_pin (nv) | θ̇ (n)],
+// Flexible joints (model §3, §4) on Pinocchio: x = [q_pin (nq) | θ (n) | v_pin (nv) | θ̇ (n)],
 // the free-flyer configuration [r; quat (x,y,z,w)] and velocity [v; ω] in the base frame.
 // With Pinocchio's spatial base acceleration, d/dt of the base-frame components of (v, ω) is
-// aba's a[0:6] (SPEC §6.5). The same derivative and RK4 as orbitflex's FlexibleArm::step.
+// aba's a[0:6] (model §6.5). The same derivative and RK4 as orbitflex's FlexibleArm::step.
 struct FlexArm
 {
   const Model & model;

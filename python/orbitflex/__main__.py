@@ -1,7 +1,8 @@
-"""``python -m orbitflex [demo | simulate ...]``."""
+"""``python -m orbitflex [demo | simulate ...]``: the command line (see ``orbitflex.cli``)."""
 
 import sys
 
 from .cli import main
 
-sys.exit(main())
+if __name__ == "__main__":
+    sys.exit(main())

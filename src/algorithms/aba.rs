@@ -1,4 +1,4 @@
-//! Floating-base articulated-body forward dynamics in the seed's conventions, O(n).
+//! Floating-base articulated-body forward dynamics in the paper's conventions, O(n).
 
 use super::data::{check_data, Data};
 use super::kinematics::{body_bias, body_velocity};

@@ -43,7 +43,7 @@ pub(crate) fn body_velocity(robot: &Robot, data: &mut Data, i: usize, state: &Ri
 }
 
 /// Fills `data.jacobian = J` (6×n, column `k` is `Φ_{n+1,k} H_k` for the joints that move the EE
-/// body and zero for the others, SPEC §2) and `data.ee_base = Φ_{n+1,B}`, so that
+/// body and zero for the others, model §2) and `data.ee_base = Φ_{n+1,B}`, so that
 /// `V_{n+1} = Φ_{n+1,B} V_B + J q̇` in the EE frame.
 pub fn ee_jacobian(robot: &Robot, data: &mut Data, q: &[f64]) -> Result<()> {
     check_data(robot, data)?;
@@ -71,8 +71,59 @@ pub(crate) fn ee_from_base(robot: &Robot, q: &[f64]) -> Transform {
     to_ee
 }
 
+/// `[position; quaternion (x, y, z, w), w ≥ 0]` of a frame whose origin is at `position` and
+/// whose axes are the columns of `rotation` (frame to inertial components).
+pub fn pose(position: &Vec3, rotation: &crate::spatial::Mat3) -> [f64; 7] {
+    let quat = nalgebra::UnitQuaternion::from_rotation_matrix(
+        &nalgebra::Rotation3::from_matrix_unchecked(*rotation),
+    );
+    let c = quat.coords; // (i, j, k, w)
+    let sign = if c[3] < 0.0 { -1.0 } else { 1.0 };
+    [
+        position.x,
+        position.y,
+        position.z,
+        sign * c[0],
+        sign * c[1],
+        sign * c[2],
+        sign * c[3],
+    ]
+}
+
+/// The inertial poses of the base, of every body `1..=n` and of the EE frame (`n + 2` rows of
+/// [`pose`]), for the base pose `[r_B; quat_B (x, y, z, w)]` and joint angles `q`: body `i`'s
+/// origin is `o_λ + E_λ p_{λ,i}` and its axes `E_i = E_λ R_{i,λ}ᵀ`. Checks its arguments.
+pub fn body_poses(robot: &Robot, base_pose: &[f64], q: &[f64]) -> Result<Vec<[f64; 7]>> {
+    crate::args::check_base_pose(base_pose)?;
+    check_vector("q", q, robot.dof())?;
+    let n = robot.dof();
+    let mut rotations = Vec::with_capacity(n + 1);
+    let mut origins = Vec::with_capacity(n + 1);
+    rotations.push(crate::spatial::quaternion_to_rotation(&base_pose[3..7]));
+    origins.push(Vec3::new(base_pose[0], base_pose[1], base_pose[2]));
+    for (i, joint) in robot.joints().iter().enumerate() {
+        let x = joint.transform(q[i]);
+        let parent = robot.parents()[i + 1];
+        let (e, o) = (rotations[parent], origins[parent]);
+        origins.push(o + e * x.translation);
+        rotations.push(e * x.rotation.transpose());
+    }
+    let ee = robot.ee_transform();
+    let (e, o) = (rotations[robot.ee_body()], origins[robot.ee_body()]);
+    let mut poses: Vec<[f64; 7]> = origins
+        .iter()
+        .zip(&rotations)
+        .map(|(o, e)| pose(o, e))
+        .collect();
+    poses.push(pose(
+        &(o + e * ee.translation),
+        &(e * ee.rotation.transpose()),
+    ));
+    Ok(poses)
+}
+
 /// Total spatial momentum of base and links about the base origin, in the base frame:
-/// `Σ_i Φ_{iB}ᵀ M_i V_i` (SPEC §6.1), accumulated from the tips towards the base. Use
+/// `Σ_i Φ_{iB}ᵀ M_i V_i` (model §6.1), accumulated from the tips towards the base. Use
 /// [`crate::dynamics::momentum_in_inertial_frame`] to express it about the inertial origin.
 pub fn momentum(robot: &Robot, data: &mut Data, state: &RigidState) -> Result<Force> {
     velocities(robot, data, state)?;

@@ -1,11 +1,11 @@
-//! Recursive O(n) algorithms in the seed's conventions (`[ω; v]`, classical acceleration), over an
+//! Recursive O(n) algorithms in the paper's conventions (`[ω; v]`, classical acceleration), over an
 //! immutable [`Robot`](crate::Robot) and a preallocated [`Data`] workspace.
 //!
 //! Each public function checks its arguments first, then runs without allocating. Results are left
 //! in `Data` and returned by reference. Every recursion reads each body's parent from
 //! [`Robot::parents`](crate::Robot::parents) and accumulates into the parent's entry, so the loops
 //! hold for trees as well as chains. Each algorithm is tested against
-//! [`Operators`](crate::Operators), the seed's dense operator form.
+//! [`Operators`](crate::Operators), the paper's dense operator form.
 //!
 //! ```
 //! use orbitflex::algorithms::{self, Data};
@@ -33,7 +33,7 @@ mod rnea;
 pub use aba::aba;
 pub use crba::crba;
 pub use data::Data;
-pub use kinematics::{ee_jacobian, kinetic_energy, momentum, velocities};
+pub use kinematics::{body_poses, ee_jacobian, kinetic_energy, momentum, pose, velocities};
 pub use rnea::{bias_forces, rnea};
 
 pub(crate) use aba::aba_unchecked;

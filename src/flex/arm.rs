@@ -257,7 +257,7 @@ impl FlexibleArm {
     }
 
     /// One classic RK4 step of length `dt` in place, inputs held over the step; the quaternion is
-    /// renormalised afterwards (model §5). Allocation-free. See [`integrate::step`].
+    /// renormalised afterwards (model §5). Allocation-free. See [`integrate::step()`].
     pub fn step(
         &self,
         ws: &mut ArmWorkspace,
@@ -269,7 +269,7 @@ impl FlexibleArm {
     }
 
     /// Integrates `steps` RK4 steps of `dt` from `x0` under the controller `u` and the
-    /// `wrenches`. See [`integrate::simulate`].
+    /// `wrenches`. See [`integrate::simulate()`].
     pub fn simulate(
         &self,
         x0: &[f64],
@@ -326,21 +326,7 @@ impl FlexibleArm {
         let ee = algorithms::ee_from_base(&self.robot, s.q); // Φ_{n+1,B}
                                                              // The EE origin is at p_{B,n+1} in base axes; R_{n+1,B}ᵀ turns EE axes into base axes.
         let position = Vec3::from_column_slice(s.position) + base_rotation * ee.translation;
-        let rotation = base_rotation * ee.rotation.transpose();
-        let quat = nalgebra::UnitQuaternion::from_rotation_matrix(
-            &nalgebra::Rotation3::from_matrix_unchecked(rotation),
-        );
-        let c = quat.coords; // (i, j, k, w)
-        let sign = if c[3] < 0.0 { -1.0 } else { 1.0 };
-        [
-            position.x,
-            position.y,
-            position.z,
-            sign * c[0],
-            sign * c[1],
-            sign * c[2],
-            sign * c[3],
-        ]
+        algorithms::pose(&position, &(base_rotation * ee.rotation.transpose()))
     }
 
     /// The largest stable RK4 step at state `x` for the closed loop of the joints, the arm and

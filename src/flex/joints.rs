@@ -159,6 +159,45 @@ impl FlexibleJoints {
             .expect("the built-in joint parameters are valid")
     }
 
+    /// Parameters for a robot with no actuator data, scaled to its links (the CLI's default
+    /// when no `--params` file is given). Each joint `i` sees the link-side inertia
+    /// `m_i = 1/(𝓜⁻¹)_ii` at `q = 0` (the inertia it would drive with every other joint free);
+    /// then
+    ///
+    /// - stiffness `k_i = (2π · 5 Hz)² m_i`: with its motor held, the joint rings at 5 Hz, the
+    ///   low end of what space arms show;
+    /// - motor inertia `j_i = m_i`;
+    /// - joint damping `d_i = 2 · 0.05 · √(k_i m_i)`: 5 % of critical;
+    /// - motor friction `β_i = 0`.
+    ///
+    /// ```
+    /// use orbitflex::{FlexibleJoints, Robot};
+    /// let joints = FlexibleJoints::defaults_for(&Robot::space_arm())?;
+    /// assert_eq!(joints.len(), 7);
+    /// # Ok::<(), orbitflex::Error>(())
+    /// ```
+    pub fn defaults_for(robot: &crate::Robot) -> Result<Self> {
+        use crate::{algorithms, Loads, RigidState};
+        let n = robot.dof();
+        let mut data = algorithms::Data::new(robot);
+        let zeros = vec![0.0; n];
+        let mut unit = vec![0.0; n];
+        let omega = 2.0 * std::f64::consts::PI * 5.0;
+        let mut columns: [Vec<f64>; 4] = Default::default();
+        for i in 0..n {
+            unit[i] = 1.0;
+            let rest = RigidState::at_rest(&zeros, &zeros);
+            let m = 1.0 / algorithms::aba(robot, &mut data, &rest, &unit, &Loads::ZERO)?[6 + i];
+            unit[i] = 0.0;
+            let k = omega * omega * m;
+            for (column, value) in columns.iter_mut().zip([k, m, 0.1 * (k * m).sqrt(), 0.0]) {
+                column.push(value);
+            }
+        }
+        let [k, j, d, beta] = columns;
+        Self::new(k, j, d, beta)
+    }
+
     /// Number of joints.
     pub fn len(&self) -> usize {
         self.stiffness.len()

@@ -172,12 +172,9 @@ fn check_transform(t: &Transform) -> std::result::Result<(), String> {
 
 /// Checks that `mass` and the inertia about the COM are physical: mass ≥ 0, a symmetric inertia
 /// whose principal moments are ≥ 0 and satisfy the triangle inequality `I₁ + I₂ ≥ I₃`.
-/// A point mass (zero inertia) and a massless, inertia-free link are accepted.
-pub(crate) fn check_inertia(
-    mass: f64,
-    com: &Vec3,
-    about_com: &Mat3,
-) -> std::result::Result<(), String> {
+/// A point mass (zero inertia) and a massless, inertia-free link are accepted. Masses, distances
+/// and inertias beyond [`MAX_MASS`], [`MAX_LENGTH`] and [`MAX_INERTIA`] are refused.
+pub fn check_inertia(mass: f64, com: &Vec3, about_com: &Mat3) -> std::result::Result<(), String> {
     if !mass.is_finite() || !com.iter().chain(about_com.iter()).all(|v| v.is_finite()) {
         return Err("mass, centre of mass or inertia is not finite".into());
     }
@@ -275,4 +272,26 @@ fn subtree(robot: &Robot, i: usize) -> Vec<&str> {
         .filter(|&b| b == i || robot.path_to_base(b).any(|a| a == i))
         .map(|b| robot.link_names[b].as_str())
         .collect()
+}
+
+impl Robot {
+    /// This robot with its base body's inertia replaced, validated like any new model: for
+    /// example to mount an arm whose root link weighs a few kilograms on a spacecraft bus.
+    /// `inertia` is about the base origin, in the base frame. Joints, links and the EE frame are
+    /// unchanged.
+    ///
+    /// ```
+    /// use orbitflex::spatial::{Inertia, Mat3, Vec3};
+    /// let arm = orbitflex::Robot::space_arm();
+    /// let bus = Inertia::from_com(2000.0, Vec3::zeros(), Mat3::from_diagonal(&Vec3::new(900.0, 900.0, 700.0)));
+    /// let heavier = arm.with_base_inertia(bus)?;
+    /// assert_eq!(heavier.inertias()[0].mass, 2000.0);
+    /// assert_eq!(heavier.dof(), arm.dof());
+    /// # Ok::<(), orbitflex::Error>(())
+    /// ```
+    pub fn with_base_inertia(&self, inertia: Inertia) -> Result<Robot> {
+        let mut robot = self.clone();
+        robot.inertias[0] = inertia;
+        RobotBuilder { robot }.build()
+    }
 }

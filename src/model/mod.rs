@@ -1,14 +1,14 @@
 //! The robot model: a floating base carrying a serial chain of revolute joints, and its EE frame.
 //!
 //! A [`Robot`] is immutable once built, either from the [`RobotBuilder`] or from a URDF
-//! ([`Robot::from_urdf`], SPEC §7). Per-call scratch memory lives in a separate workspace
+//! ([`Robot::from_urdf`], model §7). Per-call scratch memory lives in a separate workspace
 //! (`crate::Data`), so a `Robot` can be shared between threads.
 
 mod builder;
 mod robot;
 mod urdf;
 
-pub use builder::RobotBuilder;
+pub use builder::{check_inertia, RobotBuilder, MAX_INERTIA, MAX_LENGTH, MAX_MASS};
 pub use robot::{JointModel, Robot};
 pub use urdf::UrdfOptions;
 

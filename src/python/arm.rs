@@ -20,7 +20,7 @@ use std::sync::{Mutex, MutexGuard};
 
 /// A floating-base arm with Spong flexible joints.
 ///
-/// ``FlexibleArm(robot, joints, method="recursive")``; ``method="operator"`` uses the seed's
+/// ``FlexibleArm(robot, joints, method="recursive")``; ``method="operator"`` uses the paper's
 /// dense operator form for the rigid dynamics (slow; for validation).
 ///
 /// State ``x`` (13+4n): ``[r_B | quat_B (x,y,z,w) | q | θ | ω_B | v_B | q̇ | θ̇]``. Inputs: motor

@@ -200,6 +200,15 @@ impl PyFlexibleJoints {
         )?))
     }
 
+    /// Parameters scaled to ``robot``'s links, for a robot with no actuator data: with its motor
+    /// held, each joint rings at 5 Hz against the link-side inertia ``m_i = 1/(M⁻¹)_ii`` it sees
+    /// at ``q = 0``; motor inertia ``j_i = m_i``; joint damping 5 % of critical; no motor
+    /// friction.
+    #[staticmethod]
+    fn defaults_for(robot: &PyRobot) -> PyResult<Self> {
+        Ok(Self::from_rust(FlexibleJoints::defaults_for(&robot.robot)?))
+    }
+
     /// The built-in arm's joint parameters (see ``orbitflex.models.space_arm_joints``).
     #[staticmethod]
     fn space_arm() -> Self {

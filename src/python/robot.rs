@@ -10,7 +10,7 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use std::sync::Mutex;
 
-/// A floating-base serial chain loaded from URDF (SPEC §1, §7).
+/// A floating-base serial chain loaded from URDF (model §1, §7).
 ///
 /// Conventions: base twist ``[ω_B; v_B]`` in the base frame; joint order base to EE; spatial
 /// vectors ``[angular; linear]``; base acceleration ``α_B`` is classical (the derivative of the
@@ -233,6 +233,68 @@ impl PyRobot {
         self.robot.total_mass()
     }
 
+    /// This robot with its base body replaced: ``mass`` (kg), ``inertia`` about the base's
+    /// centre of mass in base axes (kg·m²; three principal moments, or a 3×3 matrix), and the
+    /// centre of mass ``com`` in the base frame (m, default the base origin). For example, to
+    /// mount an arm whose root link weighs a few kilograms on a spacecraft bus.
+    #[pyo3(signature = (mass, inertia, com=None))]
+    fn with_base_inertia(
+        &self,
+        mass: &Bound<'_, PyAny>,
+        inertia: &Bound<'_, PyAny>,
+        com: Option<&Bound<'_, PyAny>>,
+    ) -> PyResult<Self> {
+        use crate::spatial::{Inertia, Mat3, Vec3};
+        let mass = super::convert::real(mass, "mass")?;
+        let com = vector_or(com, "com", 3, 0.0)?;
+        let array = super::convert::as_float_array(inertia, "inertia")?;
+        let shape: Vec<usize> = array.getattr("shape")?.extract()?;
+        let about_com = match shape.as_slice() {
+            [3] => Mat3::from_diagonal(&Vec3::from_column_slice(&vector(
+                &array,
+                "inertia",
+                Some(3),
+            )?)),
+            [3, 3] => {
+                let (_, values) = super::convert::matrix(&array, "inertia", 3)?;
+                Mat3::from_row_slice(&values)
+            }
+            other => {
+                return Err(ModelError::new_err(format!(
+                    "inertia: expected three principal moments (3,) or a matrix (3, 3), given \
+                     shape {other:?}"
+                )))
+            }
+        };
+        crate::model::check_inertia(mass, &Vec3::from_column_slice(&com), &about_com).map_err(
+            |message| {
+                ModelError::new_err(format!("base '{}': {message}", self.robot.body_names()[0]))
+            },
+        )?;
+        let inertia = Inertia::from_com(mass, Vec3::from_column_slice(&com), about_com);
+        Ok(Self::wrap(self.robot.with_base_inertia(inertia)?))
+    }
+
+    /// Inertial poses ``[position (m); quaternion (x, y, z, w), w ≥ 0]`` of the base, of each
+    /// body (the child link of each joint, after merging fixed links) and of the EE frame, shape
+    /// (n+2, 7), for the base pose ``[r_B; quat_B]`` and joint angles ``q``.
+    fn body_poses<'py>(
+        &self,
+        py: Python<'py>,
+        base_pose: &Bound<'py, PyAny>,
+        q: &Bound<'py, PyAny>,
+    ) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        let pose = vector(base_pose, "base_pose", Some(7))?;
+        let q = vector(q, "q", Some(self.robot.dof()))?;
+        let poses = algorithms::body_poses(&self.robot, &pose, &q)?;
+        Ok(super::convert::row_major(
+            py,
+            poses.len(),
+            7,
+            poses.concat(),
+        ))
+    }
+
     /// Body masses (kg), base first, after merging fixed links.
     #[getter]
     fn body_masses<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
@@ -241,7 +303,7 @@ impl PyRobot {
     }
 
     /// Mass matrix ``[[M_b, M_rb], [M_br, M_r]]``, shape (6+n, 6+n) (A.19). ``method``:
-    /// ``"recursive"`` (CRBA, default) or ``"operator"`` (the seed's dense operator form).
+    /// ``"recursive"`` (CRBA, default) or ``"operator"`` (the paper's dense operator form).
     #[pyo3(signature = (q, method="recursive"))]
     fn mass_matrix<'py>(
         &self,
@@ -274,7 +336,7 @@ impl PyRobot {
     }
 
     /// EE Jacobian ``J``, shape (6, n): joint rates to EE twist ``[ω; v]`` in the EE frame,
-    /// base at rest (SPEC §2, ``J = Bᵀ Φ H``).
+    /// base at rest (model §2, ``J = Bᵀ Φ H``).
     fn ee_jacobian<'py>(
         &self,
         py: Python<'py>,
@@ -350,7 +412,7 @@ impl PyRobot {
         Ok(array1(py, gen.as_slice()))
     }
 
-    /// The seed's dense operators at this state, as a dict of numpy arrays: ``Phi``, ``H``,
+    /// The paper's dense operators at this state, as a dict of numpy arrays: ``Phi``, ``H``,
     /// ``M``, ``a``, ``b``, ``B``, ``Phi_hat1``, ``Phi_hat2``, ``M_b``, ``M_rb``, ``M_br``,
     /// ``M_r``, ``C_B``, ``C_r``, ``J``, and also ``M_B``, ``b_B`` and ``Phi_n1_B``
     /// (``Φ_{n+1,B}``). Stacked quantities have six rows per link (A.13–A.19).
@@ -386,7 +448,7 @@ impl PyRobot {
     }
 
     /// Total spatial momentum ``[angular; linear]`` of base and links, shape (6,), in the
-    /// inertial frame about the inertial origin (SPEC §6.1). ``base_pose = [r_B; x, y, z, w]``.
+    /// inertial frame about the inertial origin (model §6.1). ``base_pose = [r_B; x, y, z, w]``.
     fn momentum<'py>(
         &self,
         py: Python<'py>,

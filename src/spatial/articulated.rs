@@ -7,11 +7,17 @@ use std::ops::{Add, AddAssign};
 /// A symmetric 3×3 matrix, stored as its upper triangle (six numbers).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct Symmetric3 {
+    /// Entry (0, 0).
     pub xx: f64,
+    /// Entries (0, 1) and (1, 0).
     pub xy: f64,
+    /// Entries (0, 2) and (2, 0).
     pub xz: f64,
+    /// Entry (1, 1).
     pub yy: f64,
+    /// Entries (1, 2) and (2, 1).
     pub yz: f64,
+    /// Entry (2, 2).
     pub zz: f64,
 }
 
@@ -156,7 +162,7 @@ fn columns(m: &Mat3) -> (Vec3, Vec3, Vec3) {
     )
 }
 
-/// An articulated-body inertia `I^A` (Featherstone's ABA, in the seed's `[ω; v]` ordering):
+/// An articulated-body inertia `I^A` (Featherstone's ABA, in the paper's `[ω; v]` ordering):
 ///
 /// ```text
 /// I^A = [ angular     coupling ]
@@ -167,8 +173,11 @@ fn columns(m: &Mat3) -> (Vec3, Vec3, Vec3) {
 /// make the blocks general.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct ArticulatedInertia {
+    /// The symmetric angular block `A` (kg·m²).
     pub angular: Symmetric3,
+    /// The coupling block `B` (kg·m).
     pub coupling: Mat3,
+    /// The symmetric linear block `C` (kg).
     pub linear: Symmetric3,
 }
 

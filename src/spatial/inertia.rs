@@ -12,8 +12,11 @@ use super::{blocks, skew, Force, Mat3, Mat6, Motion, Symmetric3, Transform, Vec3
 /// inertia about the frame ORIGIN (kg·m², not about the centre of mass).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Inertia {
+    /// `m_i` (kg).
     pub mass: f64,
+    /// `p_{i,c}`: the centre of mass in frame `i` (m).
     pub com: Vec3,
+    /// `(I_i)_i`: the rotational inertia about the frame ORIGIN, frame-`i` axes (kg·m²).
     pub rotational: Mat3,
 }
 

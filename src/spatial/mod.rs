@@ -1,9 +1,9 @@
-//! Spatial algebra in the seed's conventions (SPEC §1).
+//! Spatial algebra in the paper's conventions (model §1).
 //!
 //! Motions are `V = [ω; v]` and forces `f = [n; F]`, angular part first, in the body's own frame;
 //! `v` is the velocity of the frame origin and `n` the moment about it. A [`Transform`] is the
-//! seed's `Φ_{i+1,i}` (A.5), acting on motions; its transpose acts on forces. An [`Inertia`] is the
-//! seed's `M_i` (A.9), stored as mass, centre of mass and rotational inertia about the frame origin.
+//! paper's `Φ_{i+1,i}` (A.5), acting on motions; its transpose acts on forces. An [`Inertia`] is the
+//! paper's `M_i` (A.9), stored as mass, centre of mass and rotational inertia about the frame origin.
 //!
 //! An [`ArticulatedInertia`] is the ABA's symmetric `I^A`, kept as 3×3 blocks.
 //!
@@ -49,7 +49,7 @@ pub fn blocks(a: &Mat3, b: &Mat3, c: &Mat3, d: &Mat3) -> Mat6 {
 #[cfg(test)]
 mod tests;
 
-/// Rotation matrix of a unit quaternion `(x, y, z, w)` (scalar last, SPEC §1): it maps base-frame
+/// Rotation matrix of a unit quaternion `(x, y, z, w)` (scalar last, model §1): it maps base-frame
 /// components to inertial-frame components. The quaternion is normalised first.
 #[inline]
 pub fn quaternion_to_rotation(quat: &[f64]) -> Mat3 {

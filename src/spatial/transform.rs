@@ -2,7 +2,7 @@
 
 use super::{blocks, skew, Force, Mat3, Mat6, Motion, Vec3};
 
-/// The seed's `Φ_{i+1,i}` (A.5): takes motions from frame `i` to frame `i+1`.
+/// The paper's `Φ_{i+1,i}` (A.5): takes motions from frame `i` to frame `i+1`.
 ///
 /// ```text
 /// Φ_{i+1,i} = [  R_{i+1,i}                 0        ]
@@ -13,7 +13,9 @@ use super::{blocks, skew, Force, Mat3, Mat6, Motion, Vec3};
 /// `Φᵀ` takes forces from frame `i+1` back to frame `i` (moments re-taken about origin `i`).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Transform {
+    /// `R_{i+1,i}`: frame-`i` components to frame-`i+1` components.
     pub rotation: Mat3,
+    /// `p_{i,i+1}`: from origin `i` to origin `i+1`, in frame `i` (m).
     pub translation: Vec3,
 }
 
@@ -33,7 +35,7 @@ impl Transform {
         }
     }
 
-    /// `Φ` from `R_{i+1,i}` and `p_{i,i+1}` (SPEC §1).
+    /// `Φ` from `R_{i+1,i}` and `p_{i,i+1}` (model §1).
     #[inline]
     pub fn new(rotation: Mat3, translation: Vec3) -> Self {
         Self {

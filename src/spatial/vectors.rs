@@ -6,18 +6,22 @@ use std::ops::{Add, AddAssign, Mul, Neg, Sub, SubAssign};
 /// A spatial motion (velocity or acceleration) `[ω; v]` in some body frame.
 ///
 /// For a velocity, `ω` is the angular velocity (rad/s) and `v` the velocity of the frame origin
-/// (m/s). For the seed's "classical" acceleration `α`, the parts are the inertial-frame time
-/// derivatives of `ω` and of the origin velocity, expressed in the body frame (SPEC §1).
+/// (m/s). For the paper's "classical" acceleration `α`, the parts are the inertial-frame time
+/// derivatives of `ω` and of the origin velocity, expressed in the body frame (model §1).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct Motion {
+    /// `ω` (rad/s), or `ω̇` for an acceleration.
     pub angular: Vec3,
+    /// `v`, the velocity of the frame origin (m/s), or its classical derivative.
     pub linear: Vec3,
 }
 
 /// A spatial force `[n; F]`: moment `n` about the frame origin (N·m) and force `F` (N).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct Force {
+    /// The moment `n` about the frame origin (N·m).
     pub angular: Vec3,
+    /// The force `F` (N).
     pub linear: Vec3,
 }
 

@@ -1,4 +1,4 @@
-"""Pinocchio as the oracle, put in orbitflex's conventions (PINOCCHIO_MAP.md).
+"""Pinocchio as the oracle, put in orbitflex's conventions (docs/model.md, "Relation to Pinocchio").
 
 Everything here is Pinocchio plus index bookkeeping; nothing is taken from orbitflex except the
 joint names (used to match joints, so a wrong ordering in orbitflex would show as a mismatch of

@@ -1,8 +1,8 @@
-"""The public Python API (SPEC.md §3, §4, §5, §8): constructors, state layout, derivative, inputs
+"""The public Python API (docs/model.md §3–§5 and the public names): constructors, state layout, derivative, inputs
 of ``simulate``, ``Trajectory`` views and files, the operator dictionary, the built-in model and
 the ``.pyi`` stub.
 
-Expected values are computed here by hand from the SPEC formulas, or by a second route through
+Expected values are computed here by hand from the model's formulas (docs/model.md), or by a second route through
 the API (e.g. ``step`` in a loop against ``simulate``), never copied from a run.
 """
 
@@ -293,7 +293,7 @@ def test_state_normalises_the_quaternion(arm):
 
 
 # ---------------------------------------------------------------------------------------------
-# derivative (SPEC §4)
+# derivative (model §4)
 # ---------------------------------------------------------------------------------------------
 
 
@@ -524,7 +524,7 @@ def test_diagnostics_shapes_and_values(traj, arm, robot):
             rtol=1e-12, atol=1e-13,
         )
         np.testing.assert_allclose(traj.ee_pose[k], arm.ee_pose(x), rtol=1e-14, atol=1e-15)
-        # energy by hand (SPEC §6.2)
+        # energy by hand (model §6.2)
         e = (robot.kinetic_energy(x[7:10], x[13:19], x[19:22])
              + 0.5 * J @ x[22:25] ** 2 + 0.5 * K @ (x[10:13] - x[7:10]) ** 2)
         assert traj.energy[k] == pytest.approx(e, rel=1e-12)
@@ -571,7 +571,7 @@ def test_save_csv_round_trip(traj, tmp_path):
 
 
 # ---------------------------------------------------------------------------------------------
-# operators (SPEC §2, §8) and agreement of the two methods
+# operators (model §2, §8) and agreement of the two methods
 # ---------------------------------------------------------------------------------------------
 
 

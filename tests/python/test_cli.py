@@ -1,8 +1,9 @@
-"""The command line: ``orbitflex demo`` and ``orbitflex simulate URDF --params TOML``.
+"""The command line: ``orbitflex demo`` and ``orbitflex simulate URDF [--params TOML]``.
 
 Each test runs the CLI in a subprocess (``python -m orbitflex``), as a user would, with a time
 limit so that a hang fails the test instead of stalling the suite. Outputs are checked against
-each other (the summary against the saved trajectory), not against recorded numbers.
+each other (the summary against the saved trajectory), not against recorded numbers. The plots
+are checked in process, on the figures themselves (titles, labels, legends, axis limits).
 """
 
 from __future__ import annotations
@@ -14,8 +15,13 @@ import shutil
 import subprocess
 import sys
 
+from pathlib import Path
+
 import numpy as np
 import pytest
+
+import orbitflex
+from orbitflex import cli
 
 PNGS = {
     "joint_vs_motor_angles.png",
@@ -86,11 +92,15 @@ def run_cli(*args, cwd, timeout=120.0):
                     f"(stdout: {e.stdout!r})")
 
 
-def assert_clean_error(result, *words):
-    """Exit code 2, a one-line ``orbitflex: error: ...`` message, no traceback."""
+def assert_clean_error(result, *words, flag=None):
+    """Exit code 2, one line ``orbitflex: error: FLAG: ...`` (naming ``flag`` if given), no
+    traceback."""
     assert result.returncode == 2, (result.returncode, result.stdout[-500:], result.stderr[-1500:])
     assert "Traceback" not in result.stderr, result.stderr[-1500:]
-    assert "error" in result.stderr
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("orbitflex: error: "), result.stderr[-1500:]
+    if flag is not None:
+        assert lines[0].startswith(f"orbitflex: error: {flag}: "), lines[0]
     for word in words:
         assert word in result.stderr, result.stderr[-1500:]
 
@@ -112,7 +122,7 @@ def model_files(tmp_path):
 @pytest.fixture(scope="module")
 def demo_run(tmp_path_factory):
     out = tmp_path_factory.mktemp("demo") / "out"
-    result = run_cli("demo", "--duration", "0.5", "--out", out, "--quiet", cwd=out.parent)
+    result = run_cli("demo", "--duration", "0.5", "--out", out, "--quiet", "--csv", cwd=out.parent)
     return result, out
 
 
@@ -137,6 +147,48 @@ def test_demo_writes_trajectory_summary_and_plots(demo_run):
     for name in PNGS:
         data = (out / name).read_bytes()
         assert data[:8] == b"\x89PNG\r\n\x1a\n" and len(data) > 1000, name
+
+
+def test_demo_lists_every_file_it_wrote(demo_run):
+    # every file in the output folder is listed, with the full path and a description
+    result, out = demo_run
+    assert result.returncode == 0, result.stderr[-2000:]
+    written = {p.name for p in out.iterdir()}
+    assert written == PNGS | {"trajectory.npz", "trajectory.csv", "summary.json"}
+    listed = [line.split() for line in result.stdout.splitlines() if str(out) in line]
+    assert {Path(words[0]).name for words in listed} == written
+    assert all(len(words) > 2 for words in listed)  # a description follows each path
+    assert f"wrote {len(written)} files" in result.stdout
+
+
+def test_csv_has_the_trajectory_with_named_columns(demo_run):
+    result, out = demo_run
+    assert result.returncode == 0, result.stderr[-2000:]
+    with np.load(out / "trajectory.npz") as data:
+        t, x, columns = data["t"], data["x"], list(data["columns"])
+    header = (out / "trajectory.csv").read_text().splitlines()[0].split(",")
+    assert header[1:] == columns
+    table = np.loadtxt(out / "trajectory.csv", delimiter=",", skiprows=1)
+    np.testing.assert_allclose(table[:, 0], t, rtol=1e-12, atol=1e-15)
+    np.testing.assert_allclose(table[:, 1:], x, rtol=1e-9, atol=1e-12)
+
+
+def test_energy_line_explains_its_residual(demo_run):
+    # "residual" = E(T) - E(0) - (motor work - damping loss); "flowed" = sum of |dE| per step
+    result, out = demo_run
+    assert result.returncode == 0, result.stderr[-2000:]
+    lines = result.stdout[result.stdout.index("energy balance"):].splitlines()[:2]
+    text = " ".join(lines)
+    for words in ["E(T) − E(0)", "motor work", "damping loss", "residual", "trapezoid rule",
+                  "that flowed", "Σ|ΔE| over the steps"]:
+        assert words in text, text
+    summary = json.loads((out / "summary.json").read_text())
+    with np.load(out / "trajectory.npz") as data:
+        energy = data["energy"]
+    assert summary["energy_change_J"] == pytest.approx(energy[-1] - energy[0], rel=1e-12)
+    assert summary["energy_balance_residual_J"] == pytest.approx(
+        summary["energy_change_J"] - (summary["motor_work_J"] - summary["dissipated_J"]), rel=1e-9, abs=1e-15)
+    assert summary["energy_flow_J"] == pytest.approx(np.abs(np.diff(energy)).sum(), rel=1e-12)
 
 
 def test_demo_outputs_agree_with_each_other(demo_run):
@@ -221,7 +273,7 @@ def test_help(sub, tmp_path):
     result = run_cli(sub, "--help", cwd=tmp_path)
     assert result.returncode == 0
     assert "usage" in result.stdout.lower()
-    for option in ["--duration", "--dt", "--out", "--quiet", "--no-plots"]:
+    for option in ["--duration", "--dt", "--out", "--quiet", "--no-plots", "--csv"]:
         assert option in result.stdout
     if sub == "simulate":
         assert "--params" in result.stdout and "urdf" in result.stdout.lower()
@@ -243,7 +295,7 @@ def test_missing_urdf(model_files, tmp_path):
     missing = tmp_path / "nowhere" / "robot.urdf"
     result = run_cli("simulate", missing, "--params", params, "--duration", "0.1",
                      "--out", tmp_path / "o", "--quiet", cwd=tmp_path)
-    assert_clean_error(result, str(missing))
+    assert_clean_error(result, str(missing), flag="URDF")
 
 
 def test_missing_params_file(model_files, tmp_path):
@@ -251,14 +303,16 @@ def test_missing_params_file(model_files, tmp_path):
     missing = tmp_path / "absent.toml"
     result = run_cli("simulate", urdf, "--params", missing, "--locked-joints", "finger_slide",
                      "--duration", "0.1", "--out", tmp_path / "o", "--quiet", cwd=tmp_path)
-    assert_clean_error(result, str(missing))
+    assert_clean_error(result, str(missing), flag="--params")
 
 
 def test_unlocked_prismatic_joint_is_a_clean_error(model_files, tmp_path):
     urdf, params = model_files
     result = run_cli("simulate", urdf, "--params", params, "--duration", "0.1",
                      "--out", tmp_path / "o", "--quiet", cwd=tmp_path)
-    assert_clean_error(result, "finger_slide", "prismatic")
+    # the library's hint, locked_joints=["finger_slide"], in the CLI's words
+    assert_clean_error(result, "finger_slide", "prismatic", "--locked-joints finger_slide",
+                       flag="--locked-joints")
 
 
 def test_malformed_urdf(tmp_path, model_files):
@@ -267,20 +321,32 @@ def test_malformed_urdf(tmp_path, model_files):
     bad.write_text("<robot name='x'><link name='a'></robot>")
     result = run_cli("simulate", bad, "--params", params, "--duration", "0.1",
                      "--out", tmp_path / "o", "--quiet", cwd=tmp_path)
-    assert_clean_error(result, str(bad))
+    assert_clean_error(result, str(bad), flag="URDF")
 
 
 def test_unknown_ee_link(model_files, tmp_path):
     urdf, params = model_files
     result = run_cli("simulate", urdf, "--params", params, "--ee-link", "gripper",
                      "--duration", "0.1", "--out", tmp_path / "o", "--quiet", cwd=tmp_path)
-    assert_clean_error(result, "gripper")
+    assert_clean_error(result, "gripper", flag="--ee-link")
 
 
-def test_missing_params_option(model_files, tmp_path):
+def test_simulate_without_params_uses_the_scaled_defaults(model_files, tmp_path):
+    # no --params: FlexibleJoints.defaults_for(robot), and one line of output says so
     urdf, _ = model_files
-    result = run_cli("simulate", urdf, "--duration", "0.1", cwd=tmp_path)
-    assert_clean_error(result, "--params")
+    out = tmp_path / "defaults"
+    result = run_cli("simulate", urdf, "--locked-joints", "finger_slide", "--duration", "0.2",
+                     "--out", out, "--quiet", "--no-plots", cwd=tmp_path)
+    assert result.returncode == 0, result.stderr[-2000:]
+    lines = [line for line in result.stdout.splitlines() if "defaults_for" in line]
+    assert len(lines) == 1, result.stdout
+    for words in ["FlexibleJoints.defaults_for(robot)", "5 Hz", "--params"]:
+        assert words in lines[0]
+    assert json.loads((out / "summary.json").read_text())["steps"] == 200
+    # with --params the line is absent
+    result = run_cli("simulate", urdf, "--params", model_files[1], "--locked-joints", "finger_slide",
+                     "--duration", "0.1", "--out", out, "--quiet", "--no-plots", cwd=tmp_path)
+    assert result.returncode == 0 and "defaults_for" not in result.stdout
 
 
 def test_wrong_slew_count(model_files, tmp_path):
@@ -288,7 +354,7 @@ def test_wrong_slew_count(model_files, tmp_path):
     result = run_cli("simulate", urdf, "--params", params, "--locked-joints", "finger_slide",
                      "--slew", "0.1", "0.2", "0.3", "--duration", "0.1",
                      "--out", tmp_path / "o", "--quiet", cwd=tmp_path)
-    assert_clean_error(result, "--slew")
+    assert_clean_error(result, "--slew", flag="--slew")
 
 
 @pytest.mark.parametrize("dt", ["0", "-0.001", "nan"])
@@ -297,7 +363,7 @@ def test_invalid_dt_is_a_clean_error(dt, tmp_path):
     # steps and exited 0.
     result = run_cli("demo", "--duration", "0.2", "--dt", dt, "--out", tmp_path / "o",
                      "--quiet", "--no-plots", cwd=tmp_path)
-    assert_clean_error(result, "dt")
+    assert_clean_error(result, "dt", flag="--dt")
 
 
 @pytest.mark.parametrize("duration", ["-1", "-0.5"])
@@ -305,7 +371,7 @@ def test_invalid_duration_is_a_clean_error(duration, tmp_path):
     # A run that simulates nothing must say why instead of printing a summary of zero steps.
     result = run_cli("demo", "--duration", duration, "--out", tmp_path / "o",
                      "--quiet", "--no-plots", cwd=tmp_path)
-    assert_clean_error(result, "duration")
+    assert_clean_error(result, "duration", flag="--duration")
 
 
 @pytest.mark.parametrize("dt", [0.03, 0.05])
@@ -316,9 +382,12 @@ def test_diverging_run_reports_where_it_stopped(tmp_path, dt):
     out = tmp_path / "div"
     result = run_cli("demo", "--duration", "2", "--dt", dt, "--out", out, "--quiet",
                      "--no-plots", cwd=tmp_path, timeout=60.0)
-    assert result.returncode != 0
+    assert result.returncode == 1
     assert "Traceback" not in result.stderr, result.stderr[-1500:]
-    assert "stability limit" in result.stderr  # the RuntimeWarning
+    # the RuntimeWarning, as one line in the CLI's format (not Python's, pointing into cli.py)
+    warned = [line for line in result.stderr.splitlines() if "stability limit" in line]
+    assert warned and warned[0].startswith("orbitflex: warning: dt = "), result.stderr[-1500:]
+    assert "RuntimeWarning" not in result.stderr and "cli.py" not in result.stderr
     assert "diverged" in result.stderr, result.stderr[-1500:]
     found = re.search(r"step (\d+) \(t = ([0-9.eE+-]+) s\)", result.stderr)
     assert found, result.stderr[-1500:]
@@ -331,3 +400,385 @@ def test_diverging_run_reports_where_it_stopped(tmp_path, dt):
     # the reported failure is at or after the last kept state of the whole run
     assert time >= t[-1] - 1e-12, (time, t[-1])
     assert step >= len(t) - 1
+
+
+# ---------------------------------------------------------------------------------------------
+# the command line itself
+# ---------------------------------------------------------------------------------------------
+
+
+def test_bare_orbitflex_prints_the_help(tmp_path):
+    # it used to run the demo silently
+    result = run_cli(cwd=tmp_path)
+    assert result.returncode == 0, result.stderr[-1500:]
+    assert "usage" in result.stdout.lower()
+    assert "demo" in result.stdout and "simulate" in result.stdout
+    assert not list(tmp_path.iterdir())  # nothing simulated, nothing written
+
+
+def test_version(tmp_path):
+    result = run_cli("--version", cwd=tmp_path)
+    assert result.returncode == 0
+    assert result.stdout.strip() == f"orbitflex {orbitflex.__version__}"
+
+
+def test_unknown_option_is_a_one_line_error(tmp_path):
+    result = run_cli("demo", "--bogus", cwd=tmp_path)
+    assert_clean_error(result, "--bogus")
+
+
+def test_simulate_help_describes_the_toml_keys(tmp_path):
+    result = run_cli("simulate", "--help", cwd=tmp_path)
+    assert result.returncode == 0
+    help_text = result.stdout
+    for words in ["[defaults]", "[joints.<name>]", "stiffness", "N·m/rad", "motor_inertia", "kg·m²",
+                  "link-side", "gear_ratio", "rotor_inertia", "motor_inertia = gear_ratio² · rotor_inertia",
+                  "damping", "motor_damping", "N·m·s/rad", "defaults_for",
+                  "--base-mass", "--base-inertia", "--base-com", "--locked-joints", "--csv"]:
+        assert words in help_text, words
+
+
+def toml_example(help_text):
+    """The example TOML file of ``orbitflex simulate --help``."""
+    lines = help_text.split("example joints.toml:\n", 1)[1].splitlines()
+    block = []
+    for line in lines:
+        if line and not line.startswith("  "):
+            break
+        block.append(line.strip())
+    return "\n".join(block)
+
+
+def test_the_help_toml_example_is_valid(model_files, tmp_path):
+    # two_link_sat has a joint named "elbow", as the example does
+    urdf, _ = model_files
+    example = toml_example(run_cli("simulate", "--help", cwd=tmp_path).stdout)
+    assert "[defaults]" in example and "[joints.elbow]" in example
+    params = tmp_path / "example.toml"
+    params.write_text(example)
+    robot = orbitflex.Robot.from_urdf(urdf, locked_joints=["finger_slide"])
+    joints = orbitflex.FlexibleJoints.from_toml(params, robot)
+    np.testing.assert_allclose(joints.motor_inertia, [100.0**2 * 5e-5, 0.5])  # gear, then own
+    result = run_cli("simulate", urdf, "--params", params, "--locked-joints", "finger_slide",
+                     "--duration", "0.05", "--out", tmp_path / "o", "--quiet", "--no-plots", cwd=tmp_path)
+    assert result.returncode == 0, result.stderr[-1500:]
+
+
+@pytest.mark.parametrize("locked", [["--locked-joints", "finger_slide,shoulder"],
+                                    ["--locked-joints", "finger_slide", "--locked-joints", "shoulder"],
+                                    ["--locked-joints", " finger_slide , shoulder "]])
+def test_locked_joints_take_a_list_or_repeat(model_files, tmp_path, locked):
+    urdf, params = model_files
+    out = tmp_path / "locked"
+    # the URDF after the option: it must not be taken for a joint name
+    result = run_cli("simulate", *locked, urdf, "--params", params, "--duration", "0.05",
+                     "--out", out, "--quiet", "--no-plots", cwd=tmp_path)
+    assert result.returncode == 0, result.stderr[-1500:]
+    with np.load(out / "trajectory.npz") as data:
+        columns = list(data["columns"])
+    assert "q[elbow]" in columns and "q[shoulder]" not in columns
+
+
+def test_locked_joints_with_spaces_is_a_clean_error(model_files, tmp_path):
+    # `--locked-joints a b robot.urdf` used to take robot.urdf for a joint name
+    urdf, params = model_files
+    result = run_cli("simulate", "--locked-joints", "finger_slide", "shoulder", urdf, "--params", params,
+                     "--duration", "0.05", "--out", tmp_path / "o", "--quiet", cwd=tmp_path)
+    assert_clean_error(result, "comma-separated", str(urdf), flag="--locked-joints")
+    assert not (tmp_path / "o").exists()
+
+
+BRANCHED_URDF = URDF.replace("</robot>", """
+  <link name="antenna"/>
+  <joint name="antenna_hinge" type="revolute">
+    <parent link="bus"/><child link="antenna"/>
+    <origin xyz="-0.6 0 0" rpy="0 0 0"/><axis xyz="0 0 1"/>
+    <limit lower="-3" upper="3" effort="5" velocity="1"/>
+  </joint>
+</robot>""")
+
+
+@pytest.mark.parametrize("case", ["unknown_ee_link", "unknown_locked", "prismatic", "two_leaves", "branch"])
+def test_messages_name_the_flags_not_python_keywords(model_files, tmp_path, case):
+    urdf, params = model_files
+    branched = tmp_path / "branched.urdf"
+    branched.write_text(BRANCHED_URDF)
+    args, flag = {
+        "unknown_ee_link": ([urdf, "--ee-link", "gripper"], "--ee-link"),
+        "unknown_locked": ([urdf, "--locked-joints", "finger_slide,nope"], "--locked-joints"),
+        "prismatic": ([urdf], "--locked-joints"),
+        "two_leaves": ([branched], "--ee-link"),
+        "branch": ([branched, "--locked-joints", "finger_slide", "--ee-link", "fore"], "--locked-joints"),
+    }[case]
+    result = run_cli("simulate", *args, "--params", params, "--duration", "0.05",
+                     "--out", tmp_path / "o", "--quiet", cwd=tmp_path)
+    assert_clean_error(result, flag=flag)
+    assert "ee_link" not in result.stderr and "locked_joints" not in result.stderr, result.stderr
+
+
+# ---------------------------------------------------------------------------------------------
+# a real arm on a spacecraft bus: --base-mass, --base-inertia, --base-com
+# ---------------------------------------------------------------------------------------------
+
+
+def run_on_bus(model_files, tmp_path, name, *bus):
+    urdf, params = model_files
+    out = tmp_path / name
+    result = run_cli("simulate", urdf, "--params", params, "--locked-joints", "finger_slide", *bus,
+                     "--duration", "0.3", "--out", out, "--quiet", "--no-plots", cwd=tmp_path)
+    assert result.returncode == 0, result.stderr[-1500:]
+    with np.load(out / "trajectory.npz") as data:
+        return result, data["x"], json.loads((out / "summary.json").read_text())
+
+
+def test_base_mass_mounts_the_arm_on_a_bus(model_files, tmp_path):
+    _, x_own, own = run_on_bus(model_files, tmp_path, "own")
+    result, x_cube, cube = run_on_bus(model_files, tmp_path, "cube", "--base-mass", "500")
+    # the arm (upper 4 kg, fore 2 kg, finger 0.1 kg) on a 500 kg bus
+    assert "total mass 506.1 kg" in result.stdout
+    # a heavier bus turns less than the URDF's 80 kg one
+    assert 0 < cube["base_attitude_change_deg"] < own["base_attitude_change_deg"]
+    # --base-mass alone is a solid 1.5 m cube: I = m s² / 6 = 187.5 kg·m² on each axis
+    _, x_explicit, _ = run_on_bus(model_files, tmp_path, "explicit", "--base-mass", "500",
+                                  "--base-inertia", "187.5", "187.5", "187.5")
+    np.testing.assert_array_equal(x_explicit, x_cube)
+    # the COM and the inertia are used
+    _, x_com, _ = run_on_bus(model_files, tmp_path, "com", "--base-mass", "500", "--base-com", "0.2", "0", "0")
+    _, x_thin, _ = run_on_bus(model_files, tmp_path, "thin", "--base-mass", "500",
+                              "--base-inertia", "20", "20", "30")
+    assert np.abs(x_com - x_cube).max() > 1e-9 and np.abs(x_thin - x_cube).max() > 1e-9
+
+
+@pytest.mark.parametrize("bus, flag", [
+    (["--base-inertia", "1", "1", "1"], "--base-inertia"),  # without --base-mass
+    (["--base-com", "0", "0", "0"], "--base-com"),  # without --base-mass
+    (["--base-mass", "500", "--base-inertia", "1", "1", "5"], "--base-inertia"),  # triangle inequality
+    (["--base-mass", "500", "--base-inertia", "1", "1"], "--base-inertia"),
+    (["--base-mass", "-1"], "--base-mass"),
+    (["--base-mass", "500", "--base-com", "0", "0", "nan"], "--base-com"),
+])
+def test_bad_bus_is_a_clean_error(model_files, tmp_path, bus, flag):
+    urdf, params = model_files
+    result = run_cli("simulate", urdf, "--params", params, "--locked-joints", "finger_slide", *bus,
+                     "--duration", "0.05", "--out", tmp_path / "o", "--quiet", cwd=tmp_path)
+    assert_clean_error(result, flag=flag)
+
+
+# ---------------------------------------------------------------------------------------------
+# errors that used to end in a traceback (or in the machine swapping)
+# ---------------------------------------------------------------------------------------------
+
+
+def test_gain_overflow_is_a_clean_error(tmp_path):
+    result = run_cli("demo", "--bandwidth", "1e300", "--duration", "0.1", "--out", tmp_path / "o",
+                     "--quiet", cwd=tmp_path)
+    assert_clean_error(result, "overflow", flag="--bandwidth")
+    assert not (tmp_path / "o").exists()
+
+
+def test_out_naming_a_file_is_a_clean_error(tmp_path):
+    existing = tmp_path / "results.txt"
+    existing.write_text("keep me")
+    for out in (existing, existing / "sub"):
+        result = run_cli("demo", "--duration", "0.1", "--out", out, "--quiet", cwd=tmp_path)
+        assert_clean_error(result, str(existing), flag="--out")
+    assert existing.read_text() == "keep me"
+
+
+@pytest.mark.parametrize("locked", ["finger_slide,shoulder,elbow", None])
+def test_no_moving_joints_is_a_clean_error(model_files, tmp_path, locked):
+    urdf, params = model_files
+    if locked is None:  # every joint fixed in the URDF
+        urdf = tmp_path / "rigid.urdf"
+        urdf.write_text(URDF.replace('type="revolute"', 'type="fixed"').replace('type="prismatic"', 'type="fixed"'))
+        args = []
+    else:
+        args = ["--locked-joints", locked]
+    result = run_cli("simulate", urdf, *args, "--duration", "0.1", "--out", tmp_path / "o",
+                     "--quiet", cwd=tmp_path)
+    assert_clean_error(result, "no moving joints", flag="--locked-joints")
+
+
+@pytest.mark.parametrize("duration, dt", [("2e5", "1e-5"), ("1e9", "1e-3")])
+def test_a_run_too_big_for_memory_is_refused_up_front(tmp_path, duration, dt):
+    # 2e10 and 1e12 steps: terabytes, past any machine; refused before anything is allocated
+    out = tmp_path / "o"
+    result = run_cli("demo", "--duration", duration, "--dt", dt, "--out", out, "--quiet",
+                     cwd=tmp_path, timeout=60.0)
+    assert_clean_error(result, "--dt", "TB", "free", flag="--duration/--dt")
+    assert not out.exists()
+
+
+def test_memory_estimate_counts_tables_record_and_diagnostics():
+    steps, n = 1000, 7
+    parts = cli.run_bytes(steps, n)
+    assert parts["reference tables"] == 2 * steps * n * 8
+    assert parts["record"] == (steps + 1) * (14 + 4 * n) * 8 + steps * n * 8
+    assert parts["diagnostics"] > 0
+    free = cli.free_memory()
+    assert free is None or free > 0
+
+
+def test_diverged_run_summary_describes_the_finite_part(tmp_path):
+    out = tmp_path / "div"
+    result = run_cli("demo", "--duration", "2", "--dt", "0.03", "--out", out, "--quiet", cwd=tmp_path)
+    assert result.returncode == 1, result.stderr[-1500:]
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["completed"] is False
+    assert summary["steps"] < summary["steps_requested"] == 67
+    step, time = summary["failure_step"], summary["failure_time_s"]
+    assert time == pytest.approx(step * 0.03)
+    text = result.stdout
+    assert "FAILED" in text and f"step {step} (t = {time:g} s)" in text
+    assert "finite part before the failure" in text
+    assert "RK4 truncation" not in text  # the drift of a diverging run is no truncation error
+    # the outputs of the finite part are written all the same
+    assert {p.name for p in out.iterdir()} == PNGS | {"trajectory.npz", "summary.json"}
+
+
+# ---------------------------------------------------------------------------------------------
+# plots: checked in process, on the figures (text, units, legends, limits)
+# ---------------------------------------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def figures(tmp_path_factory):
+    """``{png name: figure}`` of a 0.4 s slew of two_link_sat (1 ms steps), and its trajectory."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    robot = orbitflex.Robot.from_urdf_string(URDF, locked_joints=["finger_slide"])
+    arm = orbitflex.FlexibleArm(robot, orbitflex.FlexibleJoints.defaults_for(robot))
+    slew = np.full(2, 0.3)
+    pd = cli.slew_controller(arm, slew, 400, 1e-3, 5.0, 0.25)
+    traj = arm.simulate(arm.state(), 1e-3, 400, u=pd)
+    job = cli.Job(arm, robot.name, slew, cli.sketch_side(robot), np.zeros(3))
+    kept = {}
+    original = cli.Figures.save
+    cli.Figures.save = lambda self, fig, name: kept.__setitem__(name, fig)
+    try:
+        cli.plot(job, cli.Outcome(traj, 1.0), 1e-3, tmp_path_factory.mktemp("plots"))
+    finally:
+        cli.Figures.save = original
+    yield kept, traj
+    import matplotlib.pyplot as plt
+
+    for fig in kept.values():
+        plt.close(fig)
+
+
+def texts(ax):
+    legend = ax.get_legend()
+    return [t.get_text() for t in legend.get_texts()] if legend else []
+
+
+def test_every_plot_names_model_and_dt_with_units_on_every_axis(figures):
+    kept, _ = figures
+    assert set(kept) == PNGS
+    unit = re.compile(r"\((s|deg|mrad|µrad|nrad|N·m·s|N·s|m|mm|µm|.*10\^\{-?\d+\}\$ N·m·s|.*10\^\{-?\d+\}\$ N·s)\)$")
+    for name, fig in kept.items():
+        suptitle = fig._suptitle.get_text()
+        assert "two_link_sat" in suptitle and "dt = 1 ms" in suptitle, (name, suptitle)
+        for ax in fig.axes:
+            if not ax.get_visible():
+                continue
+            labels = [ax.get_ylabel()] + ([ax.get_zlabel()] if hasattr(ax, "get_zlabel") else [])
+            if ax.get_xlabel():
+                labels.append(ax.get_xlabel())
+            for label in labels:
+                assert unit.search(label) or label in {"deg", "mrad", "µrad", "nrad"}, (name, label)
+        assert any(ax.get_xlabel() for ax in fig.axes), name
+
+
+def test_joint_vs_motor_plot_shows_the_motor_lead(figures):
+    kept, traj = figures
+    top, bottom = kept["joint_vs_motor_angles.png"].axes
+    legend = texts(top)
+    assert {"shoulder", "elbow", "q, link", "θ, motor"} <= set(legend), legend
+    # theta is drawn, and the lead theta - q has its own panel in a unit that makes it readable
+    assert len(top.get_lines()) >= 4
+    factor, unit = cli.angle_unit(float(np.abs(traj.deflection).max()))
+    assert bottom.get_ylabel() == f"θ − q ({unit})"
+    lead = np.concatenate([line.get_ydata() for line in bottom.get_lines()[:2]])
+    assert 1.0 <= np.abs(lead).max() < 1000.0
+    assert {"shoulder", "elbow"} <= set(texts(bottom))
+
+
+def test_deflection_plot_has_readable_units_per_joint(figures):
+    kept, traj = figures
+    axes = [ax for ax in kept["deflection.png"].axes if ax.get_visible()]
+    assert len(axes) == 2  # one panel per joint
+    for i, ax in enumerate(axes):
+        peak = np.abs(ax.get_lines()[0].get_ydata()).max()
+        assert 1.0 <= peak < 1000.0, (ax.get_ylabel(), peak)  # never 0.00015 deg
+        assert traj.arm.robot.joint_names[i] in ax.get_title() and "N·m" in ax.get_title()
+
+
+def test_momentum_plot_separates_angular_and_linear(figures):
+    kept, _ = figures
+    top, bottom = kept["momentum_drift.png"].axes
+    assert "N·m·s" in top.get_ylabel() and "N·m·s" not in bottom.get_ylabel() and "N·s" in bottom.get_ylabel()
+    assert texts(top) == ["$\\Delta H_x$", "$\\Delta H_y$", "$\\Delta H_z$"]
+    assert texts(bottom) == ["$\\Delta p_x$", "$\\Delta p_y$", "$\\Delta p_z$"]
+
+
+def test_attitude_plot_states_the_sequence_and_the_total_rotation(figures):
+    kept, traj = figures
+    (ax,) = kept["base_attitude.png"].axes
+    assert "z-y′-x″" in ax.get_title() and "Rz(yaw) · Ry(pitch) · Rx(roll)" in ax.get_title()
+    total = [line for line in ax.get_lines() if line.get_label().startswith("total rotation")]
+    assert len(total) == 1
+    q = traj.base_pose[:, 3:]
+    expected = np.degrees(2 * np.arccos(min(1.0, abs(q[0] @ q[-1]))))
+    assert total[0].get_ydata()[-1] == pytest.approx(expected, rel=1e-9, abs=1e-12)
+
+
+def test_euler_angles_are_intrinsic_zyx():
+    # R(q) == Rz(yaw) Ry(pitch) Rx(roll) for random attitudes
+    rng = np.random.default_rng(7)
+    quat = rng.normal(size=(50, 4))
+    quat /= np.linalg.norm(quat, axis=1, keepdims=True)
+    yaw, pitch, roll = cli.euler_zyx(quat)
+
+    def rot(axis, a):
+        c, s = np.cos(a), np.sin(a)
+        i, j = [(1, 2), (2, 0), (0, 1)][axis]
+        r = np.eye(3)
+        r[i, i], r[i, j], r[j, i], r[j, j] = c, -s, s, c
+        return r
+
+    for k in range(len(quat)):
+        expected = rot(2, yaw[k]) @ rot(1, pitch[k]) @ rot(0, roll[k])
+        np.testing.assert_allclose(cli.rotation_matrix(quat[k]), expected, atol=1e-12)
+
+
+def test_ee_path_plot_has_equal_axes_the_arm_and_the_bus(figures):
+    kept, traj = figures
+    scene, zoom = kept["ee_path.png"].axes
+    for ax in (scene, zoom):
+        spans = [np.ptp(ax.get_xlim()), np.ptp(ax.get_ylim()), np.ptp(ax.get_zlim())]
+        np.testing.assert_allclose(spans, spans[0], rtol=1e-9)
+    labels = [line.get_label() for line in scene.get_lines()]
+    for when in ("start", "end"):
+        assert any(label.startswith(f"arm at the {when}") for label in labels), labels
+        assert any(label.startswith(f"bus at the {when}") for label in labels), labels
+    # the arm is drawn through the bodies from robot.body_poses
+    arm = next(line for line in scene.get_lines() if line.get_label().startswith("arm at the start"))
+    bodies = traj.arm.robot.body_poses(traj.base_pose[0], traj.q[0])[1:, :3]
+    np.testing.assert_allclose(np.array(arm.get_data_3d()).T, bodies, atol=1e-12)
+
+
+@pytest.mark.parametrize("radians, unit", [(0.5, "deg"), (2e-3, "mrad"), (2.6e-6, "µrad"), (3e-9, "nrad")])
+def test_angle_unit(radians, unit):
+    factor, chosen = cli.angle_unit(radians)
+    assert chosen == unit
+    assert 1.0 <= radians * factor < 1000.0 or unit == "deg"
+
+
+def test_readme_table_describes_every_output():
+    readme = (Path(__file__).resolve().parents[2] / "README.md").read_text()
+    section = readme.split("## What the demo shows", 1)[1].split("\n## ", 1)[0]
+    for name in cli.OUTPUTS:
+        assert f"| `{name}` |" in section, name
+    for words in ["residual", "Σ|ΔE|", "trapezoid", "z-y′-x″", "--base-mass", "--locked-joints a,b"]:
+        assert words in section, words

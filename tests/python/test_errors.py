@@ -1,4 +1,4 @@
-"""Every error orbitflex must report (SPEC.md §3, §4, §5, §7, §8), with a clear message.
+"""Every error orbitflex must report (docs/model.md §3–§5, §7), with a clear message.
 
 Most cases are rows of a table: the smallest call that triggers one error, the exception it must
 raise, and the words its message must contain: the file (a path, ``<urdf string>`` or
@@ -159,7 +159,7 @@ def case(id, call, words=(), exc=ModelError):
 # Tables: what is called, the exception, the words of the message
 # =============================================================================================
 
-# ---- URDF loading (SPEC §7) ------------------------------------------------------------------
+# ---- URDF loading (model §7) ------------------------------------------------------------------
 # Each row is loaded from a file and from a string; the message must also name that source.
 
 
@@ -229,7 +229,7 @@ MISSING_FILES = [  # (file under tmp_path, how it is opened); FileNotFoundError 
                  id="toml"),
 ]
 
-# ---- constructors that need no robot (SPEC §3, §7) ---------------------------------------------
+# ---- constructors that need no robot (model §3, §7) ---------------------------------------------
 
 JOINTS_OF_2 = dict(stiffness=[1.0, 1.0], motor_inertia=[1.0, 1.0], damping=0.0, motor_damping=0.0)
 MOTOR_PD_3 = (1.0, 1.0, np.zeros(3))  # kp, kd, theta_ref for 3 joints
@@ -302,7 +302,7 @@ ERRORS = [
       ]],
 ]
 
-# ---- Robot method arguments (SPEC §8) ----------------------------------------------------------
+# ---- Robot method arguments (the public names) ----------------------------------------------------------
 
 GOOD = {
     "q": np.array([0.1, -0.2, 0.3]),
@@ -412,7 +412,7 @@ TOML_ERRORS = [
         """, ["'j3'", "either"], id="both-inertia-forms-in-joint-table"),
 ]
 
-# ---- FlexibleArm: state, derivative, step, simulate (SPEC §5) --------------------------------
+# ---- FlexibleArm: state, derivative, step, simulate (model §5) --------------------------------
 
 
 def at_rest(fn, *args, **kwargs):
@@ -695,7 +695,7 @@ def test_trajectory_from_user_rows_rejects_a_zero_quaternion(arm):
 
 
 # =============================================================================================
-# The controller fails (SPEC §5)
+# The controller fails (model §5)
 # =============================================================================================
 
 
@@ -767,7 +767,7 @@ def test_keyboard_interrupt_in_controller_is_not_swallowed(arm):
 
 
 # =============================================================================================
-# Divergence (SPEC §5)
+# Divergence (model §5)
 # =============================================================================================
 
 

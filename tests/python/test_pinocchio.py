@@ -1,8 +1,8 @@
-"""orbitflex against Pinocchio (SPEC §6.5) on the built-in space arm, ur5, panda (fingers
+"""orbitflex against Pinocchio (model §6.5) on the built-in space arm, ur5, panda (fingers
 locked), xarm7 and seeded random chains, for both ``method="recursive"`` and ``"operator"``.
 
 Agreement is ``‖orbitflex − pinocchio‖ / max(1, ‖pinocchio‖) ≤ 1e-9`` after the convention map
-of PINOCCHIO_MAP.md (implemented in pin_helpers.py). Inputs are scaled with the robot's mass so
+of docs/model.md, "Relation to Pinocchio" (implemented in pin_helpers.py). Inputs are scaled with the robot's mass so
 that the outputs are O(1) or larger and the relative test is not an absolute one in disguise.
 """
 

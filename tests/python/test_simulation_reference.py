@@ -1,9 +1,9 @@
-"""An independent reference of the flexible-joint simulator (SPEC §3-§5), in numpy + ``pin.aba``.
+"""An independent reference of the flexible-joint simulator (model §3-§5), in numpy + ``pin.aba``.
 
-The reference is written from SPEC.md alone:
+The reference is written from docs/model.md alone:
 - spring torque ``τ = k (θ − q) + d (θ̇ − q̇)``; motor ``θ̈ = (u − τ − β θ̇) / j``;
 - rigid dynamics from Pinocchio's ABA (free-flyer, zero gravity), turned into orbitflex's
-  classical base acceleration ``α_B = [ω̇; a_lin + ω × v]``, then, exactly as SPEC §4,
+  classical base acceleration ``α_B = [ω̇; a_lin + ω × v]``, then, exactly as model §4,
   ``ω̇_B = α_B[0:3]`` and ``v̇_B = α_B[3:6] − ω_B × v_B``;
 - ``ṙ_B = R_B v_B`` (``R_B`` the rotation of the normalised quaternion),
   ``quat' = ½ quat ⊗ (ω_B, 0)`` (Hamilton product, x, y, z, w);
@@ -43,7 +43,7 @@ def quat_mul(p, q):
 
 
 class ReferenceArm:
-    """SPEC §3-§5 on top of Pinocchio (``pr`` is a pin_helpers.PinRobot)."""
+    """model §3-§5 on top of Pinocchio (``pr`` is a pin_helpers.PinRobot)."""
 
     def __init__(self, pr, k, j, d, beta):
         self.pr = pr
@@ -126,7 +126,7 @@ def _setup(case, salt):
 
 
 def _x_manual(init):
-    """The state vector laid out by hand from SPEC §4."""
+    """The state vector laid out by hand from model §4."""
     return np.concatenate(
         [init["base_pose"], init["q"], init["theta"], init["base_twist"], init["qd"], init["theta_dot"]]
     )
