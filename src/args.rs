@@ -3,6 +3,19 @@
 //!
 //! This module sits below both the recursive algorithms ([`crate::algorithms`]) and the operator
 //! form ([`crate::operators`]), so neither depends on the other for its argument checks.
+//!
+//! ```
+//! use orbitflex::{Loads, RigidState, Robot};
+//! let robot = Robot::space_arm();
+//! let q = vec![0.0; 7];
+//! assert!(RigidState::new(&q, &[0.0; 6], &q).check(&robot).is_ok());
+//! let err = RigidState::new(&q[..6], &[0.0; 6], &q).check(&robot).unwrap_err();
+//! assert_eq!(err.to_string(), "q: expected length 7, given length 6");
+//! // a 10 N push along the base x axis, nothing at the EE
+//! let loads = Loads::from_slices(Some(&[0.0, 0.0, 0.0, 10.0, 0.0, 0.0]), None)?;
+//! assert_eq!(loads.base_wrench.linear.x, 10.0);
+//! # Ok::<(), orbitflex::Error>(())
+//! ```
 
 use crate::error::{Error, Result};
 use crate::model::Robot;

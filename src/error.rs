@@ -4,6 +4,17 @@
 //! onto Python exceptions: [`Error::FileNotFound`] is `FileNotFoundError`, [`Error::IsADirectory`]
 //! is `IsADirectoryError`, [`Error::Simulation`] is `orbitflex.SimulationError`, and every other
 //! variant is `orbitflex.ModelError` (a `ValueError`).
+//!
+//! ```
+//! use orbitflex::{Error, FlexibleJoints};
+//! match FlexibleJoints::uniform(3, -1.0, 1.0, 0.0, 0.0) {
+//!     Err(Error::InvalidArgument { what, message }) => {
+//!         assert_eq!(what, "stiffness[0]");
+//!         assert_eq!(message, "expected > 0, given -1");
+//!     }
+//!     other => panic!("{other:?}"),
+//! }
+//! ```
 
 use std::path::PathBuf;
 

@@ -6,6 +6,12 @@
 //! read. Text is UTF-8 (a byte-order mark is skipped); a UTF-16 file with its byte-order mark, or
 //! a file whose XML declaration says `ISO-8859-1`/`Latin-1`, is decoded as such. Anything else
 //! that is not UTF-8 is an [`Error::Malformed`] saying so, with the offset of the first bad byte.
+//!
+//! ```
+//! let latin1 = b"<?xml version='1.0' encoding='ISO-8859-1'?><robot name='Gr\xfc\xdfe'/>";
+//! assert!(orbitflex::io::decode(latin1).unwrap().ends_with("name='Grüße'/>"));
+//! assert!(orbitflex::io::decode(b"caf\xe9").unwrap_err().contains("not UTF-8"));
+//! ```
 
 use crate::error::{Error, Result};
 use std::path::Path;

@@ -3,6 +3,20 @@
 //!
 //! This is the literal, O(n³), allocating reference. Every recursive algorithm in
 //! [`crate::algorithms`] is tested against it.
+//!
+//! ```
+//! use orbitflex::{Operators, RigidState, Robot};
+//! let robot = Robot::space_arm();
+//! let n = robot.dof();
+//! let (q, qd) = (vec![0.2; n], vec![0.1; n]);
+//! let ops = Operators::new(&robot, &RigidState::new(&q, &[0.0; 6], &qd))?;
+//! assert_eq!(ops.phi.shape(), (6 * n, 6 * n));
+//! // M_br = M_rbᵀ (A.19), and the mass matrix is symmetric
+//! assert!((&ops.m_br - ops.m_rb.transpose()).amax() < 1e-9);
+//! let m = ops.mass_matrix();
+//! assert!((&m - m.transpose()).amax() < 1e-9);
+//! # Ok::<(), orbitflex::Error>(())
+//! ```
 
 use crate::args::{check_vector, Loads, RigidState};
 use crate::error::{Error, Result};

@@ -25,6 +25,16 @@
 //! `1/j` on the `θ̈` rows; `K` comes from the controller's [`Feedback`]. Above [`DENSE_LIMIT`]
 //! joints the dense (6+4n)² matrices would cost too much, and each joint is analysed on its own
 //! (see [`StabilityLimit::estimated`]).
+//!
+//! ```
+//! use orbitflex::{FlexibleArm, FlexibleJoints, MotorPD, Robot, Schedule};
+//! let arm = FlexibleArm::new(Robot::space_arm(), FlexibleJoints::space_arm())?;
+//! let pd = MotorPD::new(vec![2000.0; 7], vec![800.0; 7], Schedule::Zero, Schedule::Zero, Schedule::Zero)?;
+//! let limit = arm.rk4_stability_limit(&arm.rest_state(), &pd)?;
+//! // the held derivative gain of the light wrist motors sets it: about 2 j / k_d
+//! assert!(limit.dt > 0.9e-3 && limit.dt < 1.0e-3);
+//! # Ok::<(), orbitflex::Error>(())
+//! ```
 
 use super::arm::{FlexibleArm, Inputs};
 use crate::algorithms;

@@ -1,5 +1,16 @@
 //! [`Trajectory`]: the states and inputs of a run; [`StateRows`]: the diagnostics along rows of
 //! states.
+//!
+//! ```
+//! use orbitflex::{FlexibleArm, FlexibleJoints, Robot, Schedule, Wrenches};
+//! let arm = FlexibleArm::new(Robot::space_arm(), FlexibleJoints::space_arm())?;
+//! let traj = arm.simulate(&arm.rest_state(), 1e-3, 10, &mut Schedule::Constant(vec![1.0; 7]), &Wrenches::ZERO)?;
+//! assert_eq!((traj.len(), traj.u.len()), (11, 70));
+//! // at rest with relaxed springs, one newton-metre on each motor: the energy put in is positive
+//! let energy = traj.rows().energy(&arm);
+//! assert!(energy[10] > energy[0]);
+//! # Ok::<(), orbitflex::Error>(())
+//! ```
 
 use crate::flex::{FlexibleArm, StateLayout};
 

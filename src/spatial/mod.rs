@@ -10,6 +10,21 @@
 //! All operations are closed-form on 3-vectors and 3×3 blocks; every type also has a dense 6×6 or
 //! 6-vector form (`matrix()`, `to_vector()`) used by the operator form and by the tests that check
 //! each compact operation against its matrix.
+//!
+//! ```
+//! use orbitflex::spatial::{Force, Motion, Transform, Vec3};
+//! // frame i+1 sits 2 m along x of frame i, turned 90° about z
+//! let phi = Transform::from_xyz_rpy([2.0, 0.0, 0.0], [0.0, 0.0, std::f64::consts::FRAC_PI_2]);
+//! // a pure rotation of frame i about its z axis at 1 rad/s...
+//! let v = Motion::new(Vec3::z(), Vec3::zeros());
+//! // ...moves origin i+1 at 2 m/s along y of frame i, which is +x of frame i+1 (A.4, A.5)
+//! let seen = phi.apply_motion(&v);
+//! assert!((seen.angular - Vec3::z()).norm() < 1e-12);
+//! assert!((seen.linear - Vec3::new(2.0, 0.0, 0.0)).norm() < 1e-12);
+//! // power is frame-independent: (Φ V)ᵀ f' = Vᵀ (Φᵀ f')
+//! let f = Force::new(Vec3::new(0.3, -1.0, 2.0), Vec3::new(1.0, 0.5, -0.2));
+//! assert!((seen.dot(&f) - v.dot(&phi.apply_force_transpose(&f))).abs() < 1e-12);
+//! ```
 
 mod articulated;
 mod inertia;
