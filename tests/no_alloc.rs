@@ -91,6 +91,16 @@ fn hot_paths_do_not_allocate() {
         0,
         "bias"
     );
+    // The derivatives' O(n²) buffers come with the first call, then are reused.
+    algorithms::aba_derivatives(&robot, &mut data, &state, &tau, &loads).unwrap();
+    assert_eq!(
+        allocations(|| {
+            algorithms::aba_derivatives(&robot, &mut data, &state, &tau, &loads).unwrap();
+            algorithms::rnea_derivatives(&robot, &mut data, &state, &w, &tau, &w).unwrap();
+        }),
+        0,
+        "derivatives"
+    );
     assert_eq!(
         allocations(|| {
             algorithms::ee_jacobian(&robot, &mut data, &q).unwrap();

@@ -1,5 +1,6 @@
 //! [`Data`]: the workspace of the recursive algorithms, one buffer per quantity.
 
+use super::derivatives::Derivatives;
 use crate::model::Robot;
 use crate::spatial::{ArticulatedInertia, Force, Inertia, Mat6, Motion, Transform};
 use nalgebra::{DMatrix, DVector};
@@ -46,6 +47,9 @@ pub struct Data {
     pub jacobian: DMatrix<f64>,
     /// `Φ_{n+1,B}` (6×6).
     pub ee_base: Mat6,
+    /// The derivatives of the dynamics ([`crate::algorithms::aba_derivatives`],
+    /// [`crate::algorithms::rnea_derivatives`]); empty until the first of them runs.
+    pub derivatives: Derivatives,
 }
 
 impl Data {
@@ -70,6 +74,7 @@ impl Data {
             mass_matrix: DMatrix::zeros(0, 0),
             jacobian: DMatrix::zeros(6, bodies - 1),
             ee_base: Mat6::identity(),
+            derivatives: Derivatives::default(),
         }
     }
 

@@ -27,12 +27,14 @@
 mod aba;
 mod crba;
 mod data;
+mod derivatives;
 mod kinematics;
 mod rnea;
 
 pub use aba::aba;
 pub use crba::crba;
 pub use data::Data;
+pub use derivatives::{aba_derivatives, rnea_derivatives, Derivatives};
 pub use kinematics::{body_poses, ee_jacobian, kinetic_energy, momentum, pose, velocities};
 pub use rnea::{bias_forces, rnea};
 

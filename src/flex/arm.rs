@@ -197,6 +197,36 @@ impl FlexibleArm {
         check_base_pose(&x[layout.base_pose()])
     }
 
+    /// Length `12 + 4n` of the tangent `dx` ([`StateLayout::tangent_len`]).
+    pub fn tangent_size(&self) -> usize {
+        self.layout().tangent_len()
+    }
+
+    /// `x ⊕ dx`: `r_B + δr_B`, `quat_B ⊗ Exp(δφ_B)`, every other block added
+    /// ([`StateLayout::integrate`]). Checked: `x` a state, `dx` of length `12 + 4n`, finite.
+    pub fn integrate(&self, x: &[f64], dx: &[f64]) -> Result<Vec<f64>> {
+        self.check_state(x)?;
+        check_vector("dx", dx, self.tangent_size())?;
+        let mut out = vec![0.0; x.len()];
+        self.layout().integrate(x, dx, &mut out);
+        Ok(out)
+    }
+
+    /// `x1 ⊖ x0`, the tangent with `integrate(x0, difference(x0, x1)) = x1`
+    /// ([`StateLayout::difference`]). Both states are checked; their quaternions are
+    /// normalised first.
+    pub fn difference(&self, x0: &[f64], x1: &[f64]) -> Result<Vec<f64>> {
+        self.check_state(x0)?;
+        self.check_state(x1)?;
+        let layout = self.layout();
+        let (mut a, mut b) = (x0.to_vec(), x1.to_vec());
+        normalise_quaternion(&mut a[layout.quaternion()]);
+        normalise_quaternion(&mut b[layout.quaternion()]);
+        let mut out = vec![0.0; self.tangent_size()];
+        layout.difference(&a, &b, &mut out);
+        Ok(out)
+    }
+
     /// `ẋ` (model §4) into `xdot`:
     ///
     /// ```text

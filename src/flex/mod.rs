@@ -22,4 +22,7 @@ pub mod state;
 pub use arm::{ArmWorkspace, FlexibleArm, Inputs, StateSpec};
 pub use joints::{reflected_inertia, FlexibleJoints};
 pub use stability::StabilityLimit;
-pub use state::{normalise_quaternion, quaternion_rate, StateLayout, StateParts};
+pub use state::{
+    normalise_quaternion, quaternion_exp, quaternion_log, quaternion_product, quaternion_rate,
+    StateLayout, StateParts,
+};

@@ -71,6 +71,46 @@ impl StateLayout {
         7..13 + 4 * self.n
     }
 
+    /// Length `12 + 4n` of the tangent `dx` (model §4): the quaternion's four numbers become a
+    /// rotation vector of three.
+    pub fn tangent_len(&self) -> usize {
+        12 + 4 * self.n
+    }
+
+    /// `x ⊕ dx` into `out`: the tangent `dx = [δr_B | δφ_B | δq | δθ | δω_B | δv_B | δq̇ | δθ̇]`
+    /// applied to `x`: `r_B + δr_B` (inertial frame), `quat_B ⊗ Exp(δφ_B)` (`δφ_B` a rotation
+    /// vector in the base frame), and every other block added. Lengths: `x` and `out`
+    /// `13 + 4n`, `dx` `12 + 4n`.
+    pub fn integrate(&self, x: &[f64], dx: &[f64], out: &mut [f64]) {
+        out[..3]
+            .iter_mut()
+            .zip(x[..3].iter().zip(&dx[..3]))
+            .for_each(|(o, (a, b))| *o = a + b);
+        let turn = quaternion_exp(&Vec3::new(dx[3], dx[4], dx[5]));
+        out[3..7].copy_from_slice(&quaternion_product(&x[3..7], &turn));
+        out[7..]
+            .iter_mut()
+            .zip(x[7..].iter().zip(&dx[6..]))
+            .for_each(|(o, (a, b))| *o = a + b);
+    }
+
+    /// `x1 ⊖ x0` into `out`: the tangent with `integrate(x0, difference(x0, x1)) = x1`, the
+    /// rotation taken the short way (`δφ_B = Log(quat_0* ⊗ quat_1)`, `|δφ_B| ≤ π`).
+    pub fn difference(&self, x0: &[f64], x1: &[f64], out: &mut [f64]) {
+        out[..3]
+            .iter_mut()
+            .zip(x1[..3].iter().zip(&x0[..3]))
+            .for_each(|(o, (a, b))| *o = a - b);
+        let q0 = &x0[3..7];
+        let conjugate = [-q0[0], -q0[1], -q0[2], q0[3]];
+        let relative = quaternion_product(&conjugate, &x1[3..7]);
+        out[3..6].copy_from_slice(quaternion_log(&relative).as_slice());
+        out[6..]
+            .iter_mut()
+            .zip(x1[7..].iter().zip(&x0[7..]))
+            .for_each(|(o, (a, b))| *o = a - b);
+    }
+
     /// The named blocks, in order, with their ranges: `base_pose`, `q`, `theta`, `base_twist`,
     /// `qd`, `theta_dot`. Bindings build their views from this list.
     pub fn blocks(&self) -> [(&'static str, Range<usize>); 6] {
@@ -158,6 +198,50 @@ pub fn quaternion_rate(quat: &[f64], omega: &Vec3) -> [f64; 4] {
     let v = Vec3::new(quat[0], quat[1], quat[2]);
     let d = (omega * quat[3] + v.cross(omega)) * 0.5;
     [d.x, d.y, d.z, -0.5 * v.dot(omega)]
+}
+
+/// The Hamilton product `a ⊗ b` of quaternions `(x, y, z, w)`, scalar last.
+#[inline]
+pub fn quaternion_product(a: &[f64], b: &[f64]) -> [f64; 4] {
+    let (av, aw) = (Vec3::new(a[0], a[1], a[2]), a[3]);
+    let (bv, bw) = (Vec3::new(b[0], b[1], b[2]), b[3]);
+    let v = bv * aw + av * bw + av.cross(&bv);
+    [v.x, v.y, v.z, aw * bw - av.dot(&bv)]
+}
+
+/// `Exp(φ)`: the unit quaternion of the rotation by `|φ|` about `φ/|φ|` (a rotation vector, rad).
+#[inline]
+pub fn quaternion_exp(phi: &Vec3) -> [f64; 4] {
+    let angle = phi.norm();
+    // sin(θ/2)/θ by its series near 0, where the division would lose digits
+    let scale = if angle < 1e-4 {
+        0.5 - angle * angle / 48.0
+    } else {
+        (0.5 * angle).sin() / angle
+    };
+    [
+        phi.x * scale,
+        phi.y * scale,
+        phi.z * scale,
+        (0.5 * angle).cos(),
+    ]
+}
+
+/// `Log(quat)`: the rotation vector (rad, `|φ| ≤ π`) of a unit quaternion, taken with `w ≥ 0`
+/// (the same rotation as `−quat`).
+#[inline]
+pub fn quaternion_log(quat: &[f64]) -> Vec3 {
+    let sign = if quat[3] < 0.0 { -1.0 } else { 1.0 };
+    let v = Vec3::new(quat[0], quat[1], quat[2]) * sign;
+    let w = quat[3] * sign;
+    let s = v.norm();
+    // θ/sin(θ/2) with θ = 2 atan2(s, w), by its series where s is tiny
+    let scale = if s < 1e-8 {
+        2.0 / w * (1.0 - s * s / (3.0 * w * w))
+    } else {
+        2.0 * s.atan2(w) / s
+    };
+    v * scale
 }
 
 /// Scales a quaternion to unit norm. The norm is taken after dividing by the largest component,

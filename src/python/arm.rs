@@ -149,6 +149,12 @@ impl PyFlexibleArm {
     fn state_size(&self) -> usize {
         self.arm.layout().len()
     }
+    /// Length of the tangent ``dx`` of the state, 12 + 4n: ``[δr_B | δφ_B | δq | δθ | δω_B |
+    /// δv_B | δq̇ | δθ̇]``, with ``δφ_B`` a rotation vector in the base frame.
+    #[getter]
+    fn tangent_size(&self) -> usize {
+        self.arm.tangent_size()
+    }
     /// Where each block of the state sits: a dict from ``"base_pose"``, ``"q"``, ``"theta"``,
     /// ``"base_twist"``, ``"qd"``, ``"theta_dot"`` to a ``slice`` of ``x``.
     #[getter]
@@ -277,6 +283,33 @@ impl PyFlexibleArm {
             .arm
             .rk4_stability_limit(&x, controller.controller())?
             .dt)
+    }
+
+    /// ``x ⊕ dx``: the state ``x`` moved along the tangent ``dx`` (12+4n): ``r_B + δr_B``
+    /// (inertial frame), ``quat_B ⊗ Exp(δφ_B)`` (``δφ_B`` a rotation vector in the base frame,
+    /// rad), every other block added.
+    fn integrate<'py>(
+        &self,
+        py: Python<'py>,
+        x: &Bound<'py, PyAny>,
+        dx: &Bound<'py, PyAny>,
+    ) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        let x = vector(x, "x", Some(self.arm.layout().len()))?;
+        let dx = vector(dx, "dx", Some(self.arm.tangent_size()))?;
+        Ok(array1(py, &self.arm.integrate(&x, &dx)?))
+    }
+
+    /// ``x1 ⊖ x0``: the tangent (12+4n) with ``integrate(x0, difference(x0, x1)) == x1``; the
+    /// base rotation is taken the short way (at most π).
+    fn difference<'py>(
+        &self,
+        py: Python<'py>,
+        x0: &Bound<'py, PyAny>,
+        x1: &Bound<'py, PyAny>,
+    ) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        let len = Some(self.arm.layout().len());
+        let (x0, x1) = (vector(x0, "x0", len)?, vector(x1, "x1", len)?);
+        Ok(array1(py, &self.arm.difference(&x0, &x1)?))
     }
 
     /// Total energy at state ``x`` (J): rigid kinetic + motor kinetic + spring.
