@@ -22,6 +22,9 @@
 //! `D`, `I^A_B`, valid at any velocity): a backward and a forward pass per column, O(n), so
 //! O(n²) in all and no dense mass matrix.
 
+// Loops run over body indices `i`, the equations' indices; iterator chains would hide them.
+#![allow(clippy::needless_range_loop)]
+
 use super::data::{check_data, Data};
 use super::kinematics::body_velocity;
 use crate::args::{check_vector, Loads, RigidState};
@@ -162,26 +165,20 @@ pub fn aba_derivatives<'a>(
     ee_force_map(robot, data, &mut d, state.q)?;
     // ∂FD/∂x = −𝓜⁻¹ ∂ID/∂x, column by column through the articulated-body factorisation.
     for k in 0..n {
-        solve_column(robot, data, &mut d, Source::IdAngle(k), Target::FdAngle(k))?;
-        solve_column(robot, data, &mut d, Source::Unit(6 + k), Target::FdTau(k))?;
+        solve_column(robot, data, &mut d, Source::IdAngle(k), Target::Angle(k))?;
+        solve_column(robot, data, &mut d, Source::Unit(6 + k), Target::Tau(k))?;
     }
     for j in 0..6 + n {
-        solve_column(robot, data, &mut d, Source::IdRate(j), Target::FdRate(j))?;
+        solve_column(robot, data, &mut d, Source::IdRate(j), Target::Rate(j))?;
     }
     for j in 0..6 {
-        solve_column(
-            robot,
-            data,
-            &mut d,
-            Source::Unit(j),
-            Target::FdBaseWrench(j),
-        )?;
+        solve_column(robot, data, &mut d, Source::Unit(j), Target::BaseWrench(j))?;
         solve_column(
             robot,
             data,
             &mut d,
             Source::IdEeWrench(j),
-            Target::FdEeWrench(j),
+            Target::EeWrench(j),
         )?;
     }
     data.derivatives = d;
@@ -379,14 +376,14 @@ enum Source {
     Unit(usize),
 }
 
-/// Where its solution goes.
+/// Which column of the forward-dynamics derivatives a solution fills.
 #[derive(Clone, Copy)]
 enum Target {
-    FdAngle(usize),
-    FdRate(usize),
-    FdTau(usize),
-    FdBaseWrench(usize),
-    FdEeWrench(usize),
+    Angle(usize),
+    Rate(usize),
+    Tau(usize),
+    BaseWrench(usize),
+    EeWrench(usize),
 }
 
 /// `𝓜⁻¹ r` for one column `r`, by the articulated-body factorisation in `data` (`x`, `u_col`,
@@ -435,11 +432,11 @@ fn solve_column(
         d.column[5 + i] = qdd;
     }
     let out = match target {
-        Target::FdAngle(k) => d.fd_q.column_mut(k),
-        Target::FdRate(j) => d.fd_v.column_mut(j),
-        Target::FdTau(k) => d.fd_tau.column_mut(k),
-        Target::FdBaseWrench(j) => d.fd_base_wrench.column_mut(j),
-        Target::FdEeWrench(j) => d.fd_ee_wrench.column_mut(j),
+        Target::Angle(k) => d.fd_q.column_mut(k),
+        Target::Rate(j) => d.fd_v.column_mut(j),
+        Target::Tau(k) => d.fd_tau.column_mut(k),
+        Target::BaseWrench(j) => d.fd_base_wrench.column_mut(j),
+        Target::EeWrench(j) => d.fd_ee_wrench.column_mut(j),
     };
     out.into_iter().zip(&d.column).for_each(|(o, v)| *o = *v);
     Ok(())
