@@ -190,6 +190,46 @@ impl Robot {
         Ok(data.jacobian)
     }
 
+    /// The generalized Jacobian of the free-floating arm with zero momentum (model §2), 6×n:
+    /// `V_{n+1} = (J − Φ_{n+1,B} M_b⁻¹ M_rb) q̇` in the EE frame, the EE twist the joint rates
+    /// give once the base has reacted (`V_B = −M_b⁻¹ M_rb q̇`).
+    ///
+    /// ```
+    /// use nalgebra::{DVector, Vector6};
+    /// use orbitflex::{RigidState, Robot};
+    /// let robot = Robot::space_arm();
+    /// let (q, qd) = (vec![0.3; 7], DVector::from_vec(vec![0.1, -0.2, 0.3, -0.1, 0.2, 0.1, 0.5]));
+    /// let m = robot.mass_matrix(&q, orbitflex::Method::Recursive)?;
+    /// // the base's reaction that keeps the momentum zero
+    /// let m_b = m.fixed_view::<6, 6>(0, 0).into_owned();
+    /// let base = -m_b.cholesky().unwrap().solve(&(m.view((0, 6), (6, 7)) * &qd));
+    /// let h = robot.momentum(&[0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0], &RigidState::new(&q, base.as_slice(), qd.as_slice()))?;
+    /// assert!(h.iter().all(|v| v.abs() < 1e-9));
+    /// // the EE twist Φ_{n+1,B} V_B + J q̇ is what the generalized Jacobian gives
+    /// let twist = robot.ee_base_operator(&q)? * Vector6::from_column_slice(base.as_slice())
+    ///     + Vector6::from_column_slice((robot.ee_jacobian(&q)? * &qd).as_slice());
+    /// let direct = robot.generalized_jacobian(&q)? * &qd;
+    /// assert!((twist - Vector6::from_column_slice(direct.as_slice())).amax() < 1e-12);
+    /// # Ok::<(), orbitflex::Error>(())
+    /// ```
+    pub fn generalized_jacobian(&self, q: &[f64]) -> Result<DMatrix<f64>> {
+        let mut data = Data::new(self);
+        let m = algorithms::crba(self, &mut data, q)?;
+        let n = self.dof();
+        let m_b = m.fixed_view::<6, 6>(0, 0).into_owned();
+        let m_rb = m.view((0, 6), (6, n)).into_owned();
+        let reaction = m_b
+            .cholesky()
+            .ok_or_else(|| crate::Error::InvalidArgument {
+                what: "mass matrix".into(),
+                message: "the base block M_b is not positive definite here".into(),
+            })?
+            .solve(&m_rb);
+        algorithms::ee_jacobian(self, &mut data, q)?;
+        let correction = data.ee_base * reaction;
+        Ok(&data.jacobian - DMatrix::from_column_slice(6, n, correction.as_slice()))
+    }
+
     /// `Φ_{n+1,B}` (6×6): base twist to EE twist, both in their own frames.
     pub fn ee_base_operator(&self, q: &[f64]) -> Result<Mat6> {
         check_vector("q", q, self.dof())?;

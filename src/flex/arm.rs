@@ -1,6 +1,7 @@
 //! [`FlexibleArm`]: a floating-base arm with Spong flexible joints, its state derivative and the
 //! quantities an engineer checks a run against (energy, momentum, EE pose).
 
+use super::jacobians::{self, Jacobians};
 use super::joints::FlexibleJoints;
 use super::stability::{self, StabilityLimit};
 use super::state::{normalise_quaternion, quaternion_rate, StateLayout};
@@ -309,6 +310,41 @@ impl FlexibleArm {
         wrenches: &Wrenches,
     ) -> std::result::Result<Trajectory, Box<SimulationFailure>> {
         integrate::simulate(self, x0, dt, steps, u, wrenches, &mut integrate::Unobserved)
+    }
+
+    /// The Jacobians of [`derivative`](Self::derivative) at `x` with `inputs`, in tangent
+    /// coordinates: `d(dx)/dt = F dx + G du + G_B df_B + G_E df` ([`jacobians`](super::jacobians)).
+    pub fn derivative_jacobians(
+        &self,
+        ws: &mut ArmWorkspace,
+        x: &[f64],
+        inputs: &Inputs,
+    ) -> Result<Jacobians> {
+        ws.check(self)?;
+        self.check_state(x)?;
+        inputs.check(self.dof())?;
+        let mut x = x.to_vec();
+        normalise_quaternion(&mut x[self.layout().quaternion()]);
+        jacobians::derivative_jacobians(self, ws, &x, inputs)
+    }
+
+    /// The Jacobians of one RK4 [`step`](Self::step) of `dt` from `x` with `inputs` held, in
+    /// tangent coordinates at `x` and at the new state, including the quaternion's
+    /// renormalisation ([`jacobians`](super::jacobians)).
+    pub fn step_jacobians(
+        &self,
+        ws: &mut ArmWorkspace,
+        x: &[f64],
+        dt: f64,
+        inputs: &Inputs,
+    ) -> Result<Jacobians> {
+        crate::args::check_dt(dt)?;
+        ws.check(self)?;
+        self.check_state(x)?;
+        inputs.check(self.dof())?;
+        let mut x = x.to_vec();
+        normalise_quaternion(&mut x[self.layout().quaternion()]);
+        Ok(jacobians::step_jacobians(self, ws, &x, dt, inputs)?.0)
     }
 
     /// Spring torques `τ = k (θ − q) + d (θ̇ − q̇)` (N·m) at state `x` into `out` (n).

@@ -12,14 +12,17 @@
 //! - [`joints`]: the parameters `k, d, j, β` ([`FlexibleJoints`]), from arrays, gear data or TOML;
 //! - [`state`]: the state vector's layout ([`StateLayout`]) and quaternion helpers;
 //! - [`arm`]: [`FlexibleArm`], its derivative, energy, momentum and EE pose;
+//! - [`jacobians`]: the Jacobians of the derivative and of one RK4 step, in tangent coordinates;
 //! - [`stability`]: the closed-loop RK4 step limit.
 
 pub mod arm;
+pub mod jacobians;
 pub mod joints;
 pub mod stability;
 pub mod state;
 
 pub use arm::{ArmWorkspace, FlexibleArm, Inputs, StateSpec};
+pub use jacobians::Jacobians;
 pub use joints::{reflected_inertia, FlexibleJoints};
 pub use stability::StabilityLimit;
 pub use state::{

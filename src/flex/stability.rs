@@ -20,9 +20,10 @@
 //! fails near `h = 2j/k_d`, well before RK4 would (`2.785 j/k_d`). A motor PD that looks
 //! harmless in continuous time can therefore diverge; this analysis catches it.
 //!
-//! `F` is taken by central finite differences of [`FlexibleArm::derivative`] (the base pose does
-//! not enter the dynamics, and its own kinematic modes, `±i|ω_B|/2`, are added exactly); `G` is
-//! `1/j` on the `θ̈` rows; `K` comes from the controller's [`Feedback`]. Above [`DENSE_LIMIT`]
+//! `F` is the analytical Jacobian of [`FlexibleArm::derivative`] ([`super::jacobians`]) on the
+//! non-pose part (the base pose does not enter the dynamics, and its own kinematic modes,
+//! `±i|ω_B|/2`, are added exactly); `G` is `1/j` on the `θ̈` rows; `K` comes from the
+//! controller's [`Feedback`]. Above [`DENSE_LIMIT`]
 //! joints the dense (6+4n)² matrices would cost too much, and each joint is analysed on its own
 //! (see [`StabilityLimit::estimated`]).
 //!
@@ -202,33 +203,22 @@ pub fn rk4_stability_limit(
     })
 }
 
-/// `F` by central differences of the derivative over `[q | θ | V_B | q̇ | θ̇]` at fixed inputs,
-/// and `G K` from the controller's feedback.
+/// `F`, the analytical Jacobian of the derivative ([`super::jacobians`]) restricted to
+/// `[q | θ | V_B | q̇ | θ̇]` at zero inputs (the pose rows and columns drop out: the dynamics do
+/// not depend on the pose), and `G K` from the controller's feedback.
 fn linearise(arm: &FlexibleArm, x: &[f64], feedback: &Feedback) -> Result<Linear> {
     let layout = arm.layout();
-    let dynamic = layout.dynamic();
-    let size = dynamic.len();
+    let size = layout.dynamic().len();
     let mut ws = arm.workspace();
     let u = vec![0.0; arm.dof()];
-    let inputs = Inputs::torques(&u);
-    let mut xp = x.to_vec();
-    let (mut fp, mut fm) = (vec![0.0; x.len()], vec![0.0; x.len()]);
-    let mut f = DMatrix::zeros(size, size);
-    for (column, k) in dynamic.clone().enumerate() {
-        let h = 1e-6 * x[k].abs().max(1.0);
-        xp[k] = x[k] + h;
-        arm.derivative_unchecked(&mut ws.data, &mut ws.tau, &xp, &inputs, &mut fp)?;
-        xp[k] = x[k] - h;
-        arm.derivative_unchecked(&mut ws.data, &mut ws.tau, &xp, &inputs, &mut fm)?;
-        xp[k] = x[k];
-        for (row, r) in dynamic.clone().enumerate() {
-            f[(row, column)] = (fp[r] - fm[r]) / (2.0 * h);
-        }
-    }
+    let full = super::jacobians::derivative_jacobians(arm, &mut ws, x, &Inputs::torques(&u))?;
+    // the tangent's dynamic block starts at 6: [δr | δφ] come first
+    let f = full.x.view((6, 6), (size, size)).into_owned();
     let mut gk = DMatrix::zeros(size, size);
     if let Feedback::MotorPd { kp, kd } = feedback {
         let j = &arm.joints().motor_inertia;
-        let at = |range: std::ops::Range<usize>, i: usize| range.start + i - dynamic.start;
+        let dynamic = layout.dynamic().start;
+        let at = |range: std::ops::Range<usize>, i: usize| range.start + i - dynamic;
         for i in 0..arm.dof() {
             // θ̈_i = (u_i − …)/j_i with u_i = … − kp_i θ_i − kd_i θ̇_i
             let row = at(layout.theta_dot(), i);

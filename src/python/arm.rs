@@ -1,7 +1,7 @@
 //! `orbitflex.FlexibleArm`: state, derivative, step, diagnostics and ``simulate``.
 
 use super::control::{schedule, PyCallable, PyMotorPD};
-use super::convert::{array1, count, real, vector, vector_or};
+use super::convert::{array1, array2, count, real, vector, vector_or};
 use super::errors::simulation_error;
 use super::joints::PyFlexibleJoints;
 use super::robot::PyRobot;
@@ -11,10 +11,10 @@ use crate::args::Loads;
 use crate::error::Error;
 use crate::flex::{ArmWorkspace, FlexibleArm, Inputs, StateSpec};
 use crate::integrate::{self, Controller, Schedule, Wrenches};
-use numpy::PyArray1;
+use numpy::{PyArray1, PyArray2};
 use pyo3::exceptions::PyRuntimeWarning;
 use pyo3::prelude::*;
-use pyo3::types::PyTuple;
+use pyo3::types::{PyDict, PyTuple};
 use std::ffi::CString;
 use std::sync::{Mutex, MutexGuard};
 
@@ -76,6 +76,22 @@ impl InputArgs {
             loads: self.loads,
         }
     }
+}
+
+/// Two matrices, `(F, G)`.
+type MatrixPair<'py> = (Bound<'py, PyArray2<f64>>, Bound<'py, PyArray2<f64>>);
+
+/// The four Jacobians as a dict.
+fn jacobians_dict<'py>(
+    py: Python<'py>,
+    j: &crate::flex::Jacobians,
+) -> PyResult<Bound<'py, PyDict>> {
+    let out = PyDict::new(py);
+    out.set_item("x", array2(py, &j.x))?;
+    out.set_item("u", array2(py, &j.u))?;
+    out.set_item("base_wrench", array2(py, &j.base_wrench))?;
+    out.set_item("ee_wrench", array2(py, &j.ee_wrench))?;
+    Ok(out)
 }
 
 /// The controller of a run, from ``u``.
@@ -310,6 +326,65 @@ impl PyFlexibleArm {
         let len = Some(self.arm.layout().len());
         let (x0, x1) = (vector(x0, "x0", len)?, vector(x1, "x1", len)?);
         Ok(array1(py, &self.arm.difference(&x0, &x1)?))
+    }
+
+    /// The Jacobians of :meth:`derivative` in tangent coordinates, as a dict: ``"x"``
+    /// (12+4n, 12+4n), ``"u"`` (12+4n, n), ``"base_wrench"`` and ``"ee_wrench"`` (12+4n, 6):
+    /// ``d(dx)/dt = F dx + G du + …`` for ``x = x̄ ⊕ dx`` (see :meth:`integrate`).
+    #[pyo3(signature = (x, u=None, base_wrench=None, ee_wrench=None))]
+    fn derivative_jacobians<'py>(
+        &self,
+        py: Python<'py>,
+        x: &Bound<'py, PyAny>,
+        u: Option<&Bound<'py, PyAny>>,
+        base_wrench: Option<&Bound<'py, PyAny>>,
+        ee_wrench: Option<&Bound<'py, PyAny>>,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let x = vector(x, "x", Some(self.arm.layout().len()))?;
+        let inputs = InputArgs::parse(self.n(), u, base_wrench, ee_wrench)?;
+        let j = self
+            .arm
+            .derivative_jacobians(&mut self.ws(), &x, &inputs.inputs())?;
+        jacobians_dict(py, &j)
+    }
+
+    /// The Jacobians of one RK4 :meth:`step` of ``dt`` (inputs held), in tangent coordinates at
+    /// ``x`` and at the new state, including the quaternion's renormalisation: a dict with the
+    /// keys of :meth:`derivative_jacobians`.
+    #[pyo3(signature = (x, dt, u=None, base_wrench=None, ee_wrench=None))]
+    fn step_jacobians<'py>(
+        &self,
+        py: Python<'py>,
+        x: &Bound<'py, PyAny>,
+        dt: &Bound<'py, PyAny>,
+        u: Option<&Bound<'py, PyAny>>,
+        base_wrench: Option<&Bound<'py, PyAny>>,
+        ee_wrench: Option<&Bound<'py, PyAny>>,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let x = vector(x, "x", Some(self.arm.layout().len()))?;
+        let dt = real(dt, "dt")?;
+        let inputs = InputArgs::parse(self.n(), u, base_wrench, ee_wrench)?;
+        let j = self
+            .arm
+            .step_jacobians(&mut self.ws(), &x, dt, &inputs.inputs())?;
+        jacobians_dict(py, &j)
+    }
+
+    /// ``(F, G)`` of :meth:`derivative_jacobians` at ``x`` with torques ``u`` (default zero):
+    /// the continuous-time linearisation ``d(dx)/dt = F dx + G du`` for control design.
+    #[pyo3(signature = (x, u=None))]
+    fn linearize<'py>(
+        &self,
+        py: Python<'py>,
+        x: &Bound<'py, PyAny>,
+        u: Option<&Bound<'py, PyAny>>,
+    ) -> PyResult<MatrixPair<'py>> {
+        let x = vector(x, "x", Some(self.arm.layout().len()))?;
+        let inputs = InputArgs::parse(self.n(), u, None, None)?;
+        let j = self
+            .arm
+            .derivative_jacobians(&mut self.ws(), &x, &inputs.inputs())?;
+        Ok((array2(py, &j.x), array2(py, &j.u)))
     }
 
     /// Total energy at state ``x`` (J): rigid kinetic + motor kinetic + spring.

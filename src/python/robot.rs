@@ -447,6 +447,83 @@ impl PyRobot {
         Ok(d)
     }
 
+    /// The generalized Jacobian of the free-floating arm with zero momentum, shape (6, n):
+    /// ``V_{n+1} = (J − Φ_{n+1,B} M_b⁻¹ M_rb) q̇``, the EE twist ``[ω; v]`` (EE frame) that joint
+    /// rates give once the base has reacted.
+    fn generalized_jacobian<'py>(
+        &self,
+        py: Python<'py>,
+        q: &Bound<'py, PyAny>,
+    ) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        let q = vector(q, "q", Some(self.robot.dof()))?;
+        Ok(array2(py, &self.robot.generalized_jacobian(&q)?))
+    }
+
+    /// Derivatives of :meth:`forward_dynamics` ``[α_B; q̈]``, as a dict of arrays: ``"q"``
+    /// (6+n, n), ``"v"`` (6+n, 6+n) with respect to ``[base_twist; qd]``, ``"tau"`` (6+n, n),
+    /// ``"base_wrench"`` (6+n, 6) and ``"ee_wrench"`` (6+n, 6). Analytical, O(n²).
+    #[pyo3(signature = (q, base_twist, qd, tau, base_wrench=None, ee_wrench=None))]
+    #[allow(clippy::too_many_arguments)]
+    fn forward_dynamics_derivatives<'py>(
+        &self,
+        py: Python<'py>,
+        q: &Bound<'py, PyAny>,
+        base_twist: &Bound<'py, PyAny>,
+        qd: &Bound<'py, PyAny>,
+        tau: &Bound<'py, PyAny>,
+        base_wrench: Option<&Bound<'py, PyAny>>,
+        ee_wrench: Option<&Bound<'py, PyAny>>,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let state = self.state(q, base_twist, qd)?;
+        let tau = vector(tau, "tau", Some(self.robot.dof()))?;
+        let fb = vector_or(base_wrench, "base_wrench", 6, 0.0)?;
+        let f = vector_or(ee_wrench, "ee_wrench", 6, 0.0)?;
+        let loads = Loads::from_slices(Some(&fb), Some(&f))?;
+        let mut data = self.data();
+        let d = algorithms::aba_derivatives(&self.robot, &mut data, &state.rigid(), &tau, &loads)?;
+        let out = PyDict::new(py);
+        out.set_item("q", array2(py, &d.fd_q))?;
+        out.set_item("v", array2(py, &d.fd_v))?;
+        out.set_item("tau", array2(py, &d.fd_tau))?;
+        out.set_item("base_wrench", array2(py, &d.fd_base_wrench))?;
+        out.set_item("ee_wrench", array2(py, &d.fd_ee_wrench))?;
+        Ok(out)
+    }
+
+    /// Derivatives of :meth:`inverse_dynamics` ``[f_B; τ]``, as a dict of arrays: ``"q"``
+    /// (6+n, n), ``"v"`` (6+n, 6+n) with respect to ``[base_twist; qd]`` (the classical base
+    /// acceleration held), ``"a"`` (6+n, 6+n) with respect to ``[base_acc; qdd]`` (the mass
+    /// matrix) and ``"ee_wrench"`` (6+n, 6). Analytical, O(n²).
+    #[pyo3(signature = (q, base_twist, qd, base_acc, qdd, ee_wrench=None))]
+    #[allow(clippy::too_many_arguments)]
+    fn inverse_dynamics_derivatives<'py>(
+        &self,
+        py: Python<'py>,
+        q: &Bound<'py, PyAny>,
+        base_twist: &Bound<'py, PyAny>,
+        qd: &Bound<'py, PyAny>,
+        base_acc: &Bound<'py, PyAny>,
+        qdd: &Bound<'py, PyAny>,
+        ee_wrench: Option<&Bound<'py, PyAny>>,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let state = self.state(q, base_twist, qd)?;
+        let acc = vector(base_acc, "base_acc", Some(6))?;
+        let qdd = vector(qdd, "qdd", Some(self.robot.dof()))?;
+        let f = vector_or(ee_wrench, "ee_wrench", 6, 0.0)?;
+        let mut data = self.data();
+        let rigid = state.rigid();
+        let d = algorithms::rnea_derivatives(&self.robot, &mut data, &rigid, &acc, &qdd, &f)?;
+        let out = PyDict::new(py);
+        out.set_item("q", array2(py, &d.id_q))?;
+        out.set_item("v", array2(py, &d.id_v))?;
+        out.set_item("ee_wrench", array2(py, &d.id_ee_wrench))?;
+        out.set_item(
+            "a",
+            array2(py, algorithms::crba(&self.robot, &mut data, &state.q)?),
+        )?;
+        Ok(out)
+    }
+
     /// Total spatial momentum ``[angular; linear]`` of base and links, shape (6,), in the
     /// inertial frame about the inertial origin (model §6.1). ``base_pose = [r_B; x, y, z, w]``.
     fn momentum<'py>(

@@ -241,3 +241,53 @@ class PinRobot:
         return float(
             pin.computeKineticEnergy(self.model, self.data, self.q_pin(q), self.v_pin(base_twist, qd))
         )
+
+
+def skew(p) -> np.ndarray:
+    x, y, z = p
+    return np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
+
+
+def _joint_columns(robot: PinRobot) -> np.ndarray:
+    return robot.perm[6:]
+
+
+def rnea_derivatives(robot: PinRobot, q, base_twist, qd, base_acc, qdd, ee_wrench=None) -> dict:
+    """Pinocchio's ``computeRNEADerivatives`` in orbitflex's conventions: ``q`` (6+n, n),
+    ``v`` (6+n, 6+n) with the classical base acceleration held, ``a`` (the mass matrix)."""
+    a = robot._a_pin(base_twist, base_acc, qdd)
+    dq, dv, da = pin.computeRNEADerivatives(
+        robot.model, robot.data, robot.q_pin(q), robot.v_pin(base_twist, qd), a, robot.fext(ee_wrench)
+    )
+    perm = robot.perm
+    da = np.triu(da) + np.triu(da, 1).T
+    out_a = da[np.ix_(perm, perm)]
+    out_v = np.asarray(dv)[np.ix_(perm, perm)].copy()
+    # Pinocchio holds its spatial base acceleration a_lin = α_lin − ω × v fixed; orbitflex holds
+    # α_B: d a_lin/dω = [v]×, d a_lin/dv = −[ω]×, through ∂ID/∂a (the mass matrix's columns).
+    w, v = np.asarray(base_twist[:3]), np.asarray(base_twist[3:])
+    out_v[:, 0:3] += out_a[:, 3:6] @ skew(v)
+    out_v[:, 3:6] += out_a[:, 3:6] @ (-skew(w))
+    return dict(q=np.asarray(dq)[np.ix_(perm, _joint_columns(robot))], v=out_v, a=out_a)
+
+
+def aba_derivatives(robot: PinRobot, q, base_twist, qd, tau, base_wrench=None, ee_wrench=None) -> dict:
+    """Pinocchio's ``computeABADerivatives`` in orbitflex's conventions: ``q``, ``v`` (with the
+    classical base acceleration α_lin = a_lin + ω × v), ``tau`` and ``base_wrench``."""
+    fb = np.zeros(6) if base_wrench is None else np.asarray(base_wrench, dtype=float)
+    gen = robot.to_pin_vec(np.concatenate([fb, tau]))
+    dq, dv, dtau = pin.computeABADerivatives(
+        robot.model, robot.data, robot.q_pin(q), robot.v_pin(base_twist, qd), gen, robot.fext(ee_wrench)
+    )
+    perm = robot.perm
+    out_v = np.asarray(dv)[np.ix_(perm, perm)].copy()
+    w, v = np.asarray(base_twist[:3]), np.asarray(base_twist[3:])
+    out_v[3:6, 0:3] += -skew(v)
+    out_v[3:6, 3:6] += skew(w)
+    minv = np.asarray(dtau)[np.ix_(perm, perm)]
+    return dict(
+        q=np.asarray(dq)[np.ix_(perm, _joint_columns(robot))],
+        v=out_v,
+        tau=minv[:, 6:],
+        base_wrench=minv[:, :6],
+    )

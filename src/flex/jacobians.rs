@@ -1,0 +1,357 @@
+//! Jacobians of the flexible arm's state derivative and of one RK4 step, in tangent coordinates
+//! (model §4 and §5), from the analytical derivatives of the rigid dynamics.
+//!
+//! **Continuous time.** Write the state as `x = x̄ ⊕ dx` with the tangent
+//! `dx = [δr_B | δφ_B | δq | δθ | δω_B | δv_B | δq̇ | δθ̇]` ([`crate::StateLayout::integrate`]).
+//! Along a run, `d(dx)/dt = F dx + G du + G_B df_B + G_E df` to first order, where
+//!
+//! - `δṙ_B = R_B δv_B − R_B [v_B]× δφ_B` (the base velocity seen in turned axes);
+//! - `d(δφ_B)/dt = δω_B − ω_B × δφ_B` (the perturbation is carried in the turning base frame);
+//! - `δq̇`, `δθ̇` are the rates' own perturbations;
+//! - `[δα_B; δq̈]` comes from [`crate::algorithms::aba_derivatives`] with the spring torque
+//!   `τ = k (θ − q) + d (θ̇ − q̇)` chained in, and `δv̇_B` adds `v_B × δω_B − ω_B × δv_B`;
+//! - `δθ̈ = (δu − k (δθ − δq) − d (δθ̇ − δq̇) − β δθ̇)/j`.
+//!
+//! **One step.** RK4 runs on the raw state (the quaternion's four numbers, renormalised at the
+//! end), so its Jacobian is the chain rule through the four stages in raw coordinates,
+//! `J = I + dt/6 (K₁ + 2K₂ + 2K₃ + K₄)` with `K_s = ∂k_s/∂x` from each stage's raw Jacobian,
+//! then mapped to tangent coordinates at both ends: `A = P(x⁺) J E(x)`, where `E` turns a tangent
+//! at `x` into a raw perturbation (`δquat = ½ quat ⊗ (δφ, 0)`) and `P` turns one at `x⁺` back
+//! (`δφ = 2 vec(quat⁺* ⊗ δquat)`, which also discards the radial part the renormalisation
+//! removes). The inputs are held over the step, so their Jacobians chain the same way.
+
+use super::arm::{ArmWorkspace, FlexibleArm, Inputs};
+use super::state::{normalise_quaternion, quaternion_product};
+use crate::algorithms;
+use crate::args::RigidState;
+use crate::error::Result;
+use crate::spatial::{quaternion_to_rotation, skew, Mat3, Vec3};
+use nalgebra::{DMatrix, DMatrixViewMut};
+
+/// Jacobians with respect to the state's tangent and to the inputs. Rows: the tangent of the
+/// result (`12 + 4n`); columns: the tangent of the state (`x`), the motor torques (`u`, n), the
+/// base wrench (`base_wrench`, 6) and the EE wrench (`ee_wrench`, 6).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Jacobians {
+    /// With respect to the state's tangent, (12+4n)×(12+4n).
+    pub x: DMatrix<f64>,
+    /// With respect to `u`, (12+4n)×n.
+    pub u: DMatrix<f64>,
+    /// With respect to `f_B`, (12+4n)×6.
+    pub base_wrench: DMatrix<f64>,
+    /// With respect to `f`, (12+4n)×6.
+    pub ee_wrench: DMatrix<f64>,
+}
+
+impl Jacobians {
+    fn zeros(rows: usize, state_columns: usize, n: usize) -> Self {
+        Self {
+            x: DMatrix::zeros(rows, state_columns),
+            u: DMatrix::zeros(rows, n),
+            base_wrench: DMatrix::zeros(rows, 6),
+            ee_wrench: DMatrix::zeros(rows, 6),
+        }
+    }
+}
+
+/// Which coordinates a Jacobian is written in: the tangent (`12 + 4n`, the pose as
+/// `[δr; δφ]`) or the raw state (`13 + 4n`, the quaternion's four numbers).
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Coordinates {
+    Tangent,
+    Raw,
+}
+
+impl Coordinates {
+    /// The size of the pose block (6 or 7); the dynamic blocks follow it.
+    fn pose(self) -> usize {
+        match self {
+            Coordinates::Tangent => 6,
+            Coordinates::Raw => 7,
+        }
+    }
+}
+
+/// The continuous-time Jacobians `F`, `G`, `G_B`, `G_E` of the state derivative at `x` with
+/// `inputs`, in tangent coordinates (see the module documentation). `x` and `inputs` must be
+/// checked.
+pub(crate) fn derivative_jacobians(
+    arm: &FlexibleArm,
+    ws: &mut ArmWorkspace,
+    x: &[f64],
+    inputs: &Inputs,
+) -> Result<Jacobians> {
+    let layout = arm.layout();
+    let mut out = Jacobians::zeros(layout.tangent_len(), layout.tangent_len(), layout.n);
+    jacobians_into(arm, ws, x, inputs, Coordinates::Tangent, &mut out)?;
+    Ok(out)
+}
+
+/// The Jacobians of one RK4 step of `dt` from `x` with `inputs` held, in tangent coordinates at
+/// `x` (columns) and at the new state `x⁺` (rows), including the quaternion's renormalisation.
+/// Returns them with `x⁺`.
+pub(crate) fn step_jacobians(
+    arm: &FlexibleArm,
+    ws: &mut ArmWorkspace,
+    x: &[f64],
+    dt: f64,
+    inputs: &Inputs,
+) -> Result<(Jacobians, Vec<f64>)> {
+    let layout = arm.layout();
+    let (m, n) = (layout.len(), layout.n);
+    let mut stage = Jacobians::zeros(m, m, n);
+    // d(stage point)/d(x, inputs), then d(k_s)/d(x, inputs) = K_s · that (+ the direct input
+    // terms); the step's raw Jacobian accumulates I + dt/6 Σ w_s dk_s.
+    let mut point = Jacobians {
+        x: DMatrix::identity(m, m),
+        u: DMatrix::zeros(m, n),
+        base_wrench: DMatrix::zeros(m, 6),
+        ee_wrench: DMatrix::zeros(m, 6),
+    };
+    let mut total = Jacobians {
+        x: DMatrix::identity(m, m),
+        u: DMatrix::zeros(m, n),
+        base_wrench: DMatrix::zeros(m, 6),
+        ee_wrench: DMatrix::zeros(m, 6),
+    };
+    let mut xs = x.to_vec();
+    let mut k = vec![0.0; m];
+    let mut sum = vec![0.0; m];
+    for (s, (weight, next)) in [(1.0, 0.5), (2.0, 0.5), (2.0, 1.0), (1.0, 0.0)]
+        .into_iter()
+        .enumerate()
+    {
+        arm.derivative_unchecked(&mut ws.data, &mut ws.tau, &xs, inputs, &mut k)?;
+        jacobians_into(arm, ws, &xs, inputs, Coordinates::Raw, &mut stage)?;
+        let dk = Jacobians {
+            x: &stage.x * &point.x,
+            u: &stage.x * &point.u + &stage.u,
+            base_wrench: &stage.x * &point.base_wrench + &stage.base_wrench,
+            ee_wrench: &stage.x * &point.ee_wrench + &stage.ee_wrench,
+        };
+        let w = dt / 6.0 * weight;
+        total.x += &dk.x * w;
+        total.u += &dk.u * w;
+        total.base_wrench += &dk.base_wrench * w;
+        total.ee_wrench += &dk.ee_wrench * w;
+        sum.iter_mut().zip(&k).for_each(|(a, b)| *a += weight * b);
+        if s < 3 {
+            let h = next * dt;
+            for (p, (x0, kk)) in xs.iter_mut().zip(x.iter().zip(&k)) {
+                *p = x0 + h * kk;
+            }
+            point.x = DMatrix::identity(m, m) + &dk.x * h;
+            point.u = &dk.u * h;
+            point.base_wrench = &dk.base_wrench * h;
+            point.ee_wrench = &dk.ee_wrench * h;
+        }
+    }
+    let mut next: Vec<f64> = x
+        .iter()
+        .zip(&sum)
+        .map(|(x0, s)| x0 + dt / 6.0 * s)
+        .collect();
+    normalise_quaternion(&mut next[layout.quaternion()]);
+    let into = raw_to_tangent(arm, &next);
+    let from = tangent_to_raw(arm, x);
+    Ok((
+        Jacobians {
+            x: &into * &total.x * from,
+            u: &into * &total.u,
+            base_wrench: &into * &total.base_wrench,
+            ee_wrench: &into * &total.ee_wrench,
+        },
+        next,
+    ))
+}
+
+/// `E(x)`: a tangent at `x` as a raw perturbation; identity except the pose's rotation, where
+/// `δquat = ½ quat ⊗ (δφ, 0)`.
+fn tangent_to_raw(arm: &FlexibleArm, x: &[f64]) -> DMatrix<f64> {
+    let layout = arm.layout();
+    let mut e = DMatrix::zeros(layout.len(), layout.tangent_len());
+    for i in 0..3 {
+        e[(i, i)] = 1.0;
+    }
+    let quat = &x[layout.quaternion()];
+    for axis in 0..3 {
+        let mut unit = [0.0; 4];
+        unit[axis] = 1.0;
+        let column = quaternion_product(quat, &unit);
+        for r in 0..4 {
+            e[(3 + r, 3 + axis)] = 0.5 * column[r];
+        }
+    }
+    for j in 0..layout.tangent_len() - 6 {
+        e[(7 + j, 6 + j)] = 1.0;
+    }
+    e
+}
+
+/// `P(x)`: a raw perturbation at `x` (unit quaternion) as a tangent; identity except
+/// `δφ = 2 vec(quat* ⊗ δquat)`.
+fn raw_to_tangent(arm: &FlexibleArm, x: &[f64]) -> DMatrix<f64> {
+    let layout = arm.layout();
+    let mut p = DMatrix::zeros(layout.tangent_len(), layout.len());
+    for i in 0..3 {
+        p[(i, i)] = 1.0;
+    }
+    let q = &x[layout.quaternion()];
+    let conjugate = [-q[0], -q[1], -q[2], q[3]];
+    for r in 0..4 {
+        let mut unit = [0.0; 4];
+        unit[r] = 1.0;
+        let product = quaternion_product(&conjugate, &unit);
+        for axis in 0..3 {
+            p[(3 + axis, 3 + r)] = 2.0 * product[axis];
+        }
+    }
+    for j in 0..layout.tangent_len() - 6 {
+        p[(6 + j, 7 + j)] = 1.0;
+    }
+    p
+}
+
+/// The state derivative's Jacobians at `x` in `coordinates` into `out` (rows and state columns
+/// both in those coordinates).
+fn jacobians_into(
+    arm: &FlexibleArm,
+    ws: &mut ArmWorkspace,
+    x: &[f64],
+    inputs: &Inputs,
+    coordinates: Coordinates,
+    out: &mut Jacobians,
+) -> Result<()> {
+    let layout = arm.layout();
+    let n = layout.n;
+    let s = layout.split(x);
+    arm.spring_torque(x, &mut ws.tau);
+    let rigid = RigidState::new(s.q, s.base_twist, s.qd);
+    algorithms::aba_derivatives(arm.robot(), &mut ws.data, &rigid, &ws.tau, &inputs.loads)?;
+    let d = &ws.data.derivatives;
+    let p = arm.joints();
+    out.x.fill(0.0);
+    out.u.fill(0.0);
+    let pose = coordinates.pose();
+    // offsets of the dynamic blocks, the same in rows and columns
+    let (q, theta, twist, qd, theta_dot) = (
+        pose,
+        pose + n,
+        pose + 2 * n,
+        pose + 2 * n + 6,
+        pose + 3 * n + 6,
+    );
+    let (omega, v) = (s.omega(), s.velocity());
+    let rotation = quaternion_to_rotation(s.quaternion);
+    let block = |m: &mut DMatrix<f64>, r: usize, c: usize, value: &Mat3| {
+        m.fixed_view_mut::<3, 3>(r, c).copy_from(value);
+    };
+    // pose rows
+    block(&mut out.x, 0, twist + 3, &rotation);
+    match coordinates {
+        Coordinates::Tangent => {
+            block(&mut out.x, 0, 3, &(-rotation * skew(&v)));
+            block(&mut out.x, 3, 3, &(-skew(&omega)));
+            block(&mut out.x, 3, twist, &Mat3::identity());
+        }
+        Coordinates::Raw => {
+            raw_pose_rows(s.quaternion, &omega, &v, &mut out.x, twist);
+        }
+    }
+    for i in 0..n {
+        out.x[(q + i, qd + i)] = 1.0;
+        out.x[(theta + i, theta_dot + i)] = 1.0;
+    }
+    // twist and q̈ rows: the rigid dynamics with τ = k (θ − q) + d (θ̇ − q̇) chained in
+    for r in 0..6 + n {
+        let row = if r < 6 { twist + r } else { qd + r - 6 };
+        for i in 0..n {
+            let dtau = d.fd_tau[(r, i)];
+            out.x[(row, q + i)] = d.fd_q[(r, i)] - dtau * p.stiffness[i];
+            out.x[(row, theta + i)] = dtau * p.stiffness[i];
+            out.x[(row, qd + i)] = d.fd_v[(r, 6 + i)] - dtau * p.damping[i];
+            out.x[(row, theta_dot + i)] = dtau * p.damping[i];
+        }
+        for j in 0..6 {
+            out.x[(row, twist + j)] = d.fd_v[(r, j)];
+            out.base_wrench[(row, j)] = d.fd_base_wrench[(r, j)];
+            out.ee_wrench[(row, j)] = d.fd_ee_wrench[(r, j)];
+        }
+    }
+    // v̇_B = α_B[3:6] − ω_B × v_B
+    add_block(&mut out.x.view_mut((twist + 3, twist), (3, 3)), &skew(&v));
+    add_block(
+        &mut out.x.view_mut((twist + 3, twist + 3), (3, 3)),
+        &(-skew(&omega)),
+    );
+    // θ̈ = (u − τ − β θ̇)/j
+    for i in 0..n {
+        let (k, damping, j, beta) = (
+            p.stiffness[i],
+            p.damping[i],
+            p.motor_inertia[i],
+            p.motor_damping[i],
+        );
+        let row = theta_dot + i;
+        out.x[(row, q + i)] = k / j;
+        out.x[(row, theta + i)] = -k / j;
+        out.x[(row, qd + i)] = damping / j;
+        out.x[(row, theta_dot + i)] = -(damping + beta) / j;
+        out.u[(row, i)] = 1.0 / j;
+    }
+    Ok(())
+}
+
+fn add_block(view: &mut DMatrixViewMut<'_, f64>, value: &Mat3) {
+    for r in 0..3 {
+        for c in 0..3 {
+            view[(r, c)] += value[(r, c)];
+        }
+    }
+}
+
+/// The raw pose rows: `ṙ_B = R(q̂) v_B` with `q̂ = quat/|quat|` (the rotation a raw, possibly
+/// unnormalised, stage quaternion stands for) and `quat' = ½ quat ⊗ (ω_B, 0)`.
+fn raw_pose_rows(quat: &[f64], omega: &Vec3, v: &Vec3, out: &mut DMatrix<f64>, twist: usize) {
+    let norm = quat.iter().map(|a| a * a).sum::<f64>().sqrt();
+    let unit = [
+        quat[0] / norm,
+        quat[1] / norm,
+        quat[2] / norm,
+        quat[3] / norm,
+    ];
+    let (u, w) = (Vec3::new(unit[0], unit[1], unit[2]), unit[3]);
+    // R v = v + 2w (u × v) + 2 u × (u × v) on the unit sphere, differentiated in (u, w)
+    let d_du = -2.0 * w * skew(v) + 2.0 * (u * v.transpose() + Mat3::identity() * u.dot(v))
+        - 4.0 * v * u.transpose();
+    let d_dw = 2.0 * u.cross(v);
+    // q̂ = quat/|quat|: ∂q̂/∂quat = (𝟙 − q̂ q̂ᵀ)/|quat|
+    for c in 0..4 {
+        let mut dunit = [0.0; 4];
+        for (r, value) in dunit.iter_mut().enumerate() {
+            *value = (f64::from(u8::from(r == c)) - unit[r] * unit[c]) / norm;
+        }
+        let column = d_du * Vec3::new(dunit[0], dunit[1], dunit[2]) + d_dw * dunit[3];
+        for r in 0..3 {
+            out[(r, 3 + c)] = column[r];
+        }
+    }
+    // quat' = ½ quat ⊗ (ω, 0): linear in quat and in ω
+    let pure = [omega.x, omega.y, omega.z, 0.0];
+    for c in 0..4 {
+        let mut unit_c = [0.0; 4];
+        unit_c[c] = 1.0;
+        let column = quaternion_product(&unit_c, &pure);
+        for r in 0..4 {
+            out[(3 + r, 3 + c)] = 0.5 * column[r];
+        }
+    }
+    for axis in 0..3 {
+        let mut e = [0.0; 4];
+        e[axis] = 1.0;
+        let column = quaternion_product(quat, &e);
+        for r in 0..4 {
+            out[(3 + r, twist + axis)] = 0.5 * column[r];
+        }
+    }
+}
