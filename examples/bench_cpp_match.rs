@@ -137,6 +137,32 @@ fn main() {
         );
         println!("crba {t:.1}");
     }
+    if wanted("aba_derivatives") {
+        let state = RigidState::new(&q, &twist, &qd);
+        let t = median_ns(
+            || {
+                let d = algorithms::aba_derivatives(&robot, &mut data, &state, &tau, &Loads::ZERO)
+                    .unwrap();
+                black_box(d.fd_q[(0, 0)]);
+            },
+            4_000,
+            blocks,
+        );
+        println!("aba_derivatives {t:.1}");
+    }
+    if wanted("rnea_derivatives") {
+        let state = RigidState::new(&q, &twist, &qd);
+        let t = median_ns(
+            || {
+                let d = algorithms::rnea_derivatives(&robot, &mut data, &state, &acc, &qdd, &zero6)
+                    .unwrap();
+                black_box(d.id_q[(0, 0)]);
+            },
+            4_000,
+            blocks,
+        );
+        println!("rnea_derivatives {t:.1}");
+    }
 
     // bench_aba.cpp's FlexArm: k = 2·10⁴, d = 2, j = 160² · 4·10⁻⁵, β = 1; u = 1; dt = 1 ms.
     let joints = FlexibleJoints::from_gear(
@@ -174,6 +200,55 @@ fn main() {
             blocks,
         );
         println!("rk4_step {t:.1}");
+    }
+    if wanted("step_jacobians") {
+        // The step's Jacobians analytically, and by central differences on the tangent space
+        // (2 steps per column), the way a user would get them without derivatives.
+        let x0 = arm
+            .state(&StateSpec {
+                q: Some(&q),
+                qd: Some(&qd),
+                base_twist: Some(&twist),
+                ..StateSpec::default()
+            })
+            .unwrap();
+        let mut ws = ArmWorkspace::new(&arm);
+        let u = vec![1.0; n];
+        let t = median_ns(
+            || {
+                let j = arm
+                    .step_jacobians(&mut ws, black_box(&x0), 1e-3, &Inputs::torques(&u))
+                    .unwrap();
+                black_box(j.x[(0, 0)]);
+            },
+            500,
+            blocks,
+        );
+        println!("step_jacobians {t:.1}");
+        let tangent = arm.tangent_size();
+        let mut dx = vec![0.0; tangent];
+        let (mut plus, mut minus) = (vec![0.0; x0.len()], vec![0.0; x0.len()]);
+        let mut layout_out = vec![0.0; tangent];
+        let t = median_ns(
+            || {
+                for k in 0..tangent {
+                    dx[k] = 1e-6;
+                    arm.layout().integrate(&x0, &dx, &mut plus);
+                    dx[k] = -1e-6;
+                    arm.layout().integrate(&x0, &dx, &mut minus);
+                    dx[k] = 0.0;
+                    arm.step(&mut ws, &mut plus, 1e-3, &Inputs::torques(&u))
+                        .unwrap();
+                    arm.step(&mut ws, &mut minus, 1e-3, &Inputs::torques(&u))
+                        .unwrap();
+                    arm.layout().difference(&minus, &plus, &mut layout_out);
+                    black_box(layout_out[0]);
+                }
+            },
+            100,
+            blocks,
+        );
+        println!("step_jacobians_central_differences {t:.1}");
     }
     if wanted("simulate_1e4") {
         // compare_pinocchio.py's run: at rest, MotorPD kp = 2000, kd = 800 to θ_ref = 0.2.

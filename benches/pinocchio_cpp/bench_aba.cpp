@@ -16,10 +16,12 @@
 #include <string>
 #include <vector>
 
+#include <pinocchio/algorithm/aba-derivatives.hpp>
 #include <pinocchio/algorithm/aba.hpp>
 #include <pinocchio/algorithm/crba.hpp>
 #include <pinocchio/algorithm/joint-configuration.hpp>
 #include <pinocchio/algorithm/model.hpp>
+#include <pinocchio/algorithm/rnea-derivatives.hpp>
 #include <pinocchio/algorithm/rnea.hpp>
 #include <pinocchio/multibody.hpp>
 #include <pinocchio/parsers/urdf.hpp>
@@ -179,6 +181,14 @@ int main(int argc, char ** argv)
   report("rnea", 20000, [&] { sink += pinocchio::rnea(model, data, q, v, a)[0]; });
   report("crba_local", 20000, [&] { sink += pinocchio::crba(model, data, q, Convention::LOCAL)(0, 0); });
   report("crba_world", 20000, [&] { sink += pinocchio::crba(model, data, q, Convention::WORLD)(0, 0); });
+  report("aba_derivatives", 4000, [&] {
+    pinocchio::computeABADerivatives(model, data, q, v, tau);
+    sink += data.ddq_dq(0, 0);
+  });
+  report("rnea_derivatives", 4000, [&] {
+    pinocchio::computeRNEADerivatives(model, data, q, v, a);
+    sink += data.dtau_dq(0, 0);
+  });
 
   FlexArm arm(model);
   Vec x0 = Vec::Zero(model.nq + n + model.nv + n);

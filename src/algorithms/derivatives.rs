@@ -17,10 +17,10 @@
 //!
 //! **Forward dynamics.** `ID(q, ν, FD(q, ν, u)) = u` for every input, so
 //! `∂FD/∂(q, ν) = −𝓜⁻¹ ∂ID/∂(q, ν)` at `a = FD`, `∂FD/∂τ = 𝓜⁻¹ [0; 𝟙]`,
-//! `∂FD/∂f_B = 𝓜⁻¹ [𝟙; 0]` and `∂FD/∂f = −𝓜⁻¹ [Φ_{n+1,B}ᵀ; Jᵀ]`. `𝓜⁻¹` is applied to each
-//! column by the articulated-body factorisation that the forward dynamics has just built (`U`,
-//! `D`, `I^A_B`, valid at any velocity): a backward and a forward pass per column, O(n), so
-//! O(n²) in all and no dense mass matrix.
+//! `∂FD/∂f_B = 𝓜⁻¹ [𝟙; 0]` and `∂FD/∂f = −𝓜⁻¹ [Φ_{n+1,B}ᵀ; Jᵀ]`. `𝓜⁻¹` is applied to all
+//! these columns at once by the articulated-body factorisation that the forward dynamics has
+//! just built (`U`, `D`, `I^A_B`, valid at any velocity): a backward and a forward pass, O(n) per
+//! column, so O(n²) in all and no dense mass matrix.
 
 // Loops run over body indices `i`, the equations' indices; iterator chains would hide them.
 #![allow(clippy::needless_range_loop)]
@@ -62,9 +62,8 @@ pub struct Derivatives {
     df: Vec<Force>,
     moved: Vec<bool>,
     solve_p: Vec<Force>,
-    solve_u: Vec<f64>,
     solve_acc: Vec<Motion>,
-    column: Vec<f64>,
+    rhs: Vec<f64>,
     qdd: Vec<f64>,
 }
 
@@ -87,10 +86,9 @@ impl Derivatives {
             da: vec![Motion::zero(); bodies],
             df: vec![Force::zero(); bodies],
             moved: vec![false; bodies],
-            solve_p: vec![Force::zero(); bodies],
-            solve_u: vec![0.0; bodies],
-            solve_acc: vec![Motion::zero(); bodies],
-            column: vec![0.0; rows],
+            solve_p: vec![Force::zero(); bodies * (3 * n + 18)],
+            solve_acc: vec![Motion::zero(); bodies * (3 * n + 18)],
+            rhs: vec![0.0; rows * (3 * n + 18)],
             qdd: vec![0.0; n],
         }
     }
@@ -163,23 +161,38 @@ pub fn aba_derivatives<'a>(
     id_derivatives(robot, data, &mut d, state, &acc, &qdd, &loads.ee_wrench);
     d.qdd = qdd;
     ee_force_map(robot, data, &mut d, state.q)?;
-    // ∂FD/∂x = −𝓜⁻¹ ∂ID/∂x, column by column through the articulated-body factorisation.
-    for k in 0..n {
-        solve_column(robot, data, &mut d, Source::IdAngle(k), Target::Angle(k))?;
-        solve_column(robot, data, &mut d, Source::Unit(6 + k), Target::Tau(k))?;
+    // ∂FD/∂x = −𝓜⁻¹ ∂ID/∂x, and 𝓜⁻¹ on the unit inputs, through the articulated-body
+    // factorisation, all columns at once: [−∂ID/∂q | −∂ID/∂ν | [0; 𝟙] | [𝟙; 0] | −∂ID/∂f].
+    let m = 3 * n + 18;
+    d.rhs.resize((6 + n) * m, 0.0);
+    for r in 0..6 + n {
+        let row = &mut d.rhs[r * m..(r + 1) * m];
+        for k in 0..n {
+            row[k] = -d.id_q[(r, k)];
+            row[2 * n + 6 + k] = f64::from(u8::from(r == 6 + k));
+        }
+        for j in 0..6 + n {
+            row[n + j] = -d.id_v[(r, j)];
+        }
+        for j in 0..6 {
+            row[3 * n + 6 + j] = f64::from(u8::from(r == j));
+            row[3 * n + 12 + j] = -d.id_ee_wrench[(r, j)];
+        }
     }
-    for j in 0..6 + n {
-        solve_column(robot, data, &mut d, Source::IdRate(j), Target::Rate(j))?;
-    }
-    for j in 0..6 {
-        solve_column(robot, data, &mut d, Source::Unit(j), Target::BaseWrench(j))?;
-        solve_column(
-            robot,
-            data,
-            &mut d,
-            Source::IdEeWrench(j),
-            Target::EeWrench(j),
-        )?;
+    solve_columns(robot, data, &mut d, m)?;
+    for r in 0..6 + n {
+        let row = &d.rhs[r * m..(r + 1) * m];
+        for k in 0..n {
+            d.fd_q[(r, k)] = row[k];
+            d.fd_tau[(r, k)] = row[2 * n + 6 + k];
+        }
+        for j in 0..6 + n {
+            d.fd_v[(r, j)] = row[n + j];
+        }
+        for j in 0..6 {
+            d.fd_base_wrench[(r, j)] = row[3 * n + 6 + j];
+            d.fd_ee_wrench[(r, j)] = row[3 * n + 12 + j];
+        }
     }
     data.derivatives = d;
     Ok(&data.derivatives)
@@ -363,81 +376,60 @@ fn write_column(
     }
 }
 
-/// Where a column to solve comes from.
-#[derive(Clone, Copy)]
-enum Source {
-    /// `−∂ID/∂q_k`
-    IdAngle(usize),
-    /// `−∂ID/∂ν_j`
-    IdRate(usize),
-    /// `−∂ID/∂f_j`
-    IdEeWrench(usize),
-    /// The unit vector `e_j` of the generalized forces.
-    Unit(usize),
-}
-
-/// Which column of the forward-dynamics derivatives a solution fills.
-#[derive(Clone, Copy)]
-enum Target {
-    Angle(usize),
-    Rate(usize),
-    Tau(usize),
-    BaseWrench(usize),
-    EeWrench(usize),
-}
-
-/// `𝓜⁻¹ r` for one column `r`, by the articulated-body factorisation in `data` (`x`, `u_col`,
-/// `d`, `ia[0]` from the forward dynamics at this configuration): backwards
-/// `u_i = r_i − H_iᵀ p_i`, `p_λ += X_iᵀ (p_i + U_i u_i/D_i)`; the base solves
-/// `I^A_B α_B = r_B − p_B`; forwards `q̈_i = (u_i − U_iᵀ X_i α_λ)/D_i`.
-fn solve_column(
-    robot: &Robot,
-    data: &Data,
-    d: &mut Derivatives,
-    source: Source,
-    target: Target,
-) -> Result<()> {
+/// `𝓜⁻¹ R` in place for the `m` columns of `d.rhs` (row-major, `(6 + n) × m`), by the
+/// articulated-body factorisation in `data` (`x`, `u_col`, `d`, `ia[0]` from the forward dynamics
+/// at this configuration). For every column at once: backwards `u_i = r_i − H_iᵀ p_i`,
+/// `p_λ += X_iᵀ (p_i + U_i u_i/D_i)`; the base solves `I^A_B α_B = r_B − p_B` (one inverse for
+/// all columns); forwards `q̈_i = (u_i − U_iᵀ X_i α_λ)/D_i`, `α_i = X_i α_λ + H_i q̈_i`. O(n) per
+/// column.
+fn solve_columns(robot: &Robot, data: &Data, d: &mut Derivatives, m: usize) -> Result<()> {
     let n = robot.dof();
     let parents = robot.parents();
-    for r in 0..6 + n {
-        d.column[r] = match source {
-            Source::IdAngle(k) => -d.id_q[(r, k)],
-            Source::IdRate(j) => -d.id_v[(r, j)],
-            Source::IdEeWrench(j) => -d.id_ee_wrench[(r, j)],
-            Source::Unit(j) => f64::from(u8::from(r == j)),
-        };
-    }
-    d.solve_p.iter_mut().for_each(|p| *p = Force::zero());
+    d.solve_p.clear();
+    d.solve_p.resize((n + 1) * m, Force::zero());
+    d.solve_acc.clear();
+    d.solve_acc.resize((n + 1) * m, Motion::zero());
     for i in (1..=n).rev() {
-        let h = &robot.joints()[i - 1].axis;
-        let p = d.solve_p[i];
-        let u = d.column[5 + i] - h.dot(&p.angular);
-        d.solve_u[i] = u;
-        let moved = data.x[i].apply_force_transpose(&(p + data.u_col[i] * (u / data.d[i])));
-        d.solve_p[parents[i]] += moved;
+        let (h, x, lambda) = (&robot.joints()[i - 1].axis, &data.x[i], parents[i]);
+        let scaled = data.u_col[i] * (1.0 / data.d[i]);
+        for c in 0..m {
+            let p = d.solve_p[i * m + c];
+            let u = d.rhs[(5 + i) * m + c] - h.dot(&p.angular);
+            d.rhs[(5 + i) * m + c] = u;
+            let moved = x.apply_force_transpose(&(p + scaled * u));
+            d.solve_p[lambda * m + c] += moved;
+        }
     }
-    let rhs = Force::from_slice(&d.column[..6]) - d.solve_p[0];
-    let base = data.ia[0]
-        .solve(&rhs)
-        .ok_or_else(|| crate::Error::InvalidArgument {
-            what: "articulated base inertia".into(),
-            message: "not positive definite (the model's mass matrix is singular here)".into(),
+    let mut inverse = crate::spatial::Mat6::zeros();
+    for j in 0..6 {
+        let mut unit = [0.0; 6];
+        unit[j] = 1.0;
+        let column = data.ia[0].solve(&Force::from_slice(&unit)).ok_or_else(|| {
+            crate::Error::InvalidArgument {
+                what: "articulated base inertia".into(),
+                message: "not positive definite (the model's mass matrix is singular here)".into(),
+            }
         })?;
-    d.solve_acc[0] = base;
-    base.write_to(&mut d.column[..6]);
-    for i in 1..=n {
-        let acc = data.x[i].apply_motion(&d.solve_acc[parents[i]]);
-        let qdd = (d.solve_u[i] - acc.dot(&data.u_col[i])) / data.d[i];
-        d.solve_acc[i] = acc + joint_motion(robot, i) * qdd;
-        d.column[5 + i] = qdd;
+        inverse.set_column(j, &column.to_vector());
     }
-    let out = match target {
-        Target::Angle(k) => d.fd_q.column_mut(k),
-        Target::Rate(j) => d.fd_v.column_mut(j),
-        Target::Tau(k) => d.fd_tau.column_mut(k),
-        Target::BaseWrench(j) => d.fd_base_wrench.column_mut(j),
-        Target::EeWrench(j) => d.fd_ee_wrench.column_mut(j),
-    };
-    out.into_iter().zip(&d.column).for_each(|(o, v)| *o = *v);
+    for c in 0..m {
+        let rhs: [f64; 6] = std::array::from_fn(|r| d.rhs[r * m + c]);
+        let base =
+            Motion::from_vector(&(inverse * (Force::from_slice(&rhs) - d.solve_p[c]).to_vector()));
+        d.solve_acc[c] = base;
+        for (r, value) in base.to_array().into_iter().enumerate() {
+            d.rhs[r * m + c] = value;
+        }
+    }
+    for i in 1..=n {
+        let (s, x, lambda) = (joint_motion(robot, i), &data.x[i], parents[i]);
+        let (u_col, inverse_d) = (data.u_col[i], 1.0 / data.d[i]);
+        for c in 0..m {
+            let acc = x.apply_motion(&d.solve_acc[lambda * m + c]);
+            let qdd = (d.rhs[(5 + i) * m + c] - acc.dot(&u_col)) * inverse_d;
+            d.solve_acc[i * m + c] = acc + s * qdd;
+            d.rhs[(5 + i) * m + c] = qdd;
+        }
+    }
     Ok(())
 }

@@ -123,11 +123,13 @@ pub(crate) fn step_jacobians(
     {
         arm.derivative_unchecked(&mut ws.data, &mut ws.tau, &xs, inputs, &mut k)?;
         jacobians_into(arm, ws, &xs, inputs, Coordinates::Raw, &mut stage)?;
+        // K_s is mostly zeros (rates feed angles, the motors are diagonal): multiply by rows
+        let rows = SparseRows::of(&stage.x);
         let dk = Jacobians {
-            x: &stage.x * &point.x,
-            u: &stage.x * &point.u + &stage.u,
-            base_wrench: &stage.x * &point.base_wrench + &stage.base_wrench,
-            ee_wrench: &stage.x * &point.ee_wrench + &stage.ee_wrench,
+            x: rows.times(&point.x),
+            u: rows.times(&point.u) + &stage.u,
+            base_wrench: rows.times(&point.base_wrench) + &stage.base_wrench,
+            ee_wrench: rows.times(&point.ee_wrench) + &stage.ee_wrench,
         };
         let w = dt / 6.0 * weight;
         total.x += &dk.x * w;
@@ -152,17 +154,48 @@ pub(crate) fn step_jacobians(
         .map(|(x0, s)| x0 + dt / 6.0 * s)
         .collect();
     normalise_quaternion(&mut next[layout.quaternion()]);
-    let into = raw_to_tangent(arm, &next);
-    let from = tangent_to_raw(arm, x);
+    let into = SparseRows::of(&raw_to_tangent(arm, &next));
+    let from = SparseRows::of(&tangent_to_raw(arm, x).transpose());
     Ok((
         Jacobians {
-            x: &into * &total.x * from,
-            u: &into * &total.u,
-            base_wrench: &into * &total.base_wrench,
-            ee_wrench: &into * &total.ee_wrench,
+            x: from.times(&into.times(&total.x).transpose()).transpose(),
+            u: into.times(&total.u),
+            base_wrench: into.times(&total.base_wrench),
+            ee_wrench: into.times(&total.ee_wrench),
         },
         next,
     ))
+}
+
+/// The non-zero entries of a matrix, row by row, for products with a mostly-zero left factor.
+struct SparseRows {
+    rows: Vec<Vec<(usize, f64)>>,
+}
+
+impl SparseRows {
+    fn of(m: &DMatrix<f64>) -> Self {
+        let rows = (0..m.nrows())
+            .map(|r| {
+                (0..m.ncols())
+                    .filter(|&c| m[(r, c)] != 0.0)
+                    .map(|c| (c, m[(r, c)]))
+                    .collect()
+            })
+            .collect();
+        Self { rows }
+    }
+
+    /// `self · a`.
+    fn times(&self, a: &DMatrix<f64>) -> DMatrix<f64> {
+        let mut out = DMatrix::zeros(self.rows.len(), a.ncols());
+        for j in 0..a.ncols() {
+            let column = a.column(j);
+            for (r, entries) in self.rows.iter().enumerate() {
+                out[(r, j)] = entries.iter().map(|&(c, v)| v * column[c]).sum();
+            }
+        }
+        out
+    }
 }
 
 /// `E(x)`: a tangent at `x` as a raw perturbation; identity except the pose's rotation, where
