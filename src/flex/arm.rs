@@ -313,7 +313,7 @@ impl FlexibleArm {
     }
 
     /// The Jacobians of [`derivative`](Self::derivative) at `x` with `inputs`, in tangent
-    /// coordinates: `d(dx)/dt = F dx + G du + G_B df_B + G_E df` ([`jacobians`](super::jacobians)).
+    /// coordinates: `d(dx)/dt = F dx + G du + G_B df_B + G_E df` ([`super::jacobians`]).
     pub fn derivative_jacobians(
         &self,
         ws: &mut ArmWorkspace,
@@ -330,7 +330,7 @@ impl FlexibleArm {
 
     /// The Jacobians of one RK4 [`step`](Self::step) of `dt` from `x` with `inputs` held, in
     /// tangent coordinates at `x` and at the new state, including the quaternion's
-    /// renormalisation ([`jacobians`](super::jacobians)).
+    /// renormalisation ([`super::jacobians`]).
     pub fn step_jacobians(
         &self,
         ws: &mut ArmWorkspace,
