@@ -3,13 +3,16 @@
 //!
 //! nalgebra's `complex_eigenvalues` runs the same QR iteration without exceptional shifts and
 //! without an iteration limit: on the step matrices of a free-floating arm, whose eigenvalues
-//! cluster at 1, it can loop for ever. This version gives up after a bounded number of
-//! iterations and says so.
+//! cluster at 1, it can loop for ever. This version takes an exceptional shift every ten
+//! iterations without a deflation, and gives up (and says so) after as many iterations as
+//! LAPACK allows.
 
 use nalgebra::{Complex, DMatrix};
 
-/// Iterations allowed per eigenvalue before giving up.
-const MAX_ITERATIONS: usize = 60;
+/// Iterations allowed per deflation, as LAPACK allows: 30 per row of the matrix (at least 300).
+fn max_iterations(n: usize) -> usize {
+    30 * n.max(10)
+}
 
 /// The eigenvalues of the square matrix `a`, in no particular order, or `None` when the
 /// iteration does not converge (or `a` holds non-finite numbers).
@@ -146,11 +149,11 @@ fn hessenberg_qr(mut h: DMatrix<f64>) -> Option<Vec<Complex<f64>>> {
                 last -= 2;
                 break;
             }
-            if iterations == MAX_ITERATIONS {
+            if iterations == max_iterations(n) {
                 return None;
             }
             let (mut x, mut y, mut w) = (x, y, w);
-            if iterations == 10 || iterations == 20 {
+            if iterations > 0 && iterations % 10 == 0 {
                 // exceptional shift, to break a cycle
                 shift += x;
                 for i in 0..=nn {
@@ -184,9 +187,11 @@ fn double_shift_step(h: &mut DMatrix<f64>, l: usize, nn: usize, x: f64, y: f64, 
         q = h[(m + 1, m + 1)] - z - rr - s;
         r = h[(m + 2, m + 1)];
         let scale = p.abs() + q.abs() + r.abs();
-        p /= scale;
-        q /= scale;
-        r /= scale;
+        if scale > 0.0 {
+            p /= scale;
+            q /= scale;
+            r /= scale;
+        }
         if m == l {
             break;
         }
@@ -370,6 +375,17 @@ mod tests {
                 "{got:?}"
             );
         }
+        // a nilpotent 4×4 Jordan block among ordinary eigenvalues (the free-floating closed loop
+        // has such zero eigenvalues; without repeated exceptional shifts the iteration cycled)
+        let mut nil = DMatrix::from_diagonal(&nalgebra::DVector::from_vec(vec![
+            0.0, 0.0, 0.0, 0.0, -3.0, 2.0, -0.5,
+        ]));
+        for i in 0..3 {
+            nil[(i, i + 1)] = 1.0;
+        }
+        let q = orthogonal(&mut rng, 7);
+        let got = eigenvalues(&(&q * nil * q.transpose())).unwrap();
+        assert_eq!(got.iter().filter(|g| g.norm() < 1e-3).count(), 4, "{got:?}");
         let permutation = DMatrix::from_fn(6, 6, |i, j| if (i + 1) % 6 == j { 1.0 } else { 0.0 });
         let got = eigenvalues(&permutation).unwrap();
         assert!(

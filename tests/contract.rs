@@ -262,6 +262,18 @@ fn stability_limits_pinned() {
             Ok(())
         }
     }
+    // a soft PD barely changes it (and its closed loop, with exact zero eigenvalues from the
+    // free base, is solved: the eigenvalue iteration once cycled on it)
+    let soft = MotorPD::new(
+        vec![50.0; 7],
+        vec![5.0; 7],
+        Schedule::Zero,
+        Schedule::Zero,
+        Schedule::Zero,
+    )
+    .unwrap();
+    let soft = arm.rk4_stability_limit(&x, &soft).unwrap();
+    assert!((soft.dt - 1.05495e-2).abs() < 2e-3 * 1.05495e-2, "{soft:?}");
     let unknown = arm.rk4_stability_limit(&x, &Opaque).unwrap();
     assert!(unknown.open_loop && !open.open_loop);
     assert_eq!(unknown.dt, open.dt);

@@ -1,10 +1,9 @@
 //! Step 3: the EE link, and the chain of joints from the root to it.
 
-use super::parse::joint_kind;
+use super::parse::{Joint, JointKind};
 use super::tree::Tree;
 use crate::error::{Error, Result};
 use std::collections::HashSet;
-use urdf_rs::JointType;
 
 /// The EE link: the one asked for, or else the unique leaf, not counting leaves behind a locked
 /// joint (a locked gripper jaw, say) unless they are all there is.
@@ -48,28 +47,21 @@ pub(super) fn ee_link<'a>(
 
 /// The joints from the root to `ee_link`, root first. Every moving joint of the URDF must be
 /// revolute or continuous and lie on this chain.
-pub(super) fn chain<'a>(
-    tree: &Tree<'a>,
-    ee_link: &str,
-    source: &str,
-) -> Result<Vec<&'a urdf_rs::Joint>> {
+pub(super) fn chain<'a>(tree: &Tree<'a>, ee_link: &str, source: &str) -> Result<Vec<&'a Joint>> {
     let mut chain = Vec::new();
     let mut link = ee_link;
     while let Some(joint) = tree.parent_joint.get(link) {
         chain.push(*joint);
-        link = joint.parent.link.as_str();
+        link = joint.parent.as_str();
     }
     chain.reverse();
     let on_chain: HashSet<&str> = chain.iter().map(|j| j.name.as_str()).collect();
     for joint in tree.urdf.joints.iter().filter(|j| !tree.is_fixed(j)) {
-        if !matches!(
-            joint.joint_type,
-            JointType::Revolute | JointType::Continuous
-        ) {
+        if !matches!(joint.kind, JointKind::Revolute | JointKind::Continuous) {
             return Err(Error::UnsupportedJoint {
                 source_name: source.to_string(),
                 joint: joint.name.clone(),
-                kind: joint_kind(&joint.joint_type).to_string(),
+                kind: joint.kind.name().to_string(),
             });
         }
         if !on_chain.contains(joint.name.as_str()) {
@@ -80,9 +72,9 @@ pub(super) fn chain<'a>(
                      at link '{}'; orbitflex models a serial chain: lock it with \
                      locked_joints=[\"{}\"] or choose another ee_link",
                     joint.name,
-                    joint_kind(&joint.joint_type),
+                    joint.kind.name(),
                     tree.root,
-                    joint.parent.link,
+                    joint.parent,
                     joint.name
                 ),
             });

@@ -1,7 +1,7 @@
 //! Step 4: fixed and locked joints merged away. Each link belongs to a body (the base, or the
 //! child link of a moving joint), and each body's inertia sums those of its links.
 
-use super::parse::{link_inertia, pose_transform};
+use super::parse::{link_inertia, pose_transform, Joint};
 use super::tree::Tree;
 use crate::error::{Error, Result};
 use crate::model::builder::check_length;
@@ -12,7 +12,7 @@ use std::collections::HashMap;
 /// at `q = 0` (none for the base), and its merged inertia.
 pub(super) struct Body<'a> {
     pub link: &'a str,
-    pub joint: Option<(&'a urdf_rs::Joint, Transform)>,
+    pub joint: Option<(&'a Joint, Transform)>,
     pub inertia: Inertia,
 }
 
@@ -26,11 +26,7 @@ pub(super) struct Bodies<'a> {
 /// Walks the tree from the root. A fixed or locked joint places its child link in its parent's
 /// body (frames composed); a moving joint starts a new body. `chain` holds every moving joint,
 /// so the bodies come out in chain order.
-pub(super) fn merge<'a>(
-    tree: &Tree<'a>,
-    chain: &[&'a urdf_rs::Joint],
-    source: &str,
-) -> Result<Bodies<'a>> {
+pub(super) fn merge<'a>(tree: &Tree<'a>, chain: &[&'a Joint], source: &str) -> Result<Bodies<'a>> {
     let mut placement: HashMap<&str, (usize, Transform)> = HashMap::new();
     let mut bodies = vec![Body {
         link: tree.root,
@@ -42,7 +38,7 @@ pub(super) fn merge<'a>(
     while let Some(parent) = stack.pop() {
         let (parent_body, parent_in_body) = placement[parent];
         for joint in tree.children(parent) {
-            let child = joint.child.link.as_str();
+            let child = joint.child.as_str();
             // Φ_{child,body} at q = 0: the joint origin composed with the parent's placement.
             let own = pose_transform(&joint.origin);
             check_length(&own.translation).map_err(|m| Error::InvalidModel {

@@ -71,7 +71,7 @@ fn load(xml: &str, source: &str, options: &UrdfOptions) -> Result<Robot> {
     let mut builder = RobotBuilder::new(&urdf.name, base.link, base.inertia).source(source);
     for body in &bodies.bodies[1..] {
         let (joint, origin) = body.joint.expect("every body after the base has a joint");
-        let axis = Vec3::from(joint.axis.xyz.0);
+        let axis = Vec3::from(joint.axis);
         builder = builder.joint(&joint.name, origin, axis, body.link, body.inertia);
     }
     let (ee_body, ee_in_body) = bodies.placement[ee_link];

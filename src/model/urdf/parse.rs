@@ -1,15 +1,17 @@
-//! Step 1: URDF text to elements (urdf-rs), after a streaming pre-scan; and the conversions of
-//! its poses and inertias.
+//! Step 1: URDF text to elements, in one streaming pass, and the conversions of poses and
+//! inertias.
 //!
-//! urdf-rs converts the XML recursively, so a deeply nested file overflows the stack (a crash,
-//! not an error) and takes time quadratic in the depth. The pre-scan reads the text once with a
-//! streaming parser, in time linear in its size, and refuses what no URDF needs before urdf-rs
-//! sees it: nesting deeper than [`MAX_DEPTH`], more than [`MAX_ELEMENTS`] elements, more than
-//! [`crate::io::MAX_FILE_BYTES`] of text. It also reports malformed XML with its line.
+//! The reader keeps what the dynamics need: the robot's name, each `<link>` with its
+//! `<inertial>` (origin, mass, inertia), and each `<joint>` with its type, parent, child, origin
+//! and axis. Everything else (visuals, collisions, limits, transmissions, simulator extensions)
+//! is skipped. It reads the text once, in time linear in its size, and refuses what no URDF
+//! needs: nesting deeper than [`MAX_DEPTH`], more than [`MAX_ELEMENTS`] elements, more than
+//! [`crate::io::MAX_FILE_BYTES`] of text. Errors say what is wrong and on which line. Entities
+//! other than XML's five are not expanded (no "billion laughs").
 
 use crate::error::{Error, Result};
 use crate::spatial::{Inertia, Mat3, Transform};
-use quick_xml::events::Event;
+use quick_xml::events::{BytesStart, Event};
 
 /// The deepest element nesting accepted. A URDF needs about 6 (`robot/link/visual/geometry/mesh`),
 /// a few more with simulator extensions.
@@ -18,8 +20,84 @@ pub const MAX_DEPTH: usize = 64;
 /// The most elements accepted: enough for about 2·10⁵ links with their joints.
 pub const MAX_ELEMENTS: usize = 4_000_000;
 
+/// A URDF's `<robot>`: what the model is built from.
+#[derive(Debug, Default)]
+pub(super) struct Urdf {
+    pub name: String,
+    pub links: Vec<Link>,
+    pub joints: Vec<Joint>,
+}
+
+/// A `<link>`.
+#[derive(Debug, Default)]
+pub(super) struct Link {
+    pub name: String,
+    /// Zero mass and inertia when the link has no `<inertial>`.
+    pub inertial: Inertial,
+}
+
+/// An `<inertial>`: the COM frame, the mass (kg) and the inertia about the COM in that frame's
+/// axes (kg·m²): `[ixx, ixy, ixz, iyy, iyz, izz]`.
+#[derive(Debug, Default, Clone, Copy)]
+pub(super) struct Inertial {
+    pub origin: Pose,
+    pub mass: f64,
+    pub inertia: [f64; 6],
+}
+
+/// An `<origin xyz rpy>` (m, rad).
+#[derive(Debug, Default, Clone, Copy)]
+pub(super) struct Pose {
+    pub xyz: [f64; 3],
+    pub rpy: [f64; 3],
+}
+
+/// A joint type.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum JointKind {
+    Revolute,
+    Continuous,
+    Prismatic,
+    Fixed,
+    Floating,
+    Planar,
+    Spherical,
+}
+
+impl JointKind {
+    const ALL: [(&'static str, JointKind); 7] = [
+        ("revolute", JointKind::Revolute),
+        ("continuous", JointKind::Continuous),
+        ("prismatic", JointKind::Prismatic),
+        ("fixed", JointKind::Fixed),
+        ("floating", JointKind::Floating),
+        ("planar", JointKind::Planar),
+        ("spherical", JointKind::Spherical),
+    ];
+
+    /// The type's name as URDF spells it.
+    pub fn name(self) -> &'static str {
+        Self::ALL
+            .iter()
+            .find(|(_, k)| *k == self)
+            .map_or("?", |(name, _)| name)
+    }
+}
+
+/// A `<joint>`.
+#[derive(Debug, Clone)]
+pub(super) struct Joint {
+    pub name: String,
+    pub kind: JointKind,
+    pub parent: String,
+    pub child: String,
+    pub origin: Pose,
+    /// The `<axis xyz>`, default `1 0 0` (as URDF specifies).
+    pub axis: [f64; 3],
+}
+
 /// Parses the XML text of a URDF; `source` names it in messages.
-pub(super) fn parse(xml: &str, source: &str) -> Result<urdf_rs::Robot> {
+pub(super) fn parse(xml: &str, source: &str) -> Result<Urdf> {
     let malformed = |message: String| Error::Malformed {
         source_name: source.to_string(),
         format: "URDF",
@@ -30,99 +108,376 @@ pub(super) fn parse(xml: &str, source: &str) -> Result<urdf_rs::Robot> {
             "the text is empty; expected a <robot> element with links and joints".into(),
         ));
     }
-    scan(xml).map_err(malformed)?;
-    urdf_rs::read_from_string(xml).map_err(|e| malformed(e.to_string()))
-}
-
-/// One streaming pass over the XML: well-formed, within [`MAX_DEPTH`], [`MAX_ELEMENTS`] and the
-/// size limit.
-fn scan(xml: &str) -> std::result::Result<(), String> {
     let limit = crate::io::MAX_FILE_BYTES;
     if xml.len() as u64 > limit {
-        return Err(format!(
+        return Err(malformed(format!(
             "the text has {} bytes, more than the {limit} read",
             xml.len()
-        ));
+        )));
     }
-    let mut reader = quick_xml::Reader::from_str(xml);
-    let (mut depth, mut elements) = (0usize, 0usize);
-    loop {
-        let event = reader.read_event().map_err(|e| {
-            format!(
-                "line {}: {e}",
-                line_of(xml, reader.error_position() as usize)
-            )
-        })?;
-        match event {
-            Event::Start(_) | Event::Empty(_) => {
-                elements += 1;
-                let opens = matches!(event, Event::Start(_));
-                if depth + 1 > MAX_DEPTH {
-                    return Err(format!(
-                        "line {}: elements nested {} deep, deeper than the {MAX_DEPTH} accepted",
-                        line_of(xml, reader.buffer_position() as usize),
-                        depth + 1
-                    ));
-                }
-                if elements > MAX_ELEMENTS {
-                    return Err(format!(
-                        "more than {MAX_ELEMENTS} elements (line {})",
-                        line_of(xml, reader.buffer_position() as usize)
-                    ));
-                }
-                depth += usize::from(opens);
-            }
-            Event::End(_) => depth = depth.saturating_sub(1),
-            Event::Eof => break,
-            _ => {}
-        }
-    }
-    Ok(())
+    Reader::new(xml).read().map_err(malformed)
 }
 
-/// The 1-based line of byte `offset`.
-fn line_of(text: &str, offset: usize) -> usize {
-    let offset = offset.min(text.len());
-    1 + text.as_bytes()[..offset]
-        .iter()
-        .filter(|&&b| b == b'\n')
-        .count()
+/// What is being read: the open elements that matter, innermost last.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Scope {
+    Robot,
+    Link,
+    Inertial,
+    Joint,
+    /// Any element the reader skips, with everything inside it.
+    Other,
+}
+
+struct Reader<'a> {
+    xml: &'a str,
+    reader: quick_xml::Reader<&'a [u8]>,
+    /// `(offset, line)` of the last line number asked for: lines are counted onwards from it,
+    /// so numbering every element costs O(size) in all.
+    counted: std::cell::Cell<(usize, usize)>,
+    scopes: Vec<Scope>,
+    robot: Option<Urdf>,
+    link: Option<Link>,
+    joint: Option<PartialJoint>,
+}
+
+/// A joint being read: its parent and child may not have come yet.
+struct PartialJoint {
+    name: String,
+    kind: JointKind,
+    parent: Option<String>,
+    child: Option<String>,
+    origin: Pose,
+    axis: [f64; 3],
+    line: usize,
+}
+
+type Message = String;
+
+impl<'a> Reader<'a> {
+    fn new(xml: &'a str) -> Self {
+        Self {
+            xml,
+            reader: quick_xml::Reader::from_str(xml),
+            counted: std::cell::Cell::new((0, 1)),
+            scopes: Vec::new(),
+            robot: None,
+            link: None,
+            joint: None,
+        }
+    }
+
+    /// The 1-based line of byte `offset`.
+    fn line_at(&self, offset: u64) -> usize {
+        let offset = (offset as usize).min(self.xml.len());
+        let (from, line) = match self.counted.get() {
+            (at, line) if at <= offset => (at, line),
+            _ => (0, 1),
+        };
+        let line = line
+            + self.xml.as_bytes()[from..offset]
+                .iter()
+                .filter(|&&b| b == b'\n')
+                .count();
+        self.counted.set((offset, line));
+        line
+    }
+
+    fn line(&self) -> usize {
+        self.line_at(self.reader.buffer_position())
+    }
+
+    fn read(mut self) -> std::result::Result<Urdf, Message> {
+        let mut elements = 0usize;
+        loop {
+            let event = self
+                .reader
+                .read_event()
+                .map_err(|e| format!("line {}: {e}", self.line_at(self.reader.error_position())))?;
+            match event {
+                Event::Start(ref e) | Event::Empty(ref e) => {
+                    elements += 1;
+                    if elements > MAX_ELEMENTS {
+                        return Err(format!(
+                            "more than {MAX_ELEMENTS} elements (line {})",
+                            self.line()
+                        ));
+                    }
+                    if self.scopes.len() + 1 > MAX_DEPTH {
+                        return Err(format!(
+                            "line {}: elements nested {} deep, deeper than the {MAX_DEPTH} \
+                             accepted",
+                            self.line(),
+                            self.scopes.len() + 1
+                        ));
+                    }
+                    let scope = self.open(e)?;
+                    if matches!(event, Event::Start(_)) {
+                        self.scopes.push(scope);
+                    } else {
+                        self.close(scope)?;
+                    }
+                }
+                Event::End(_) => {
+                    let scope = self.scopes.pop().unwrap_or(Scope::Other);
+                    self.close(scope)?;
+                }
+                Event::Eof => break,
+                _ => {}
+            }
+        }
+        if !self.scopes.is_empty() {
+            return Err(format!(
+                "line {}: {} element(s) not closed at the end of the text",
+                self.line(),
+                self.scopes.len()
+            ));
+        }
+        self.robot
+            .ok_or_else(|| "no <robot> element; a URDF's root is <robot name=\"…\">".into())
+    }
+
+    /// Reads an opening tag in the current scope; returns the scope it opens.
+    fn open(&mut self, e: &BytesStart) -> std::result::Result<Scope, Message> {
+        let name = e.local_name();
+        let name = name.as_ref();
+        let line = self.line();
+        let parent = self.scopes.last().copied();
+        Ok(match (parent, name) {
+            (None, b"robot") => {
+                if self.robot.is_some() {
+                    return Err(format!("line {line}: a second <robot> element"));
+                }
+                self.robot = Some(Urdf {
+                    name: self.attribute(e, "name")?.unwrap_or_default(),
+                    ..Urdf::default()
+                });
+                Scope::Robot
+            }
+            (None, other) => {
+                return Err(format!(
+                    "line {line}: the root element is <{}>; expected <robot>",
+                    String::from_utf8_lossy(other)
+                ))
+            }
+            (Some(Scope::Robot), b"link") => {
+                self.link = Some(Link {
+                    name: self.required(e, "link", "name")?,
+                    inertial: Inertial::default(),
+                });
+                Scope::Link
+            }
+            (Some(Scope::Link), b"inertial") => Scope::Inertial,
+            (Some(Scope::Inertial), b"origin") => {
+                let pose = self.pose(e)?;
+                self.inertial()?.origin = pose;
+                Scope::Other
+            }
+            (Some(Scope::Inertial), b"mass") => {
+                let mass = self.number(e, "mass", "value")?;
+                self.inertial()?.mass = mass;
+                Scope::Other
+            }
+            (Some(Scope::Inertial), b"inertia") => {
+                let mut values = [0.0; 6];
+                for (value, key) in values
+                    .iter_mut()
+                    .zip(["ixx", "ixy", "ixz", "iyy", "iyz", "izz"])
+                {
+                    *value = self.number(e, "inertia", key)?;
+                }
+                self.inertial()?.inertia = values;
+                Scope::Other
+            }
+            (Some(Scope::Robot), b"joint") => {
+                let name = self.required(e, "joint", "name")?;
+                let kind = self.required(e, "joint", "type")?;
+                let kind = JointKind::ALL
+                    .iter()
+                    .find(|(spelled, _)| *spelled == kind)
+                    .map(|(_, k)| *k)
+                    .ok_or_else(|| {
+                        format!(
+                            "line {line}: joint '{name}' has the unknown type '{kind}'; URDF's \
+                             types are revolute, continuous, prismatic, fixed, floating, planar \
+                             and spherical"
+                        )
+                    })?;
+                self.joint = Some(PartialJoint {
+                    name,
+                    kind,
+                    parent: None,
+                    child: None,
+                    origin: Pose::default(),
+                    axis: [1.0, 0.0, 0.0],
+                    line,
+                });
+                Scope::Joint
+            }
+            (Some(Scope::Joint), b"parent" | b"child") => {
+                let tag = if name == b"parent" { "parent" } else { "child" };
+                let link = self.required(e, tag, "link")?;
+                let joint = self.joint.as_mut().expect("inside a joint");
+                if tag == "parent" {
+                    joint.parent = Some(link);
+                } else {
+                    joint.child = Some(link);
+                }
+                Scope::Other
+            }
+            (Some(Scope::Joint), b"origin") => {
+                let pose = self.pose(e)?;
+                self.joint.as_mut().expect("inside a joint").origin = pose;
+                Scope::Other
+            }
+            (Some(Scope::Joint), b"axis") => {
+                let axis = self.triple(e, "axis", "xyz")?.unwrap_or([1.0, 0.0, 0.0]);
+                self.joint.as_mut().expect("inside a joint").axis = axis;
+                Scope::Other
+            }
+            _ => Scope::Other,
+        })
+    }
+
+    /// Finishes the element that closes.
+    fn close(&mut self, scope: Scope) -> std::result::Result<(), Message> {
+        match scope {
+            Scope::Link => {
+                let link = self.link.take().expect("a link is open");
+                self.robot
+                    .as_mut()
+                    .expect("inside the robot")
+                    .links
+                    .push(link);
+            }
+            Scope::Joint => {
+                let j = self.joint.take().expect("a joint is open");
+                let missing = |what: &str| {
+                    format!(
+                        "line {}: joint '{}' has no <{what} link=\"…\"/>",
+                        j.line, j.name
+                    )
+                };
+                let joint = Joint {
+                    parent: j.parent.clone().ok_or_else(|| missing("parent"))?,
+                    child: j.child.clone().ok_or_else(|| missing("child"))?,
+                    name: j.name,
+                    kind: j.kind,
+                    origin: j.origin,
+                    axis: j.axis,
+                };
+                self.robot
+                    .as_mut()
+                    .expect("inside the robot")
+                    .joints
+                    .push(joint);
+            }
+            _ => {}
+        }
+        Ok(())
+    }
+
+    fn inertial(&mut self) -> std::result::Result<&mut Inertial, Message> {
+        Ok(&mut self.link.as_mut().expect("inside a link").inertial)
+    }
+
+    /// The value of attribute `key`, unescaped, if it is there.
+    fn attribute(&self, e: &BytesStart, key: &str) -> std::result::Result<Option<String>, Message> {
+        let line = self.line();
+        for attribute in e.attributes() {
+            let attribute = attribute.map_err(|err| format!("line {line}: {err}"))?;
+            if attribute.key.local_name().as_ref() == key.as_bytes() {
+                let value = attribute
+                    .unescape_value()
+                    .map_err(|err| format!("line {line}: attribute {key}: {err}"))?;
+                return Ok(Some(value.into_owned()));
+            }
+        }
+        Ok(None)
+    }
+
+    fn required(
+        &self,
+        e: &BytesStart,
+        element: &str,
+        key: &str,
+    ) -> std::result::Result<String, Message> {
+        self.attribute(e, key)?.ok_or_else(|| {
+            format!(
+                "line {}: <{element}> has no {key}=\"…\" attribute",
+                self.line()
+            )
+        })
+    }
+
+    /// A number attribute (required).
+    fn number(
+        &self,
+        e: &BytesStart,
+        element: &str,
+        key: &str,
+    ) -> std::result::Result<f64, Message> {
+        let text = self.required(e, element, key)?;
+        text.trim().parse().map_err(|_| {
+            format!(
+                "line {}: <{element} {key}=\"{text}\">: expected a number",
+                self.line()
+            )
+        })
+    }
+
+    /// An attribute of three numbers, if it is there.
+    fn triple(
+        &self,
+        e: &BytesStart,
+        element: &str,
+        key: &str,
+    ) -> std::result::Result<Option<[f64; 3]>, Message> {
+        let Some(text) = self.attribute(e, key)? else {
+            return Ok(None);
+        };
+        let wrong = || {
+            format!(
+                "line {}: <{element} {key}=\"{text}\">: expected three numbers",
+                self.line()
+            )
+        };
+        let values: Vec<f64> = text
+            .split_whitespace()
+            .map(|v| v.parse().map_err(|_| wrong()))
+            .collect::<std::result::Result<_, _>>()?;
+        let values: [f64; 3] = values.try_into().map_err(|_| wrong())?;
+        Ok(Some(values))
+    }
+
+    fn pose(&self, e: &BytesStart) -> std::result::Result<Pose, Message> {
+        Ok(Pose {
+            xyz: self.triple(e, "origin", "xyz")?.unwrap_or_default(),
+            rpy: self.triple(e, "origin", "rpy")?.unwrap_or_default(),
+        })
+    }
 }
 
 /// `Φ_{child,parent}` of a URDF `<origin xyz rpy>`.
-pub(super) fn pose_transform(pose: &urdf_rs::Pose) -> Transform {
-    Transform::from_xyz_rpy(pose.xyz.0, pose.rpy.0)
-}
-
-/// The joint type's name as URDF spells it.
-pub(super) fn joint_kind(kind: &urdf_rs::JointType) -> &'static str {
-    use urdf_rs::JointType;
-    match kind {
-        JointType::Revolute => "revolute",
-        JointType::Continuous => "continuous",
-        JointType::Prismatic => "prismatic",
-        JointType::Fixed => "fixed",
-        JointType::Floating => "floating",
-        JointType::Planar => "planar",
-        JointType::Spherical => "spherical",
-    }
+pub(super) fn pose_transform(pose: &Pose) -> Transform {
+    Transform::from_xyz_rpy(pose.xyz, pose.rpy)
 }
 
 /// A link's inertia in its own frame, from the URDF `<inertial>` (COM frame pose, mass, inertia
 /// about the COM in the COM frame's axes), validated.
-pub(super) fn link_inertia(link: &urdf_rs::Link, source: &str) -> Result<Inertia> {
+pub(super) fn link_inertia(link: &Link, source: &str) -> Result<Inertia> {
     let inertial = &link.inertial;
-    let i = &inertial.inertia;
+    let [ixx, ixy, ixz, iyy, iyz, izz] = inertial.inertia;
     let in_com_axes = Mat3::new(
-        i.ixx, i.ixy, i.ixz, //
-        i.ixy, i.iyy, i.iyz, //
-        i.ixz, i.iyz, i.izz,
+        ixx, ixy, ixz, //
+        ixy, iyy, iyz, //
+        ixz, iyz, izz,
     );
     // R_{com,link} = Eᵀ, so the inertia in link axes is E I Eᵀ.
     let com_frame = pose_transform(&inertial.origin);
     let e = com_frame.rotation.transpose();
     let about_com = e * in_com_axes * e.transpose();
-    let mass = inertial.mass.value;
+    let mass = inertial.mass;
     crate::model::builder::check_inertia(mass, &com_frame.translation, &about_com).map_err(
         |message| Error::InvalidInertia {
             source_name: source.to_string(),

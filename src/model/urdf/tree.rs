@@ -1,18 +1,18 @@
 //! Step 2: the URDF's links and joints as one checked kinematic tree.
 
+use super::parse::{Joint, JointKind, Urdf};
 use crate::error::{Error, Result};
 use std::collections::{HashMap, HashSet};
-use urdf_rs::JointType;
 
 /// The kinematic tree of a URDF: every link reached from the single root, at most one parent
 /// joint per link, and the locked joints known.
 pub(super) struct Tree<'a> {
-    pub urdf: &'a urdf_rs::Robot,
+    pub urdf: &'a Urdf,
     pub root: &'a str,
     /// The joint whose child is the link.
-    pub parent_joint: HashMap<&'a str, &'a urdf_rs::Joint>,
+    pub parent_joint: HashMap<&'a str, &'a Joint>,
     /// The joints whose parent is the link, in file order.
-    pub child_joints: HashMap<&'a str, Vec<&'a urdf_rs::Joint>>,
+    pub child_joints: HashMap<&'a str, Vec<&'a Joint>>,
     /// Joints held at zero and merged like fixed joints.
     pub locked: HashSet<&'a str>,
     /// Links below a locked joint.
@@ -22,11 +22,7 @@ pub(super) struct Tree<'a> {
 impl<'a> Tree<'a> {
     /// Builds and checks the tree: links and joints defined once, joints naming defined links,
     /// one parent per link, locked joints that exist, one root, every link reached from it.
-    pub fn new(
-        urdf: &'a urdf_rs::Robot,
-        locked_joints: &'a [String],
-        source: &str,
-    ) -> Result<Self> {
+    pub fn new(urdf: &'a Urdf, locked_joints: &'a [String], source: &str) -> Result<Self> {
         let invalid = |message: String| Error::InvalidModel {
             source_name: source.to_string(),
             message,
@@ -41,13 +37,13 @@ impl<'a> Tree<'a> {
             }
         }
         let mut parent_joint = HashMap::new();
-        let mut child_joints: HashMap<&str, Vec<&urdf_rs::Joint>> = HashMap::new();
+        let mut child_joints: HashMap<&str, Vec<&Joint>> = HashMap::new();
         let mut joint_names = HashSet::new();
         for joint in &urdf.joints {
             if !joint_names.insert(joint.name.as_str()) {
                 return Err(invalid(format!("joint '{}' is defined twice", joint.name)));
             }
-            for (role, name) in [("parent", &joint.parent.link), ("child", &joint.child.link)] {
+            for (role, name) in [("parent", &joint.parent), ("child", &joint.child)] {
                 if !links.contains(name.as_str()) {
                     return Err(invalid(format!(
                         "joint '{}': {role} link '{name}' is not defined",
@@ -55,17 +51,14 @@ impl<'a> Tree<'a> {
                     )));
                 }
             }
-            if parent_joint
-                .insert(joint.child.link.as_str(), joint)
-                .is_some()
-            {
+            if parent_joint.insert(joint.child.as_str(), joint).is_some() {
                 return Err(invalid(format!(
                     "link '{}' is the child of more than one joint; a URDF must be a tree",
-                    joint.child.link
+                    joint.child
                 )));
             }
             child_joints
-                .entry(joint.parent.link.as_str())
+                .entry(joint.parent.as_str())
                 .or_default()
                 .push(joint);
         }
@@ -116,7 +109,7 @@ impl<'a> Tree<'a> {
         let mut stack = vec![self.root];
         while let Some(link) = stack.pop() {
             for joint in self.children(link).to_vec() {
-                let child = joint.child.link.as_str();
+                let child = joint.child.as_str();
                 if reached.insert(child) {
                     if self.behind_lock.contains(link) || self.locked.contains(joint.name.as_str())
                     {
@@ -147,7 +140,7 @@ impl<'a> Tree<'a> {
     }
 
     /// The joints whose parent is `link`.
-    pub fn children(&self, link: &str) -> &[&'a urdf_rs::Joint] {
+    pub fn children(&self, link: &str) -> &[&'a Joint] {
         self.child_joints
             .get(link)
             .map(Vec::as_slice)
@@ -155,8 +148,8 @@ impl<'a> Tree<'a> {
     }
 
     /// True for a fixed joint or one named in `locked_joints`.
-    pub fn is_fixed(&self, joint: &urdf_rs::Joint) -> bool {
-        joint.joint_type == JointType::Fixed || self.locked.contains(joint.name.as_str())
+    pub fn is_fixed(&self, joint: &Joint) -> bool {
+        joint.kind == JointKind::Fixed || self.locked.contains(joint.name.as_str())
     }
 
     /// Leaf links: links that are no joint's parent, in file order.
