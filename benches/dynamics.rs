@@ -172,6 +172,69 @@ fn inverse_dynamics(c: &mut Criterion) {
     group.finish();
 }
 
+/// The analytical derivatives of the forward and inverse dynamics (O(n²)).
+fn derivatives(c: &mut Criterion) {
+    let mut group = c.benchmark_group("derivatives");
+    for n in SIZES {
+        let s = case(n);
+        let loads = Loads::from_slices(Some(&s.fb), Some(&s.f)).unwrap();
+        let mut data = Data::new(&s.robot);
+        let state = RigidState::new(&s.q, &s.v, &s.qd);
+        group.sample_size(if n >= 56 { 20 } else { 100 });
+        group.bench_with_input(BenchmarkId::new("aba_derivatives", n), &n, |b, _| {
+            b.iter(|| {
+                algorithms::aba_derivatives(&s.robot, &mut data, black_box(&state), &s.tau, &loads)
+                    .unwrap()
+                    .fd_q[(0, 0)]
+            })
+        });
+        group.bench_with_input(BenchmarkId::new("rnea_derivatives", n), &n, |b, _| {
+            b.iter(|| {
+                algorithms::rnea_derivatives(
+                    &s.robot,
+                    &mut data,
+                    black_box(&state),
+                    &s.fb,
+                    &s.tau,
+                    &s.f,
+                )
+                .unwrap()
+                .id_q[(0, 0)]
+            })
+        });
+    }
+    group.finish();
+}
+
+/// The Jacobians of one flexible RK4 step, against one step.
+fn step_jacobians(c: &mut Criterion) {
+    let mut group = c.benchmark_group("step_jacobians");
+    for n in SIZES {
+        let s = case(n);
+        let arm = flexible_arm(s.robot);
+        let x0 = arm
+            .state(&StateSpec {
+                q: Some(&s.q),
+                qd: Some(&s.qd),
+                base_twist: Some(&s.v),
+                ..StateSpec::default()
+            })
+            .unwrap();
+        let dt = stable_dt(&arm, &s.q);
+        let mut ws = ArmWorkspace::new(&arm);
+        let u = vec![0.3; n];
+        group.sample_size(if n >= 56 { 10 } else { 50 });
+        group.bench_with_input(BenchmarkId::from_parameter(n), &n, |b, _| {
+            b.iter(|| {
+                arm.step_jacobians(&mut ws, black_box(&x0), dt, &Inputs::torques(&u))
+                    .unwrap()
+                    .x[(0, 0)]
+            })
+        });
+    }
+    group.finish();
+}
+
 /// A flexible arm on `robot` whose stiffest joint mode is well inside the RK4 stability limit
 /// at `dt`: stiffness 2·10³ N·m/rad, motor inertia 0.5 kg·m², light damping.
 fn flexible_arm(robot: Robot) -> FlexibleArm {
@@ -360,6 +423,8 @@ criterion_group!(
     bias_forces,
     inverse_dynamics,
     rk4_step,
+    derivatives,
+    step_jacobians,
     simulate,
     space_arm
 );

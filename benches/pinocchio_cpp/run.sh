@@ -76,7 +76,7 @@ for round in $(seq 1 "$rounds"); do
       if [ "$side" = cpp ]; then
         "$cpp" "$@" | sed "s/^/$round $model $side /" >>"$log"
       else
-        "$rust" "$@" --only aba,rnea,crba,rk4_step | sed "s/^/$round $model $side /" >>"$log"
+        "$rust" "$@" --only aba,rnea,crba,rk4_step,aba_derivatives,rnea_derivatives,step_jacobians | sed "s/^/$round $model $side /" >>"$log"
       fi
     done
   done
@@ -124,7 +124,9 @@ pairs = [("aba", "aba_local", "forward dynamics: `aba` vs `aba` (LOCAL)"),
          ("aba", "aba_world", "forward dynamics: `aba` vs `aba` (WORLD)"),
          ("rnea", "rnea", "inverse dynamics: `rnea` vs `rnea`"),
          ("crba", "crba_local", "mass matrix: `crba` vs `crba` (LOCAL)"),
-         ("rk4_step", "rk4_step", "one flexible-joint RK4 step (4 × aba)")]
+         ("rk4_step", "rk4_step", "one flexible-joint RK4 step (4 × aba)"),
+         ("aba_derivatives", "aba_derivatives", "forward-dynamics derivatives vs `computeABADerivatives`"),
+         ("rnea_derivatives", "rnea_derivatives", "inverse-dynamics derivatives vs `computeRNEADerivatives`")]
 for model in ("panda", "space_arm"):
     for ours, theirs, label in pairs:
         a, b = med.get((model, "rust", ours)), med.get((model, "cpp", theirs))
@@ -136,5 +138,12 @@ for model in ("panda", "space_arm"):
     if (model, "rust", "rk4_step") in times and (model, "cpp", "rk4_step") in times:
         print(f"\n{model}: RK4 step / forward dynamics = {per_round('rust', 'aba'):.2f} for orbitflex, "
               f"{per_round('cpp', 'aba_local'):.2f} for Pinocchio", end="")
+print()
+for model in ("panda", "space_arm"):
+    jac, step = times.get((model, "rust", "step_jacobians")), times.get((model, "rust", "rk4_step"))
+    cd = times.get((model, "rust", "step_jacobians_central_differences"))
+    if jac and step and cd:
+        print(f"\n{model}: step_jacobians / RK4 step = {statistics.median(j / s for j, s in zip(jac, step)):.1f}; "
+              f"central differences / step_jacobians = {statistics.median(c / j for c, j in zip(cd, jac)):.1f}", end="")
 print()
 EOF
