@@ -1,4 +1,4 @@
-//! Criterion benchmarks of the rigid and flexible dynamics (issue 4, BENCHMARKS.md).
+//! Criterion benchmarks of the rigid and flexible dynamics (BENCHMARKS.md).
 //!
 //! Random floating-base chains (`orbitflex::testing::random_chain`) with n ∈ {7, 14, 28, 56, 112};
 //! every model, workspace and input is seeded and built outside `b.iter`. Groups:
@@ -7,7 +7,9 @@
 //! - `inverse_dynamics`: recursive Newton–Euler;
 //! - `rk4_step`: one `FlexibleArm::step` (four derivatives) with an `ArmWorkspace`;
 //! - `simulate_1e4`: `FlexibleArm::simulate` of 10⁴ steps under `MotorPD`, trajectory included;
-//! - `space_arm`: the built-in model, the figures the Python comparison refers to.
+//! - `space_arm`: the built-in model, the figures the Python comparison refers to;
+//! - `plan_slew`: planning the built-in arm's 7-joint slew (held and free base) and its
+//!   flexible-joint inverse dynamics at one instant.
 //!
 //! `cargo bench --bench dynamics` runs everything; `cargo bench --bench dynamics -- forward`
 //! selects groups by name.
@@ -416,6 +418,52 @@ fn space_arm(c: &mut Criterion) {
     group.finish();
 }
 
+/// Planning a 7-joint point-to-point slew (target: under 0.2 s on one core), and the jet inverse
+/// dynamics it runs once per sample.
+fn plan_slew(c: &mut Criterion) {
+    use orbitflex::planning::{self, BaseMode, Limits, LinkMotion};
+    let arm = FlexibleArm::new(Robot::space_arm(), FlexibleJoints::space_arm()).unwrap();
+    let goal = [0.8, -0.6, 0.5, 1.0, -0.7, 0.6, 0.9];
+    let limits = Limits::new(
+        vec![60.0, 60.0, 60.0, 30.0, 15.0, 15.0, 15.0],
+        vec![0.5],
+        Some(80.0),
+        Some(60.0),
+    )
+    .unwrap();
+    let mut group = c.benchmark_group("plan_slew");
+    group.sample_size(10);
+    for base in [BaseMode::Held, BaseMode::Free] {
+        group.bench_function(base.name(), |b| {
+            b.iter(|| {
+                planning::plan_slew(&arm, black_box(&goal), None, &limits, base, &[])
+                    .unwrap()
+                    .duration()
+            })
+        });
+    }
+    let m: [Vec<f64>; 5] = std::array::from_fn(|k| vec![0.3 / (1.0 + k as f64); 7]);
+    let motion = LinkMotion {
+        q: &m[0],
+        qd: &m[1],
+        qdd: &m[2],
+        qddd: &m[3],
+        qdddd: &m[4],
+    };
+    let deflection = [0.0; 7];
+    group.sample_size(50);
+    for base in [BaseMode::Held, BaseMode::Free] {
+        group.bench_function(format!("inverse_dynamics_{}", base.name()), |b| {
+            b.iter(|| {
+                arm.inverse_dynamics(black_box(&motion), base, Some(&deflection))
+                    .unwrap()
+                    .u[0]
+            })
+        });
+    }
+    group.finish();
+}
+
 criterion_group!(
     benches,
     forward_dynamics,
@@ -426,6 +474,7 @@ criterion_group!(
     derivatives,
     step_jacobians,
     simulate,
-    space_arm
+    space_arm,
+    plan_slew
 );
 criterion_main!(benches);

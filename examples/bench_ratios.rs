@@ -1,4 +1,4 @@
-//! The ratio targets of issue 4, measured interleaved so that a shared machine's changing load
+//! The ratio targets in BENCHMARKS.md, measured interleaved so that a shared machine's changing load
 //! cancels out (criterion runs its benchmarks one after another, so its ratios do not):
 //! forward dynamics at n against n = 7, and one RK4 step against one forward dynamics.
 //!

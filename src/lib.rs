@@ -17,6 +17,7 @@ pub mod io;
 pub mod linalg;
 pub mod model;
 pub mod operators;
+pub mod planning;
 pub mod spatial;
 #[doc(hidden)]
 pub mod testing;
@@ -29,6 +30,7 @@ pub use flex::{ArmWorkspace, FlexibleArm, FlexibleJoints, Inputs, StateLayout, S
 pub use integrate::{Controller, MotorPD, Schedule, SimulationFailure, Trajectory, Wrenches};
 pub use model::{JointModel, Robot, RobotBuilder, UrdfOptions, SPACE_ARM_URDF};
 pub use operators::Operators;
+pub use planning::{plan_slew, BaseMode, FlexibleInverse, Limits, LinkMotion, Plan};
 
 #[cfg(feature = "python")]
 mod python;

@@ -1,4 +1,4 @@
-"""Hostile and careless input (issue 8): every defect found by the attack has a test named after
+"""Hostile and careless input: every defect found by the attack has a test named after
 it. Inputs that could crash or hang the interpreter run in a subprocess with a time limit, so a
 regression fails the test instead of killing the suite."""
 

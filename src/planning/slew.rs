@@ -1,0 +1,998 @@
+//! Minimum-time rest-to-rest slews under motor-torque, joint-speed and base-actuation limits
+//! (docs/model.md §8.2), and their per-step tables for [`crate::integrate::simulate`].
+//!
+//! The path shape is fixed and time-scaled, as in the paper: between consecutive stops (start,
+//! waypoints, goal) `q(t) = q_a + (q_b − q_a) σ(t/T)` with the degree-9 polynomial
+//! `σ(s) = 126 s⁵ − 420 s⁶ + 540 s⁷ − 315 s⁸ + 70 s⁹`, whose derivatives 1–4 vanish at both
+//! ends: the arm starts and stops at rest, and `u`, which depends on `q⁗`, starts and ends at zero
+//! rate. The planner finds, per segment, the shortest `T` for which every limit holds.
+//!
+//! Time scaling makes this cheap. With `w = 1/T`, in zero gravity the rigid dynamics scale
+//! exactly: `τ(t) = τ₁(s) w²`, `τ̇ = τ₁'(s) w³`, `τ̈ = τ₁''(s) w⁴`, `V_B = V₁(s) w`,
+//! `f_B = f₁(s) w²`, where `τ₁`, `V₁`, `f₁` are the inverse dynamics of the unit-duration path
+//! with their `s`-derivatives. So the jet recursion runs once per sample; every trial duration
+//! only rescales, integrates the deflection (when the joints are damped) and compares with the
+//! limits. The shortest duration is bracketed and bisected to 1e-10 relative. Samples: 512
+//! intervals per segment, plus, after each solve, the vertex of a parabola through every local
+//! peak within 2% of its limit (then solved again), so a peak between samples is not missed.
+
+use super::deflection;
+use super::flatness::{classical, rigid_jets, BaseMode, JetScratch, RigidJets};
+use crate::args::{check_dt, check_vector};
+use crate::error::{Error, Result};
+use crate::flex::state::{normalise_quaternion, quaternion_product};
+use crate::flex::FlexibleArm;
+use crate::spatial::{quaternion_to_rotation, Motion, Vec3};
+
+/// Sample intervals per segment (a power of two, so `s = 1/2`, where the speed peaks, is one).
+const INTERVALS: usize = 512;
+/// Relative width of the final duration bracket.
+const BISECTION_TOLERANCE: f64 = 1e-10;
+/// Peaks within this fraction of their limit are refined between samples.
+const REFINE_ABOVE: f64 = 0.98;
+/// Doubling steps before a request is declared unreachable.
+const MAX_DOUBLINGS: usize = 60;
+
+/// `σ(s)` coefficients, lowest power first.
+const SIGMA: [f64; 10] = [0.0, 0.0, 0.0, 0.0, 0.0, 126.0, -420.0, 540.0, -315.0, 70.0];
+
+/// `σ(s)` and its first four derivatives.
+pub fn sigma(s: f64) -> [f64; 5] {
+    std::array::from_fn(|k| {
+        (k..SIGMA.len()).rev().fold(0.0, |acc, i| {
+            let falling: f64 = (0..k).map(|j| (i - j) as f64).product();
+            acc * s + SIGMA[i] * falling
+        })
+    })
+}
+
+/// Bounds for a slew. Motor torque and joint speed are per joint (n values); the base limits
+/// bound the Euclidean norms of the force and the moment the base actuators apply (held base
+/// only; `None` means unbounded, and they do not apply to a free-floating base).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Limits {
+    /// `u_max,i` > 0: `|u_i| ≤ u_max,i` (N·m, link side).
+    pub motor_torque: Vec<f64>,
+    /// `q̇_max,i` > 0: `|q̇_i| ≤ q̇_max,i` (rad/s).
+    pub joint_speed: Vec<f64>,
+    /// `|F_B| ≤` this (N).
+    pub base_force: Option<f64>,
+    /// `|n_B| ≤` this (N·m, about the base origin).
+    pub base_torque: Option<f64>,
+}
+
+fn check_positive(what: &str, values: &[f64]) -> Result<()> {
+    for (i, &v) in values.iter().enumerate() {
+        if !(v.is_finite() && v > 0.0) {
+            return Err(Error::InvalidArgument {
+                what: if values.len() == 1 {
+                    what.to_string()
+                } else {
+                    format!("{what}[{i}]")
+                },
+                message: format!("expected a finite limit > 0, given {v}"),
+            });
+        }
+    }
+    Ok(())
+}
+
+impl Limits {
+    /// Validated limits: every value finite and `> 0`. `motor_torque` and `joint_speed` have one
+    /// value per joint, or a single value for all joints.
+    pub fn new(
+        motor_torque: Vec<f64>,
+        joint_speed: Vec<f64>,
+        base_force: Option<f64>,
+        base_torque: Option<f64>,
+    ) -> Result<Self> {
+        for (what, v) in [
+            ("motor_torque", &motor_torque),
+            ("joint_speed", &joint_speed),
+        ] {
+            if v.is_empty() {
+                return Err(Error::Dimension {
+                    what: what.into(),
+                    expected: "one value per joint, or one for all".into(),
+                    given: "no values".into(),
+                });
+            }
+            check_positive(what, v)?;
+        }
+        if let Some(f) = base_force {
+            check_positive("base_force", &[f])?;
+        }
+        if let Some(t) = base_torque {
+            check_positive("base_torque", &[t])?;
+        }
+        Ok(Self {
+            motor_torque,
+            joint_speed,
+            base_force,
+            base_torque,
+        })
+    }
+
+    /// The same motor-torque and joint-speed bound on all joints, no base limit.
+    pub fn uniform(motor_torque: f64, joint_speed: f64) -> Result<Self> {
+        Self::new(vec![motor_torque], vec![joint_speed], None, None)
+    }
+
+    /// These limits for `n` joints: single values repeated, others checked for length `n`.
+    pub fn for_joints(&self, n: usize) -> Result<Limits> {
+        let expand = |what: &str, v: &Vec<f64>| match v.len() {
+            1 => Ok(vec![v[0]; n]),
+            len if len == n => Ok(v.clone()),
+            len => Err(Error::Dimension {
+                what: format!("limits.{what}"),
+                expected: format!("{n} values (one per joint) or 1 (for all)"),
+                given: format!("{len} values"),
+            }),
+        };
+        Ok(Limits {
+            motor_torque: expand("motor_torque", &self.motor_torque)?,
+            joint_speed: expand("joint_speed", &self.joint_speed)?,
+            ..self.clone()
+        })
+    }
+}
+
+/// Which limit.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Constraint {
+    /// `|u_i| ≤ u_max,i`.
+    MotorTorque,
+    /// `|q̇_i| ≤ q̇_max,i`.
+    JointSpeed,
+    /// `|F_B| ≤ base_force`.
+    BaseForce,
+    /// `|n_B| ≤ base_torque`.
+    BaseTorque,
+}
+
+impl Constraint {
+    /// `"motor_torque"`, `"joint_speed"`, `"base_force"` or `"base_torque"`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Constraint::MotorTorque => "motor_torque",
+            Constraint::JointSpeed => "joint_speed",
+            Constraint::BaseForce => "base_force",
+            Constraint::BaseTorque => "base_torque",
+        }
+    }
+}
+
+/// The limit that sets a segment's duration: the largest ratio of a quantity to its bound.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Binding {
+    /// Which limit.
+    pub constraint: Constraint,
+    /// The joint (0-based) for per-joint limits.
+    pub joint: Option<usize>,
+    /// The segment (0-based; one per waypoint, plus one).
+    pub segment: usize,
+    /// When it peaks (s from the start of the plan).
+    pub time: f64,
+    /// The peak value (N·m, rad/s, N or N·m; for torques and speeds the magnitude).
+    pub value: f64,
+    /// The bound.
+    pub limit: f64,
+}
+
+/// One rest-to-rest piece of a plan.
+#[derive(Debug, Clone)]
+struct Segment {
+    start: Vec<f64>,
+    delta: Vec<f64>,
+    /// Start time in the plan (s) and duration (s).
+    t0: f64,
+    duration: f64,
+    /// Sorted samples of `s ∈ [0, 1]` with the unit-duration inverse dynamics at each.
+    s: Vec<f64>,
+    jets: Vec<RigidJets>,
+    /// `δ` at each sample for the solved duration (n per sample; zero for a rigid plan).
+    deflection: Vec<f64>,
+    /// `δ` at `s = 0`.
+    deflection0: Vec<f64>,
+    binding: Binding,
+}
+
+/// Everything at one instant of a plan ([`Plan::evaluate`]): link-side joint quantities (n
+/// each) and base quantities in the base frame, `[angular; linear]`.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct PlanPoint {
+    /// Time (s).
+    pub t: f64,
+    /// `q` (rad).
+    pub q: Vec<f64>,
+    /// `q̇` (rad/s).
+    pub qd: Vec<f64>,
+    /// `q̈` (rad/s²).
+    pub qdd: Vec<f64>,
+    /// `θ` (rad).
+    pub theta: Vec<f64>,
+    /// `θ̇` (rad/s).
+    pub theta_dot: Vec<f64>,
+    /// `θ̈` (rad/s²).
+    pub theta_ddot: Vec<f64>,
+    /// `u` (N·m).
+    pub u: Vec<f64>,
+    /// `τ` (N·m).
+    pub tau: Vec<f64>,
+    /// `V_B` (rad/s, m/s; zero unless free).
+    pub base_twist: [f64; 6],
+    /// The classical `α_B` (rad/s², m/s²; zero unless free).
+    pub base_acc: [f64; 6],
+    /// `f_B` (N·m, N; zero unless held).
+    pub base_wrench: [f64; 6],
+}
+
+/// Everything at one instant of a plan, link side.
+#[derive(Debug, Clone, Default)]
+struct Point {
+    q: Vec<f64>,
+    qd: Vec<f64>,
+    qdd: Vec<f64>,
+    theta: Vec<f64>,
+    theta_dot: Vec<f64>,
+    theta_ddot: Vec<f64>,
+    u: Vec<f64>,
+    tau: Vec<f64>,
+    /// Scaled `[τ, τ̇, τ̈]` per joint, for the deflection integration.
+    tau_jet: Vec<[f64; 3]>,
+    deflection: Vec<f64>,
+    base_twist: [f64; 6],
+    base_acc: [f64; 6],
+    base_wrench: [f64; 6],
+}
+
+impl Point {
+    fn new(n: usize) -> Self {
+        Self {
+            q: vec![0.0; n],
+            qd: vec![0.0; n],
+            qdd: vec![0.0; n],
+            theta: vec![0.0; n],
+            theta_dot: vec![0.0; n],
+            theta_ddot: vec![0.0; n],
+            u: vec![0.0; n],
+            tau: vec![0.0; n],
+            tau_jet: vec![[0.0; 3]; n],
+            deflection: vec![0.0; n],
+            ..Self::default()
+        }
+    }
+}
+
+/// A planned slew: its samples, its duration and what limits it. Made by [`plan_slew`].
+#[derive(Debug, Clone)]
+pub struct Plan {
+    arm: FlexibleArm,
+    base: BaseMode,
+    rigid: bool,
+    limits: Limits,
+    stops: Vec<Vec<f64>>,
+    base_pose0: [f64; 7],
+    segments: Vec<Segment>,
+}
+
+/// Per-step tables for [`crate::integrate::simulate`] from a plan ([`Plan::reference`]); each
+/// is `steps × width`, row-major, row `k` for step `k` (time `k dt` to `(k+1) dt`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Reference {
+    /// The step (s).
+    pub dt: f64,
+    /// Number of steps.
+    pub steps: usize,
+    /// Feedforward motor torque: the plan's `u` averaged over the step (Simpson's rule), n wide.
+    pub u: Vec<f64>,
+    /// `θ` at the start of each step (n wide).
+    pub theta_ref: Vec<f64>,
+    /// `θ̇` at the start of each step (n wide).
+    pub theta_dot_ref: Vec<f64>,
+    /// The base wrench averaged over the step (6 wide; zero unless held).
+    pub base_wrench: Vec<f64>,
+    /// The planned link angles at the start of each step (n wide), to measure tracking.
+    pub q: Vec<f64>,
+    /// The planned base pose `[r_B; quat_B]` at the start of each step (7 wide).
+    pub base_pose: Vec<f64>,
+}
+
+/// The arrays of a plan at its samples ([`Plan::samples`]); row-major, one row per sample.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Samples {
+    /// Times (s), increasing; denser near the peaks that bind.
+    pub t: Vec<f64>,
+    /// `q` (n wide, rad).
+    pub q: Vec<f64>,
+    /// `q̇` (rad/s).
+    pub qd: Vec<f64>,
+    /// `q̈` (rad/s²).
+    pub qdd: Vec<f64>,
+    /// `θ` (rad).
+    pub theta: Vec<f64>,
+    /// `θ̇` (rad/s).
+    pub theta_dot: Vec<f64>,
+    /// `u` (N·m).
+    pub u: Vec<f64>,
+    /// `τ` (N·m).
+    pub tau: Vec<f64>,
+    /// `f_B = [moment; force]` (6 wide; zero unless held).
+    pub base_wrench: Vec<f64>,
+    /// `V_B = [ω_B; v_B]` (6 wide, base frame; zero unless free).
+    pub base_twist: Vec<f64>,
+    /// `[r_B; quat_B (x, y, z, w)]` (7 wide).
+    pub base_pose: Vec<f64>,
+}
+
+/// Plans the shortest rest-to-rest slew of the fixed path shape from `q_start` to `q_goal`
+/// through `waypoints` (stopping at each) under `limits` (module docs). The arm starts with
+/// relaxed springs (`θ = q`) and its base at `base_pose`'s pose (default: origin, identity).
+///
+/// Errors: wrong lengths, non-finite values, two consecutive stops that are equal, or limits no
+/// duration can meet.
+pub fn plan_slew(
+    arm: &FlexibleArm,
+    q_goal: &[f64],
+    q_start: Option<&[f64]>,
+    limits: &Limits,
+    base: BaseMode,
+    waypoints: &[Vec<f64>],
+) -> Result<Plan> {
+    let n = arm.dof();
+    let limits = limits.for_joints(n)?;
+    let zeros = vec![0.0; n];
+    let start = q_start.unwrap_or(&zeros);
+    check_vector("q_start", start, n)?;
+    check_vector("q_goal", q_goal, n)?;
+    let mut stops = vec![start.to_vec()];
+    for (i, w) in waypoints.iter().enumerate() {
+        check_vector(&format!("waypoints[{i}]"), w, n)?;
+        stops.push(w.clone());
+    }
+    stops.push(q_goal.to_vec());
+    for k in 1..stops.len() {
+        if stops[k] == stops[k - 1] {
+            let name = |k: usize| match k {
+                0 => "q_start".to_string(),
+                k if k == stops.len() - 1 => "q_goal".to_string(),
+                k => format!("waypoints[{}]", k - 1),
+            };
+            return Err(Error::InvalidArgument {
+                what: name(k),
+                message: format!("equals {}: there is nothing to slew", name(k - 1)),
+            });
+        }
+    }
+    Plan::solve(arm.clone(), base, false, limits, stops)
+}
+
+impl Plan {
+    fn solve(
+        arm: FlexibleArm,
+        base: BaseMode,
+        rigid: bool,
+        limits: Limits,
+        stops: Vec<Vec<f64>>,
+    ) -> Result<Plan> {
+        let n = arm.dof();
+        let mut plan = Plan {
+            arm,
+            base,
+            rigid,
+            limits,
+            stops,
+            base_pose0: [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0],
+            segments: Vec::new(),
+        };
+        let mut scratch = JetScratch::new(plan.arm.robot());
+        let mut t0 = 0.0;
+        let mut deflection0 = vec![0.0; n];
+        for k in 1..plan.stops.len() {
+            let start = plan.stops[k - 1].clone();
+            let delta: Vec<f64> = plan.stops[k]
+                .iter()
+                .zip(&start)
+                .map(|(b, a)| b - a)
+                .collect();
+            let mut segment = Segment {
+                start,
+                delta,
+                t0,
+                duration: 0.0,
+                s: Vec::new(),
+                jets: Vec::new(),
+                deflection: Vec::new(),
+                deflection0: deflection0.clone(),
+                binding: Binding {
+                    constraint: Constraint::JointSpeed,
+                    joint: None,
+                    segment: k - 1,
+                    time: 0.0,
+                    value: 0.0,
+                    limit: 0.0,
+                },
+            };
+            for j in 0..=INTERVALS {
+                let s = j as f64 / INTERVALS as f64;
+                let jets = plan.unit_jets(&mut scratch, &segment, s)?;
+                segment.s.push(s);
+                segment.jets.push(jets);
+            }
+            plan.solve_segment(&mut scratch, &mut segment)?;
+            t0 += segment.duration;
+            deflection0 = segment.deflection[(segment.s.len() - 1) * n..].to_vec();
+            plan.segments.push(segment);
+        }
+        Ok(plan)
+    }
+
+    /// The unit-duration inverse dynamics of a segment at `s`.
+    fn unit_jets(&self, scratch: &mut JetScratch, seg: &Segment, s: f64) -> Result<RigidJets> {
+        let sig = sigma(s);
+        for i in 0..seg.start.len() {
+            let d = seg.delta[i];
+            scratch.set_joint(
+                i,
+                [
+                    seg.start[i] + d * sig[0],
+                    d * sig[1],
+                    d * sig[2],
+                    d * sig[3],
+                ],
+                [d * sig[1], d * sig[2], d * sig[3], d * sig[4]],
+            );
+        }
+        rigid_jets(self.arm.robot(), scratch, self.base)
+    }
+
+    /// Fills `p` for sample `j` of `seg` at duration `T = 1/w`. `previous` is the point at sample
+    /// `j − 1` (for the deflection of damped joints), `None` at `j = 0`.
+    fn point(
+        &self,
+        seg: &Segment,
+        s: f64,
+        jets: &RigidJets,
+        w: f64,
+        prev: Option<(f64, &Point)>,
+        p: &mut Point,
+    ) {
+        let joints = self.arm.joints();
+        let sig = sigma(s);
+        let (w2, w3, w4) = (w * w, w * w * w, w * w * w * w);
+        for i in 0..seg.start.len() {
+            let d = seg.delta[i];
+            p.q[i] = seg.start[i] + d * sig[0];
+            p.qd[i] = d * sig[1] * w;
+            p.qdd[i] = d * sig[2] * w2;
+            let tj = &jets.tau[i];
+            let tau = [tj[0] * w2, tj[1] * w3, tj[2] * w4];
+            p.tau_jet[i] = tau;
+            p.tau[i] = tau[0];
+            let (k, damping) = (joints.stiffness[i], joints.damping[i]);
+            let [delta, rate, acc] = if self.rigid {
+                [0.0; 3]
+            } else if damping > 0.0 {
+                match prev {
+                    Some((ds, before)) => deflection::advance(
+                        k,
+                        damping,
+                        ds / w,
+                        before.deflection[i],
+                        &before.tau_jet[i],
+                        &tau,
+                    ),
+                    None => deflection::advance(k, damping, 0.0, seg.deflection0[i], &tau, &tau),
+                }
+            } else {
+                [tau[0] / k, tau[1] / k, tau[2] / k]
+            };
+            p.deflection[i] = delta;
+            p.theta[i] = p.q[i] + delta;
+            p.theta_dot[i] = p.qd[i] + rate;
+            let theta_ddot = p.qdd[i] + acc;
+            p.theta_ddot[i] = theta_ddot;
+            p.u[i] = joints.motor_inertia[i] * theta_ddot
+                + joints.motor_damping[i] * p.theta_dot[i]
+                + tau[0];
+        }
+        p.base_twist = (jets.base_twist[0] * w).to_array();
+        p.base_acc = classical(&[
+            jets.base_twist[0] * w,
+            jets.base_twist[1] * w2,
+            Motion::zero(),
+            Motion::zero(),
+        ]);
+        p.base_wrench = (jets.base_wrench[0] * w2).to_array();
+    }
+
+    /// The largest ratio of a quantity to its limit at `p`, and which.
+    fn worst(&self, p: &Point) -> (f64, Constraint, Option<usize>, f64, f64) {
+        let mut worst = (0.0, Constraint::JointSpeed, None, 0.0, 0.0);
+        let mut consider = |value: f64, limit: f64, c: Constraint, joint: Option<usize>| {
+            let ratio = value / limit;
+            if ratio > worst.0 {
+                worst = (ratio, c, joint, value, limit);
+            }
+        };
+        for i in 0..p.u.len() {
+            consider(
+                p.u[i].abs(),
+                self.limits.motor_torque[i],
+                Constraint::MotorTorque,
+                Some(i),
+            );
+            consider(
+                p.qd[i].abs(),
+                self.limits.joint_speed[i],
+                Constraint::JointSpeed,
+                Some(i),
+            );
+        }
+        if self.base == BaseMode::Held {
+            let f = &p.base_wrench;
+            if let Some(limit) = self.limits.base_torque {
+                consider(
+                    Vec3::new(f[0], f[1], f[2]).norm(),
+                    limit,
+                    Constraint::BaseTorque,
+                    None,
+                );
+            }
+            if let Some(limit) = self.limits.base_force {
+                consider(
+                    Vec3::new(f[3], f[4], f[5]).norm(),
+                    limit,
+                    Constraint::BaseForce,
+                    None,
+                );
+            }
+        }
+        worst
+    }
+
+    /// Walks the samples of `seg` at duration `1/w`, calling `visit(j, point)` while it returns
+    /// `true`.
+    fn walk(&self, seg: &Segment, w: f64, mut visit: impl FnMut(usize, &Point) -> bool) {
+        let n = seg.start.len();
+        let (mut now, mut before) = (Point::new(n), Point::new(n));
+        for j in 0..seg.s.len() {
+            let prev = (j > 0).then(|| (seg.s[j] - seg.s[j - 1], &before));
+            self.point(seg, seg.s[j], &seg.jets[j], w, prev, &mut now);
+            if !visit(j, &now) {
+                return;
+            }
+            std::mem::swap(&mut now, &mut before);
+        }
+    }
+
+    /// Whether every limit holds at every sample at duration `1/w` (stops at the first breach).
+    fn feasible(&self, seg: &Segment, w: f64) -> bool {
+        let mut ok = true;
+        self.walk(seg, w, |_, p| {
+            ok = self.worst(p).0 <= 1.0;
+            ok
+        });
+        ok
+    }
+
+    /// The largest limit ratio over the samples at `1/w`, with the sample where it occurs.
+    fn peak(&self, seg: &Segment, w: f64) -> (f64, usize, Constraint, Option<usize>, f64, f64) {
+        let mut best = (0.0, 0, Constraint::JointSpeed, None, 0.0, 0.0);
+        self.walk(seg, w, |j, p| {
+            let (r, c, joint, value, limit) = self.worst(p);
+            if r > best.0 {
+                best = (r, j, c, joint, value, limit);
+            }
+            true
+        });
+        best
+    }
+
+    fn solve_segment(&self, scratch: &mut JetScratch, seg: &mut Segment) -> Result<()> {
+        let mut hint = None;
+        for round in 0..4 {
+            let w = self.shortest(seg, hint)?;
+            hint = Some(w);
+            // refine every local peak near its limit between its neighbours
+            let ratios = self.channel_ratios(seg, w);
+            let mut added = Vec::new();
+            for channel in &ratios {
+                for j in 1..channel.len() - 1 {
+                    let (a, b, c) = (channel[j - 1], channel[j], channel[j + 1]);
+                    if b >= REFINE_ABOVE && b >= a && b >= c && (b > a || b > c) {
+                        if let Some(s) = vertex(seg.s[j - 1], seg.s[j], seg.s[j + 1], a, b, c) {
+                            added.push(s);
+                        }
+                    }
+                }
+            }
+            added.sort_by(f64::total_cmp);
+            added.dedup_by(|a, b| (*a - *b).abs() < 1e-12);
+            let fresh: Vec<f64> = added
+                .into_iter()
+                .filter(|s| seg.s.iter().all(|x| (x - s).abs() > 1e-12))
+                .collect();
+            if fresh.is_empty() || round == 3 {
+                self.finish(seg, w);
+                return Ok(());
+            }
+            for s in fresh {
+                let at = seg.s.partition_point(|x| *x < s);
+                let jets = self.unit_jets(scratch, seg, s)?;
+                seg.s.insert(at, s);
+                seg.jets.insert(at, jets);
+            }
+        }
+        unreachable!("the loop returns in its last round")
+    }
+
+    /// Per channel (motor torque and speed per joint, base force and torque) the ratio at each
+    /// sample.
+    fn channel_ratios(&self, seg: &Segment, w: f64) -> Vec<Vec<f64>> {
+        let n = seg.start.len();
+        let mut out = vec![Vec::with_capacity(seg.s.len()); 2 * n + 2];
+        self.walk(seg, w, |_, p| {
+            for i in 0..n {
+                out[i].push(p.u[i].abs() / self.limits.motor_torque[i]);
+                out[n + i].push(p.qd[i].abs() / self.limits.joint_speed[i]);
+            }
+            let f = &p.base_wrench;
+            let held = self.base == BaseMode::Held;
+            out[2 * n].push(match (held, self.limits.base_torque) {
+                (true, Some(l)) => Vec3::new(f[0], f[1], f[2]).norm() / l,
+                _ => 0.0,
+            });
+            out[2 * n + 1].push(match (held, self.limits.base_force) {
+                (true, Some(l)) => Vec3::new(f[3], f[4], f[5]).norm() / l,
+                _ => 0.0,
+            });
+            true
+        });
+        out
+    }
+
+    /// The largest `w = 1/T` at which every limit holds at the samples, to
+    /// [`BISECTION_TOLERANCE`]. `hint` is the answer before samples were added: still
+    /// infeasible just above it, so the bracket starts there.
+    fn shortest(&self, seg: &Segment, hint: Option<f64>) -> Result<f64> {
+        // the speed bound alone: T ≥ max |Δ_i| σ'_max / q̇_max,i
+        let speed_w = seg
+            .delta
+            .iter()
+            .zip(&self.limits.joint_speed)
+            .map(|(d, l)| l / (d.abs() * sigma(0.5)[1]))
+            .fold(f64::INFINITY, f64::min);
+        let start = hint.unwrap_or(speed_w);
+        if self.feasible(seg, start) {
+            return Ok(start);
+        }
+        // widen downwards (longer durations) until feasible: from 1e-4 after a hint, by halves
+        // without one
+        let mut cut: f64 = if hint.is_some() { 1e-4 } else { 0.5 };
+        let (mut hi, mut lo) = (start, start * (1.0 - cut));
+        let mut widenings = 0;
+        while !self.feasible(seg, lo) {
+            hi = lo;
+            cut = (cut * 4.0).min(0.5);
+            lo = hi * (1.0 - cut);
+            widenings += 1;
+            if widenings > MAX_DOUBLINGS {
+                let (_, _, c, joint, value, limit) = self.peak(seg, lo);
+                return Err(Error::InvalidArgument {
+                    what: "limits".into(),
+                    message: format!(
+                        "no duration up to {:.3e} s meets them: {}{} still needs {value:.3e}, \
+                         over its limit of {limit:e}",
+                        1.0 / lo,
+                        c.name(),
+                        joint.map_or(String::new(), |j| format!("[{j}]")),
+                    ),
+                });
+            }
+        }
+        while hi - lo > BISECTION_TOLERANCE * hi {
+            let mid = 0.5 * (lo + hi);
+            if self.feasible(seg, mid) {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+        }
+        Ok(lo)
+    }
+
+    /// Stores the solved duration, the deflection at each sample and the binding limit.
+    fn finish(&self, seg: &mut Segment, w: f64) {
+        let n = seg.start.len();
+        let (_, j, constraint, joint, value, limit) = self.peak(seg, w);
+        let mut deflection = Vec::with_capacity(seg.s.len() * n);
+        self.walk(seg, w, |_, p| {
+            deflection.extend_from_slice(&p.deflection);
+            true
+        });
+        seg.deflection = deflection;
+        seg.duration = 1.0 / w;
+        seg.binding = Binding {
+            constraint,
+            joint,
+            segment: seg.binding.segment,
+            time: seg.t0 + seg.s[j] * seg.duration,
+            value,
+            limit,
+        };
+    }
+
+    /// Total duration (s).
+    pub fn duration(&self) -> f64 {
+        self.segments.iter().map(|s| s.duration).sum()
+    }
+
+    /// Each segment's duration (s).
+    pub fn segment_durations(&self) -> Vec<f64> {
+        self.segments.iter().map(|s| s.duration).collect()
+    }
+
+    /// The limit that binds over the whole plan (the binding of its longest segment's peak ratio:
+    /// every segment has one at ratio 1 unless its speed bound alone sets it).
+    pub fn binding(&self) -> &Binding {
+        let mut best = &self.segments[0].binding;
+        for seg in &self.segments {
+            if seg.binding.value / seg.binding.limit > best.value / best.limit {
+                best = &seg.binding;
+            }
+        }
+        best
+    }
+
+    /// The binding limit of each segment.
+    pub fn bindings(&self) -> Vec<Binding> {
+        self.segments.iter().map(|s| s.binding.clone()).collect()
+    }
+
+    /// The base mode planned for.
+    pub fn base(&self) -> BaseMode {
+        self.base
+    }
+
+    /// Whether this is the rigid-joint plan ([`Plan::rigid`]).
+    pub fn is_rigid(&self) -> bool {
+        self.rigid
+    }
+
+    /// The limits planned for.
+    pub fn limits(&self) -> &Limits {
+        &self.limits
+    }
+
+    /// The arm planned for.
+    pub fn arm(&self) -> &FlexibleArm {
+        &self.arm
+    }
+
+    /// The stops: start, waypoints, goal.
+    pub fn stops(&self) -> &[Vec<f64>] {
+        &self.stops
+    }
+
+    /// The state at which a simulation of this plan starts: `q = θ = q_start`, at rest, base at
+    /// its initial pose.
+    pub fn initial_state(&self) -> Vec<f64> {
+        self.arm
+            .state(&crate::flex::StateSpec {
+                q: Some(&self.stops[0]),
+                base_pose: Some(&self.base_pose0),
+                ..Default::default()
+            })
+            .expect("the stops are checked")
+    }
+
+    /// The same slew planned as if the joints were rigid (`θ = q`, `u = j q̈ + β q̇ + τ`), under
+    /// the same limits and base mode: what a planner that ignores joint flexibility produces.
+    pub fn rigid(&self) -> Result<Plan> {
+        Plan::solve(
+            self.arm.clone(),
+            self.base,
+            true,
+            self.limits.clone(),
+            self.stops.clone(),
+        )
+    }
+
+    /// The plan's arrays at its samples (one row per sample, the segment joins once).
+    pub fn samples(&self) -> Samples {
+        let n = self.arm.dof();
+        let mut out = Samples::default();
+        let mut pose = self.base_pose0;
+        for (k, seg) in self.segments.iter().enumerate() {
+            let w = 1.0 / seg.duration;
+            let mut previous_twist: Option<(f64, [Motion; 2])> = None;
+            self.walk(seg, w, |j, p| {
+                // integrate the base pose in s (the path of a free base does not depend on T)
+                let twist = [seg.jets[j].base_twist[0], seg.jets[j].base_twist[1]];
+                if let Some((s_prev, a)) = previous_twist {
+                    // the middle by cubic Hermite interpolation in s: fourth-order accurate
+                    let ds = seg.s[j] - s_prev;
+                    let mid = (a[0] + twist[0]) * 0.5 + (a[1] - twist[1]) * (ds / 8.0);
+                    pose = rk4_pose(&pose, &a[0], &mid, &twist[0], ds);
+                }
+                previous_twist = Some((seg.s[j], twist));
+                if k > 0 && j == 0 {
+                    return true; // the join is the previous segment's last row
+                }
+                out.t.push(seg.t0 + seg.s[j] * seg.duration);
+                out.q.extend_from_slice(&p.q);
+                out.qd.extend_from_slice(&p.qd);
+                out.qdd.extend_from_slice(&p.qdd);
+                out.theta.extend_from_slice(&p.theta);
+                out.theta_dot.extend_from_slice(&p.theta_dot);
+                out.u.extend_from_slice(&p.u);
+                out.tau.extend_from_slice(&p.tau);
+                out.base_wrench.extend_from_slice(&p.base_wrench);
+                out.base_twist.extend_from_slice(&p.base_twist);
+                out.base_pose.extend_from_slice(&pose);
+                true
+            });
+        }
+        debug_assert_eq!(out.q.len(), out.t.len() * n);
+        out
+    }
+
+    /// Everything at time `t` (s), computed afresh (not interpolated); after the end, the arm
+    /// rests at the goal.
+    fn at(&self, scratch: &mut JetScratch, t: f64, out: &mut Point) -> Result<()> {
+        let n = self.arm.dof();
+        let last = self.segments.len() - 1;
+        let k = self
+            .segments
+            .iter()
+            .position(|seg| t < seg.t0 + seg.duration)
+            .unwrap_or(last);
+        let seg = &self.segments[k];
+        let w = 1.0 / seg.duration;
+        let s = ((t - seg.t0) * w).clamp(0.0, 1.0);
+        let j = seg.s.partition_point(|x| *x <= s).max(1) - 1;
+        let mut before = Point::new(n);
+        self.point(seg, seg.s[j], &seg.jets[j], w, None, &mut before);
+        before
+            .deflection
+            .copy_from_slice(&seg.deflection[j * n..(j + 1) * n]);
+        let jets = self.unit_jets(scratch, seg, s)?;
+        self.point(seg, s, &jets, w, Some((s - seg.s[j], &before)), out);
+        // after the end the links rest (τ = 0) and a damped joint's leftover deflection decays
+        let overtime = t - (seg.t0 + seg.duration);
+        if overtime > 0.0 && !self.rigid {
+            let joints = self.arm.joints();
+            for i in 0..n {
+                let (k, d) = (joints.stiffness[i], joints.damping[i]);
+                if d > 0.0 {
+                    let [delta, rate, acc] = deflection::advance(
+                        k,
+                        d,
+                        overtime,
+                        out.deflection[i],
+                        &[0.0; 3],
+                        &[0.0; 3],
+                    );
+                    out.deflection[i] = delta;
+                    out.theta[i] = out.q[i] + delta;
+                    out.theta_dot[i] = rate;
+                    out.theta_ddot[i] = acc;
+                    out.u[i] = joints.motor_inertia[i] * acc + joints.motor_damping[i] * rate;
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Everything at time `t` (s) of the plan, computed afresh from the inverse dynamics at that
+    /// instant (not interpolated between samples; the deflection of damped joints is integrated
+    /// exactly from the sample before). Before the start and after the end the arm rests at the
+    /// first and last stop.
+    pub fn evaluate(&self, t: f64) -> Result<PlanPoint> {
+        crate::args::check_finite("t", &[t])?;
+        let mut p = Point::new(self.arm.dof());
+        self.at(&mut JetScratch::new(self.arm.robot()), t, &mut p)?;
+        Ok(PlanPoint {
+            t,
+            q: p.q,
+            qd: p.qd,
+            qdd: p.qdd,
+            theta: p.theta,
+            theta_dot: p.theta_dot,
+            theta_ddot: p.theta_ddot,
+            u: p.u,
+            tau: p.tau,
+            base_twist: p.base_twist,
+            base_acc: p.base_acc,
+            base_wrench: p.base_wrench,
+        })
+    }
+
+    /// Per-step tables for a run of `steps` steps of `dt` (default: enough to cover the plan;
+    /// more steps hold the goal at rest): the feedforward `u` (the plan's `u` averaged over each
+    /// step, Simpson's rule), `θ_ref` and `θ̇_ref` at each step's start for a
+    /// [`crate::MotorPD`] around it, and the base wrench (averaged) that holds a held base.
+    pub fn reference(&self, dt: f64, steps: Option<usize>) -> Result<Reference> {
+        check_dt(dt)?;
+        let n = self.arm.dof();
+        let covering = (self.duration() / dt).ceil() as usize;
+        let steps = steps.unwrap_or(covering);
+        let mut r = Reference {
+            dt,
+            steps,
+            u: Vec::with_capacity(steps * n),
+            theta_ref: Vec::with_capacity(steps * n),
+            theta_dot_ref: Vec::with_capacity(steps * n),
+            base_wrench: Vec::with_capacity(steps * 6),
+            q: Vec::with_capacity(steps * n),
+            base_pose: Vec::with_capacity(steps * 7),
+        };
+        let mut pose = self.base_pose0;
+        let mut scratch = JetScratch::new(self.arm.robot());
+        let (mut start, mut mid, mut end) = (Point::new(n), Point::new(n), Point::new(n));
+        self.at(&mut scratch, 0.0, &mut start)?;
+        for k in 0..steps {
+            let t = k as f64 * dt;
+            self.at(&mut scratch, t + 0.5 * dt, &mut mid)?;
+            self.at(&mut scratch, t + dt, &mut end)?;
+            r.theta_ref.extend_from_slice(&start.theta);
+            r.theta_dot_ref.extend_from_slice(&start.theta_dot);
+            r.q.extend_from_slice(&start.q);
+            r.base_pose.extend_from_slice(&pose);
+            let twist = |p: &Point| Motion::from_slice(&p.base_twist);
+            pose = rk4_pose(&pose, &twist(&start), &twist(&mid), &twist(&end), dt);
+            for i in 0..n {
+                r.u.push((start.u[i] + 4.0 * mid.u[i] + end.u[i]) / 6.0);
+            }
+            for c in 0..6 {
+                r.base_wrench.push(
+                    (start.base_wrench[c] + 4.0 * mid.base_wrench[c] + end.base_wrench[c]) / 6.0,
+                );
+            }
+            std::mem::swap(&mut start, &mut end);
+        }
+        Ok(r)
+    }
+}
+
+/// The vertex of the parabola through three samples, if it lies strictly between the outer two.
+fn vertex(x0: f64, x1: f64, x2: f64, y0: f64, y1: f64, y2: f64) -> Option<f64> {
+    let d01 = (y1 - y0) / (x1 - x0);
+    let d12 = (y2 - y1) / (x2 - x1);
+    let curvature = (d12 - d01) / (x2 - x0);
+    if curvature >= 0.0 {
+        return None;
+    }
+    let x = 0.5 * (x0 + x1) - d01 / (2.0 * curvature);
+    (x > x0 && x < x2).then_some(x)
+}
+
+/// One RK4 step of the base pose kinematics `ṙ = R v`, `quat' = ½ quat ⊗ ω` over `h`, with the
+/// twist at the start, middle and end of the step.
+fn rk4_pose(pose: &[f64; 7], a: &Motion, mid: &Motion, b: &Motion, h: f64) -> [f64; 7] {
+    let rate = |x: &[f64; 7], v: &Motion| -> [f64; 7] {
+        let r = quaternion_to_rotation(&x[3..]) * v.linear;
+        let q = quaternion_product(&x[3..], &[v.angular.x, v.angular.y, v.angular.z, 0.0]);
+        [
+            r.x,
+            r.y,
+            r.z,
+            0.5 * q[0],
+            0.5 * q[1],
+            0.5 * q[2],
+            0.5 * q[3],
+        ]
+    };
+    let add = |x: &[f64; 7], k: &[f64; 7], c: f64| -> [f64; 7] {
+        std::array::from_fn(|i| x[i] + c * k[i])
+    };
+    let k1 = rate(pose, a);
+    let k2 = rate(&add(pose, &k1, h / 2.0), mid);
+    let k3 = rate(&add(pose, &k2, h / 2.0), mid);
+    let k4 = rate(&add(pose, &k3, h), b);
+    let mut out: [f64; 7] =
+        std::array::from_fn(|i| pose[i] + h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]));
+    normalise_quaternion(&mut out[3..]);
+    out
+}

@@ -1,0 +1,126 @@
+//! Running a plan on the flexible arm and measuring how well it went: [`Plan::track`].
+
+use super::slew::{Plan, Reference};
+use super::BaseMode;
+use crate::error::{Error, Result};
+use crate::flex::state::{quaternion_log, quaternion_product};
+use crate::integrate::{MotorPD, Schedule, Trajectory, Wrenches};
+
+/// The outcome of [`Plan::track`]: the run, its reference and what a GNC engineer checks.
+#[derive(Debug, Clone)]
+pub struct Tracking {
+    /// The simulated run (`steps + 1` states, `steps` commanded torques).
+    pub trajectory: Trajectory,
+    /// The tables it ran on.
+    pub reference: Reference,
+    /// The slew's end (s); the steps after it show the residual motion.
+    pub slew_end: f64,
+    /// Per joint, the peak commanded motor torque `max |u_i|` over the run (N·m): feedforward
+    /// plus the PD's correction.
+    pub peak_motor_torque: Vec<f64>,
+    /// `max |q_i − q_plan,i|` over the run, all joints (rad).
+    pub tracking_error: f64,
+    /// After the slew: the largest deflection `|θ_i − q_i|` (rad), the residual vibration of
+    /// the joints (zero for an arm at rest).
+    pub residual_deflection: f64,
+    /// After the slew: the largest `|q_i − q_goal,i|` (rad).
+    pub residual_link_error: f64,
+    /// `max |r_B − r_B,plan|` over the run (m).
+    pub base_position_error: f64,
+    /// The largest rotation between the base's attitude and the plan's over the run (rad).
+    pub base_attitude_error: f64,
+}
+
+impl Plan {
+    /// Simulates the plan on its arm from [`Plan::initial_state`] with RK4 steps of `dt`
+    /// for the slew plus `settle` seconds: a [`MotorPD`] with gains `kp`, `kd` (per joint) around
+    /// [`Plan::reference`]'s `θ_ref`, `θ̇_ref` with its feedforward `u`, and in held mode its base
+    /// wrench. Returns the run and its measures ([`Tracking`]).
+    pub fn track(&self, dt: f64, kp: &[f64], kd: &[f64], settle: f64) -> Result<Tracking> {
+        if !(settle.is_finite() && settle >= 0.0) {
+            return Err(Error::InvalidArgument {
+                what: "settle".into(),
+                message: format!("expected a finite time ≥ 0 (s), given {settle}"),
+            });
+        }
+        let n = self.arm().dof();
+        crate::args::check_dt(dt)?;
+        let steps = ((self.duration() + settle) / dt).ceil() as usize;
+        let reference = self.reference(dt, Some(steps))?;
+        let table = |values: &Vec<f64>, width| Schedule::Table {
+            values: values.clone(),
+            width,
+        };
+        crate::args::check_length("kp", kp.len(), n)?;
+        let mut pd = MotorPD::new(
+            kp.to_vec(),
+            kd.to_vec(),
+            table(&reference.theta_ref, n),
+            table(&reference.theta_dot_ref, n),
+            table(&reference.u, n),
+        )?;
+        let wrenches = Wrenches {
+            base: match self.base() {
+                BaseMode::Held => table(&reference.base_wrench, 6),
+                BaseMode::Free => Schedule::Zero,
+            },
+            ee: Schedule::Zero,
+        };
+        let trajectory = self
+            .arm()
+            .simulate(&self.initial_state(), dt, steps, &mut pd, &wrenches)
+            .map_err(|failure| failure.error)?;
+        Ok(measure(self, trajectory, reference))
+    }
+}
+
+fn measure(plan: &Plan, trajectory: Trajectory, reference: Reference) -> Tracking {
+    let n = plan.arm().dof();
+    let layout = plan.arm().layout();
+    let slew_end = plan.duration();
+    let goal = plan.stops().last().expect("a plan has a goal");
+    let mut out = Tracking {
+        peak_motor_torque: vec![0.0; n],
+        tracking_error: 0.0,
+        residual_deflection: 0.0,
+        residual_link_error: 0.0,
+        base_position_error: 0.0,
+        base_attitude_error: 0.0,
+        slew_end,
+        trajectory: Trajectory::empty(layout),
+        reference: reference.clone(),
+    };
+    for row in trajectory.u.chunks_exact(n) {
+        for (peak, u) in out.peak_motor_torque.iter_mut().zip(row) {
+            *peak = peak.max(u.abs());
+        }
+    }
+    for k in 0..reference.steps {
+        let x = trajectory.state(k);
+        let (q, theta) = (&x[layout.q()], &x[layout.theta()]);
+        let planned = &reference.q[k * n..(k + 1) * n];
+        for i in 0..n {
+            out.tracking_error = out.tracking_error.max((q[i] - planned[i]).abs());
+        }
+        let pose = &x[layout.base_pose()];
+        let plan_pose = &reference.base_pose[7 * k..7 * k + 7];
+        let position = (0..3)
+            .map(|c| (pose[c] - plan_pose[c]).powi(2))
+            .sum::<f64>()
+            .sqrt();
+        out.base_position_error = out.base_position_error.max(position);
+        let inverse = [-plan_pose[3], -plan_pose[4], -plan_pose[5], plan_pose[6]];
+        let relative = quaternion_product(&inverse, &pose[3..]);
+        out.base_attitude_error = out
+            .base_attitude_error
+            .max(quaternion_log(&relative).norm());
+        if trajectory.t[k] >= slew_end {
+            for i in 0..n {
+                out.residual_deflection = out.residual_deflection.max((theta[i] - q[i]).abs());
+                out.residual_link_error = out.residual_link_error.max((q[i] - goal[i]).abs());
+            }
+        }
+    }
+    out.trajectory = trajectory;
+    out
+}

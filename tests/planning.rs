@@ -1,0 +1,626 @@
+//! Trajectory generation: the flexible-joint inverse dynamics (algebraic exactness against the
+//! forward model, exact time derivatives) and the minimum-time slew planner.
+
+use orbitflex::planning::{plan_slew, Constraint, Limits, Plan};
+use orbitflex::testing::{random_chain, Rng};
+use orbitflex::{
+    BaseMode, FlexibleArm, FlexibleInverse, FlexibleJoints, Inputs, LinkMotion, Loads, Robot,
+    StateSpec,
+};
+
+/// Joint parameters with spread: k 200–800 N·m/rad, j 0.05–0.2 kg·m², β 0.1–0.5 N·m·s/rad and
+/// damping `d` (N·m·s/rad).
+fn arm(robot: Robot, seed: u64, damping: f64) -> FlexibleArm {
+    let n = robot.dof();
+    let mut rng = Rng::new(seed);
+    let joints = FlexibleJoints::new(
+        rng.vector(n, 200.0, 800.0),
+        rng.vector(n, 0.05, 0.2),
+        vec![damping; n],
+        rng.vector(n, 0.1, 0.5),
+    )
+    .unwrap();
+    FlexibleArm::new(robot, joints).unwrap()
+}
+
+/// A link motion with random angles and derivatives.
+fn motion(n: usize, seed: u64) -> [Vec<f64>; 5] {
+    let mut rng = Rng::new(seed);
+    std::array::from_fn(|k| {
+        rng.vector(n, -1.0, 1.0)
+            .iter()
+            .map(|v| v / (1.0 + k as f64))
+            .collect()
+    })
+}
+
+fn link_motion(m: &[Vec<f64>; 5]) -> LinkMotion<'_> {
+    LinkMotion {
+        q: &m[0],
+        qd: &m[1],
+        qdd: &m[2],
+        qddd: &m[3],
+        qdddd: &m[4],
+    }
+}
+
+fn relative(got: &[f64], want: &[f64]) -> f64 {
+    let scale = want.iter().fold(1e-300_f64, |a, v| a.max(v.abs()));
+    got.iter()
+        .zip(want)
+        .fold(0.0_f64, |a, (g, w)| a.max((g - w).abs()))
+        / scale
+}
+
+/// Builds the state the inverse dynamics describes and runs the forward model on it with the
+/// returned torques and base wrench; returns (q̈, θ̈, α_B classical) from the derivative.
+fn forward(arm: &FlexibleArm, m: &[Vec<f64>; 5], out: &FlexibleInverse) -> [Vec<f64>; 3] {
+    let x = arm
+        .state(&StateSpec {
+            q: Some(&m[0]),
+            qd: Some(&m[1]),
+            theta: Some(&out.theta),
+            theta_dot: Some(&out.theta_dot),
+            base_twist: Some(&out.base_twist),
+            base_pose: Some(&[0.3, -0.2, 0.1, 0.1, 0.2, -0.3, 0.9]),
+        })
+        .unwrap();
+    let loads = Loads::from_slices(Some(&out.base_wrench), None).unwrap();
+    let mut xdot = vec![0.0; x.len()];
+    let mut ws = arm.workspace();
+    arm.derivative(&mut ws, &x, &Inputs { u: &out.u, loads }, &mut xdot)
+        .unwrap();
+    let layout = arm.layout();
+    let twist_rate = &xdot[layout.base_twist()];
+    let (w, v) = (&out.base_twist[..3], &out.base_twist[3..]);
+    let w_cross_v = [
+        w[1] * v[2] - w[2] * v[1],
+        w[2] * v[0] - w[0] * v[2],
+        w[0] * v[1] - w[1] * v[0],
+    ];
+    let mut acc = twist_rate.to_vec();
+    for k in 0..3 {
+        acc[3 + k] += w_cross_v[k];
+    }
+    [
+        xdot[layout.qd()].to_vec(),
+        xdot[layout.theta_dot()].to_vec(),
+        acc,
+    ]
+}
+
+fn check_exactness(arm: &FlexibleArm, seed: u64) {
+    let n = arm.dof();
+    let m = motion(n, seed);
+    let damped = arm.joints().damping.iter().any(|&d| d > 0.0);
+    let deflection: Vec<f64> = Rng::new(seed + 1).vector(n, -0.01, 0.01);
+    for base in [BaseMode::Held, BaseMode::Free] {
+        let out = arm
+            .inverse_dynamics(&link_motion(&m), base, damped.then_some(&deflection[..]))
+            .unwrap();
+        let [qdd, theta_ddot, base_acc] = forward(arm, &m, &out);
+        assert!(
+            relative(&qdd, &m[2]) < 1e-9,
+            "{base:?} q̈: {}",
+            relative(&qdd, &m[2])
+        );
+        assert!(
+            relative(&theta_ddot, &out.theta_ddot) < 1e-9,
+            "{base:?} θ̈: {}",
+            relative(&theta_ddot, &out.theta_ddot)
+        );
+        match base {
+            BaseMode::Held => {
+                assert_eq!(out.base_twist, [0.0; 6]);
+                assert_eq!(out.base_acc, [0.0; 6]);
+                assert!(base_acc.iter().all(|a| a.abs() < 1e-9), "{base_acc:?}");
+                assert!(out.base_wrench.iter().any(|f| f.abs() > 1e-3));
+            }
+            BaseMode::Free => {
+                assert_eq!(out.base_wrench, [0.0; 6]);
+                assert!(out.base_twist.iter().any(|v| v.abs() > 1e-3));
+                assert!(
+                    relative(&base_acc, &out.base_acc) < 1e-9,
+                    "α_B: {}",
+                    relative(&base_acc, &out.base_acc)
+                );
+                // zero momentum
+                let x = arm
+                    .state(&StateSpec {
+                        q: Some(&m[0]),
+                        qd: Some(&m[1]),
+                        base_twist: Some(&out.base_twist),
+                        ..StateSpec::default()
+                    })
+                    .unwrap();
+                let h = arm.momentum(&mut arm.workspace(), &x);
+                assert!(h.iter().all(|v| v.abs() < 1e-10), "{h:?}");
+            }
+        }
+    }
+}
+
+#[test]
+fn inverse_dynamics_is_exact_against_the_forward_model() {
+    for (i, robot) in [Robot::space_arm(), random_chain(5, 11), random_chain(9, 12)]
+        .into_iter()
+        .enumerate()
+    {
+        check_exactness(&arm(robot.clone(), 3 + i as u64, 0.0), 20 + i as u64);
+        check_exactness(&arm(robot, 3 + i as u64, 0.7), 30 + i as u64);
+    }
+}
+
+/// `q(t)` is a polynomial per joint; its derivatives at `t` in closed form.
+fn polynomial_motion(coeffs: &[[f64; 7]], t: f64) -> [Vec<f64>; 5] {
+    std::array::from_fn(|k| {
+        coeffs
+            .iter()
+            .map(|c| {
+                (k..c.len())
+                    .map(|i| {
+                        let falling: f64 = (0..k).map(|j| (i - j) as f64).product();
+                        c[i] * falling * t.powi((i - k) as i32)
+                    })
+                    .sum()
+            })
+            .collect()
+    })
+}
+
+#[test]
+fn motor_rates_are_the_time_derivatives_of_the_motor_angles() {
+    for (robot, seed) in [(Robot::space_arm(), 1), (random_chain(6, 5), 2)] {
+        let arm = arm(robot, seed, 0.0);
+        let n = arm.dof();
+        let mut rng = Rng::new(seed + 10);
+        let coeffs: Vec<[f64; 7]> = (0..n)
+            .map(|_| std::array::from_fn(|_| rng.range(-1.0, 1.0)))
+            .collect();
+        for base in [BaseMode::Held, BaseMode::Free] {
+            let at = |t: f64| {
+                arm.inverse_dynamics(&link_motion(&polynomial_motion(&coeffs, t)), base, None)
+                    .unwrap()
+            };
+            // central differences with one Richardson step: O(h⁴) truncation error
+            let (t, h) = (0.4, 1e-3);
+            let now = at(t);
+            let (before, after) = (at(t - h), at(t + h));
+            let (near_before, near_after) = (at(t - h / 2.0), at(t + h / 2.0));
+            let richardson = |f: &dyn Fn(&FlexibleInverse) -> f64| {
+                let wide = (f(&after) - f(&before)) / (2.0 * h);
+                let narrow = (f(&near_after) - f(&near_before)) / h;
+                (4.0 * narrow - wide) / 3.0
+            };
+            for i in 0..n {
+                let rate = richardson(&|o| o.theta[i]);
+                let acc = richardson(&|o| o.theta_dot[i]);
+                assert!(
+                    (rate - now.theta_dot[i]).abs() < 1e-6 * (1.0 + now.theta_dot[i].abs()),
+                    "{base:?} θ̇[{i}]: {rate} vs {}",
+                    now.theta_dot[i]
+                );
+                assert!(
+                    (acc - now.theta_ddot[i]).abs() < 1e-6 * (1.0 + now.theta_ddot[i].abs()),
+                    "{base:?} θ̈[{i}]: {acc} vs {}",
+                    now.theta_ddot[i]
+                );
+                // the deflection is visible: the test would pass with θ = q otherwise
+                assert!((now.theta[i] - polynomial_motion(&coeffs, t)[0][i]).abs() > 1e-6);
+            }
+            if base == BaseMode::Free {
+                for k in 0..6 {
+                    let acc = richardson(&|o| o.base_twist[k]);
+                    let spatial = now.base_acc[k]
+                        - if k >= 3 {
+                            let (w, v) = (&now.base_twist[..3], &now.base_twist[3..]);
+                            let c = [
+                                w[1] * v[2] - w[2] * v[1],
+                                w[2] * v[0] - w[0] * v[2],
+                                w[0] * v[1] - w[1] * v[0],
+                            ];
+                            c[k - 3]
+                        } else {
+                            0.0
+                        };
+                    assert!((acc - spatial).abs() < 1e-6, "V̇_B[{k}]: {acc} vs {spatial}");
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn inverse_dynamics_rejects_bad_arguments_with_what_and_where() {
+    let arm = arm(Robot::space_arm(), 1, 0.0);
+    let n = arm.dof();
+    let mut m = motion(n, 4);
+    let err = arm
+        .inverse_dynamics(&link_motion(&m), BaseMode::Held, Some(&vec![0.0; n]))
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("deflection") && err.contains("omit"), "{err}");
+    m[3][2] = f64::NAN;
+    let err = arm
+        .inverse_dynamics(&link_motion(&m), BaseMode::Held, None)
+        .unwrap_err()
+        .to_string();
+    assert!(err.starts_with("qddd: element 2 is not finite"), "{err}");
+    m[3].pop();
+    let err = arm
+        .inverse_dynamics(&link_motion(&m), BaseMode::Free, None)
+        .unwrap_err()
+        .to_string();
+    assert_eq!(err, "qddd: expected length 7, given length 6");
+    let damped = self::arm(Robot::space_arm(), 1, 0.5);
+    let m = motion(n, 4);
+    let err = damped
+        .inverse_dynamics(&link_motion(&m), BaseMode::Held, None)
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("deflection") && err.contains("d > 0"), "{err}");
+    let err = BaseMode::from_name("fixed").unwrap_err().to_string();
+    assert_eq!(err, "base: expected \"held\" or \"free\", given \"fixed\"");
+}
+
+/// The built-in arm with its built-in joints (k 2e3–1e4 N·m/rad, d = 0.2, β = 1).
+fn space_arm() -> FlexibleArm {
+    FlexibleArm::new(Robot::space_arm(), FlexibleJoints::space_arm()).unwrap()
+}
+
+const GOAL: [f64; 7] = [0.8, -0.6, 0.5, 1.0, -0.7, 0.6, 0.9];
+
+fn space_limits() -> Limits {
+    Limits::new(
+        vec![60.0, 60.0, 60.0, 30.0, 15.0, 15.0, 15.0],
+        vec![0.5],
+        Some(80.0),
+        Some(60.0),
+    )
+    .unwrap()
+}
+
+/// Every limit holds at `count` evenly spaced instants evaluated afresh (not the planner's
+/// samples), and the largest ratio, which must be the binding one, is at least 99.5%.
+fn check_limits(plan: &Plan, count: usize) {
+    let limits = plan.limits().for_joints(plan.arm().dof()).unwrap();
+    let mut worst: f64 = 0.0;
+    for k in 0..=count {
+        let t = plan.duration() * k as f64 / count as f64;
+        let p = plan.evaluate(t).unwrap();
+        for i in 0..p.u.len() {
+            worst = worst.max(p.u[i].abs() / limits.motor_torque[i]);
+            worst = worst.max(p.qd[i].abs() / limits.joint_speed[i]);
+        }
+        if plan.base() == BaseMode::Held {
+            let f = p.base_wrench;
+            let (moment, force) = (
+                (f[0] * f[0] + f[1] * f[1] + f[2] * f[2]).sqrt(),
+                (f[3] * f[3] + f[4] * f[4] + f[5] * f[5]).sqrt(),
+            );
+            worst = worst.max(limits.base_torque.map_or(0.0, |l| moment / l));
+            worst = worst.max(limits.base_force.map_or(0.0, |l| force / l));
+        }
+    }
+    assert!(
+        worst <= 1.0 + 1e-9,
+        "a limit is exceeded between samples: {worst}"
+    );
+    assert!(worst >= 0.995, "no limit is active: {worst}");
+    let b = plan.binding();
+    assert!((b.value / b.limit - 1.0).abs() < 1e-8, "{b:?}");
+}
+
+#[test]
+fn the_built_in_slews_are_as_short_as_their_limits_allow() {
+    let arm = space_arm();
+    let held = plan_slew(&arm, &GOAL, None, &space_limits(), BaseMode::Held, &[]).unwrap();
+    check_limits(&held, 4000);
+    let b = held.binding();
+    assert_eq!((b.constraint, b.joint), (Constraint::BaseTorque, None));
+    assert!(
+        (held.duration() - 13.050_452_5).abs() < 1e-6,
+        "{}",
+        held.duration()
+    );
+    assert!((b.time - 7.645_087_6).abs() < 1e-6, "{}", b.time);
+    let free = plan_slew(&arm, &GOAL, None, &space_limits(), BaseMode::Free, &[]).unwrap();
+    check_limits(&free, 4000);
+    let b = free.binding();
+    assert_eq!((b.constraint, b.joint), (Constraint::MotorTorque, Some(3)));
+    assert!(
+        (free.duration() - 5.789_480_9).abs() < 1e-6,
+        "{}",
+        free.duration()
+    );
+    // a slow joint-speed bound binds exactly at s = 1/2, T = |Δ| σ'(1/2) / q̇_max
+    let slow = Limits::new(vec![1e4], vec![0.05], None, None).unwrap();
+    let plan = plan_slew(&arm, &GOAL, None, &slow, BaseMode::Held, &[]).unwrap();
+    assert_eq!(plan.binding().constraint, Constraint::JointSpeed);
+    assert_eq!(plan.binding().joint, Some(3));
+    let expected = 1.0 * (315.0 / 128.0) / 0.05;
+    assert!(
+        (plan.duration() - expected).abs() < 1e-9 * expected,
+        "{}",
+        plan.duration()
+    );
+    assert!((plan.binding().time - expected / 2.0).abs() < 1e-9 * expected);
+}
+
+#[test]
+fn plans_on_a_random_chain_respect_their_limits() {
+    let arm = arm(random_chain(6, 21), 8, 0.3);
+    let goal: Vec<f64> = Rng::new(5).vector(6, -1.0, 1.0);
+    let start: Vec<f64> = Rng::new(6).vector(6, -0.5, 0.5);
+    let waypoint: Vec<f64> = Rng::new(7).vector(6, -1.0, 1.0);
+    let limits = Limits::new(
+        vec![5.0],
+        vec![1.0, 1.2, 0.8, 1.0, 2.0, 2.0],
+        Some(20.0),
+        Some(10.0),
+    )
+    .unwrap();
+    for base in [BaseMode::Held, BaseMode::Free] {
+        let plan = plan_slew(
+            &arm,
+            &goal,
+            Some(&start),
+            &limits,
+            base,
+            std::slice::from_ref(&waypoint),
+        )
+        .unwrap();
+        check_limits(&plan, 3000);
+        // the plan stops at the waypoint, at rest
+        let join = plan.segment_durations()[0];
+        let p = plan.evaluate(join).unwrap();
+        for (i, w) in waypoint.iter().enumerate() {
+            assert!((p.q[i] - w).abs() < 1e-12);
+            assert!(p.qd[i].abs() < 1e-12 && p.qdd[i].abs() < 1e-12);
+        }
+        let end = plan.evaluate(plan.duration()).unwrap();
+        assert!(end.q.iter().zip(&goal).all(|(a, b)| (a - b).abs() < 1e-12));
+        assert_eq!(plan.bindings().len(), 2);
+    }
+}
+
+/// θ̇ and θ̈ of a plan with damped joints, where the deflection comes from integrating
+/// `d δ̇ + k δ = τ`, are the time derivatives of its θ (central differences with a Richardson step).
+#[test]
+fn a_damped_plan_has_consistent_motor_rates() {
+    let mut joints = FlexibleJoints::space_arm();
+    joints.damping = vec![40.0, 40.0, 40.0, 20.0, 10.0, 10.0, 10.0]; // d/k from 4 ms to 5 ms
+    let arm = FlexibleArm::new(Robot::space_arm(), joints).unwrap();
+    let plan = plan_slew(&arm, &GOAL, None, &space_limits(), BaseMode::Free, &[]).unwrap();
+    let h = 1e-3;
+    for t in [0.7, 2.3, 4.0] {
+        let at = |t: f64| plan.evaluate(t).unwrap();
+        let (now, a, b, c, d) = (
+            at(t),
+            at(t - h),
+            at(t + h),
+            at(t - h / 2.0),
+            at(t + h / 2.0),
+        );
+        let richardson = |f: &dyn Fn(&orbitflex::planning::PlanPoint) -> f64| {
+            (4.0 * (f(&d) - f(&c)) / h - (f(&b) - f(&a)) / (2.0 * h)) / 3.0
+        };
+        for i in 0..7 {
+            let rate = richardson(&|p| p.theta[i]);
+            let acc = richardson(&|p| p.theta_dot[i]);
+            assert!(
+                (rate - now.theta_dot[i]).abs() < 1e-6 * (1.0 + now.theta_dot[i].abs()),
+                "t={t} θ̇[{i}]: {rate} vs {}",
+                now.theta_dot[i]
+            );
+            assert!(
+                (acc - now.theta_ddot[i]).abs() < 1e-6 * (1.0 + now.theta_ddot[i].abs()),
+                "t={t} θ̈[{i}]: {acc} vs {}",
+                now.theta_ddot[i]
+            );
+        }
+        // and the plan's instant agrees with the pointwise inverse dynamics given its deflection
+        let deflection: Vec<f64> = now.theta.iter().zip(&now.q).map(|(a, b)| a - b).collect();
+        let motion = [
+            now.q.clone(),
+            now.qd.clone(),
+            now.qdd.clone(),
+            at_derivative(&plan, t, 3),
+            at_derivative(&plan, t, 4),
+        ];
+        let point = arm
+            .inverse_dynamics(&link_motion(&motion), BaseMode::Free, Some(&deflection))
+            .unwrap();
+        assert!(
+            relative(&point.u, &now.u) < 1e-9,
+            "{}",
+            relative(&point.u, &now.u)
+        );
+        assert!(relative(&point.base_twist, &now.base_twist) < 1e-12);
+    }
+}
+
+/// `q⃛` or `q⁗` of a single-segment plan at `t`, from the path shape.
+fn at_derivative(plan: &Plan, t: f64, order: usize) -> Vec<f64> {
+    let (start, goal) = (&plan.stops()[0], &plan.stops()[1]);
+    let duration = plan.duration();
+    let sig = orbitflex::planning::sigma(t / duration);
+    start
+        .iter()
+        .zip(goal)
+        .map(|(a, b)| (b - a) * sig[order] / duration.powi(order as i32))
+        .collect()
+}
+
+#[test]
+fn the_flexible_plan_is_followed_and_the_rigid_one_is_not() {
+    let arm = space_arm();
+    let (kp, kd) = (vec![1000.0; 7], vec![100.0; 7]);
+    for base in [BaseMode::Held, BaseMode::Free] {
+        let plan = plan_slew(&arm, &GOAL, None, &space_limits(), base, &[]).unwrap();
+        let flexible = plan.track(1e-3, &kp, &kd, 2.0).unwrap();
+        assert!(
+            flexible.tracking_error < 1e-5,
+            "{base:?}: {}",
+            flexible.tracking_error
+        );
+        assert!(
+            flexible.base_position_error < 1e-5,
+            "{}",
+            flexible.base_position_error
+        );
+        assert!(
+            flexible.base_attitude_error < 1e-5,
+            "{}",
+            flexible.base_attitude_error
+        );
+        let rigid_plan = plan.rigid().unwrap();
+        assert!(rigid_plan.is_rigid() && !plan.is_rigid());
+        let rigid = rigid_plan.track(1e-3, &kp, &kd, 2.0).unwrap();
+        assert!(
+            rigid.tracking_error > 1e-3,
+            "{base:?}: {}",
+            rigid.tracking_error
+        );
+        assert!(
+            rigid.residual_deflection > 10.0 * flexible.residual_deflection,
+            "{base:?}: {} vs {}",
+            rigid.residual_deflection,
+            flexible.residual_deflection
+        );
+        let steps = ((plan.duration() + 2.0) / 1e-3).ceil() as usize;
+        assert_eq!(flexible.trajectory.len(), steps + 1);
+    }
+}
+
+#[test]
+fn planning_rejects_bad_requests_with_what_and_where() {
+    let arm = space_arm();
+    let message = |r: orbitflex::Result<Plan>| r.unwrap_err().to_string();
+    let limits = space_limits();
+    assert_eq!(
+        Limits::new(vec![1.0, 0.0], vec![1.0], None, None)
+            .unwrap_err()
+            .to_string(),
+        "motor_torque[1]: expected a finite limit > 0, given 0"
+    );
+    assert_eq!(
+        Limits::new(vec![1.0], vec![f64::NAN], None, None)
+            .unwrap_err()
+            .to_string(),
+        "joint_speed: expected a finite limit > 0, given NaN"
+    );
+    assert_eq!(
+        Limits::new(vec![1.0], vec![1.0], Some(-3.0), None)
+            .unwrap_err()
+            .to_string(),
+        "base_force: expected a finite limit > 0, given -3"
+    );
+    assert_eq!(
+        Limits::new(vec![], vec![1.0], None, None)
+            .unwrap_err()
+            .to_string(),
+        "motor_torque: expected one value per joint, or one for all, given no values"
+    );
+    let three = Limits::new(vec![1.0; 3], vec![1.0], None, None).unwrap();
+    assert_eq!(
+        message(plan_slew(&arm, &GOAL, None, &three, BaseMode::Held, &[])),
+        "limits.motor_torque: expected 7 values (one per joint) or 1 (for all), given 3 values"
+    );
+    assert_eq!(
+        message(plan_slew(
+            &arm,
+            &[0.0; 7],
+            None,
+            &limits,
+            BaseMode::Held,
+            &[]
+        )),
+        "q_goal: equals q_start: there is nothing to slew"
+    );
+    assert_eq!(
+        message(plan_slew(
+            &arm,
+            &GOAL,
+            None,
+            &limits,
+            BaseMode::Held,
+            &[GOAL.to_vec()]
+        )),
+        "q_goal: equals waypoints[0]: there is nothing to slew"
+    );
+    assert_eq!(
+        message(plan_slew(
+            &arm,
+            &GOAL,
+            None,
+            &limits,
+            BaseMode::Held,
+            &[vec![0.0; 6]]
+        )),
+        "waypoints[0]: expected length 7, given length 6"
+    );
+    // reachable in principle (zero gravity), but only after about 1e150 s
+    let tiny = Limits::new(vec![1e-300], vec![1.0], None, None).unwrap();
+    let err = message(plan_slew(&arm, &GOAL, None, &tiny, BaseMode::Held, &[]));
+    assert_eq!(
+        err,
+        "limits: no duration up to 1.135e19 s meets them: motor_torque[3] still needs 2.168e-19, \
+         over its limit of 1e-300"
+    );
+    let plan = plan_slew(&arm, &GOAL, None, &limits, BaseMode::Held, &[]).unwrap();
+    assert!(plan.reference(0.0, None).is_err());
+    assert!(plan
+        .track(1e-3, &[1.0; 6], &[1.0; 7], 1.0)
+        .unwrap_err()
+        .to_string()
+        .starts_with("kp"));
+    assert_eq!(
+        plan.track(1e-3, &[1.0; 7], &[1.0; 7], -1.0)
+            .unwrap_err()
+            .to_string(),
+        "settle: expected a finite time ≥ 0 (s), given -1"
+    );
+}
+
+#[test]
+fn references_average_the_feedforward_and_cover_the_run() {
+    let arm = space_arm();
+    let plan = plan_slew(&arm, &GOAL, None, &space_limits(), BaseMode::Held, &[]).unwrap();
+    let dt = 0.01;
+    let r = plan.reference(dt, Some(1400)).unwrap();
+    assert_eq!(
+        (r.steps, r.u.len(), r.base_wrench.len(), r.base_pose.len()),
+        (1400, 9800, 8400, 9800)
+    );
+    // Simpson's average of a smooth u against a fine midpoint rule
+    let k = 400;
+    for i in 0..7 {
+        let fine: f64 = (0..200)
+            .map(|m| {
+                plan.evaluate((k as f64 + (m as f64 + 0.5) / 200.0) * dt)
+                    .unwrap()
+                    .u[i]
+            })
+            .sum::<f64>()
+            / 200.0;
+        assert!(
+            (r.u[k * 7 + i] - fine).abs() < 1e-6 * (1.0 + fine.abs()),
+            "{i}: {} vs {fine}",
+            r.u[k * 7 + i]
+        );
+        let start = plan.evaluate(k as f64 * dt).unwrap();
+        assert_eq!(r.theta_ref[k * 7 + i], start.theta[i]);
+    }
+    // after the slew: the goal at rest, no torque
+    let last = &r.u[1399 * 7..];
+    assert!(last.iter().all(|u| u.abs() < 1e-12), "{last:?}");
+    assert!(r.q[1399 * 7..]
+        .iter()
+        .zip(GOAL)
+        .all(|(a, b)| (a - b).abs() < 1e-12));
+    assert_eq!(
+        plan.reference(dt, None).unwrap().steps,
+        (plan.duration() / dt).ceil() as usize
+    );
+}
