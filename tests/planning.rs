@@ -270,12 +270,14 @@ fn space_arm() -> FlexibleArm {
 
 const GOAL: [f64; 7] = [0.8, -0.6, 0.5, 1.0, -0.7, 0.6, 0.9];
 
-fn space_limits() -> Limits {
+/// The test slew's limits; base limits for a held base only.
+fn space_limits(base: BaseMode) -> Limits {
+    let held = base == BaseMode::Held;
     Limits::new(
         vec![60.0, 60.0, 60.0, 30.0, 15.0, 15.0, 15.0],
         vec![0.5],
-        Some(80.0),
-        Some(60.0),
+        held.then_some(80.0),
+        held.then_some(60.0),
     )
     .unwrap()
 }
@@ -314,7 +316,15 @@ fn check_limits(plan: &Plan, count: usize) {
 #[test]
 fn the_built_in_slews_are_as_short_as_their_limits_allow() {
     let arm = space_arm();
-    let held = plan_slew(&arm, &GOAL, None, &space_limits(), BaseMode::Held, &[]).unwrap();
+    let held = plan_slew(
+        &arm,
+        &GOAL,
+        None,
+        &space_limits(BaseMode::Held),
+        BaseMode::Held,
+        &[],
+    )
+    .unwrap();
     check_limits(&held, 4000);
     let b = held.binding();
     assert_eq!((b.constraint, b.joint), (Constraint::BaseTorque, None));
@@ -323,8 +333,16 @@ fn the_built_in_slews_are_as_short_as_their_limits_allow() {
         "{}",
         held.duration()
     );
-    assert!((b.time - 7.645_087_6).abs() < 1e-6, "{}", b.time);
-    let free = plan_slew(&arm, &GOAL, None, &space_limits(), BaseMode::Free, &[]).unwrap();
+    assert!((b.time - 7.645_112_6).abs() < 1e-6, "{}", b.time);
+    let free = plan_slew(
+        &arm,
+        &GOAL,
+        None,
+        &space_limits(BaseMode::Free),
+        BaseMode::Free,
+        &[],
+    )
+    .unwrap();
     check_limits(&free, 4000);
     let b = free.binding();
     assert_eq!((b.constraint, b.joint), (Constraint::MotorTorque, Some(3)));
@@ -353,14 +371,15 @@ fn plans_on_a_random_chain_respect_their_limits() {
     let goal: Vec<f64> = Rng::new(5).vector(6, -1.0, 1.0);
     let start: Vec<f64> = Rng::new(6).vector(6, -0.5, 0.5);
     let waypoint: Vec<f64> = Rng::new(7).vector(6, -1.0, 1.0);
-    let limits = Limits::new(
-        vec![5.0],
-        vec![1.0, 1.2, 0.8, 1.0, 2.0, 2.0],
-        Some(20.0),
-        Some(10.0),
-    )
-    .unwrap();
     for base in [BaseMode::Held, BaseMode::Free] {
+        let held = base == BaseMode::Held;
+        let limits = Limits::new(
+            vec![5.0],
+            vec![1.0, 1.2, 0.8, 1.0, 2.0, 2.0],
+            held.then_some(20.0),
+            held.then_some(10.0),
+        )
+        .unwrap();
         let plan = plan_slew(
             &arm,
             &goal,
@@ -391,7 +410,15 @@ fn a_damped_plan_has_consistent_motor_rates() {
     let mut joints = FlexibleJoints::space_arm();
     joints.damping = vec![40.0, 40.0, 40.0, 20.0, 10.0, 10.0, 10.0]; // d/k from 4 ms to 5 ms
     let arm = FlexibleArm::new(Robot::space_arm(), joints).unwrap();
-    let plan = plan_slew(&arm, &GOAL, None, &space_limits(), BaseMode::Free, &[]).unwrap();
+    let plan = plan_slew(
+        &arm,
+        &GOAL,
+        None,
+        &space_limits(BaseMode::Free),
+        BaseMode::Free,
+        &[],
+    )
+    .unwrap();
     let h = 1e-3;
     for t in [0.7, 2.3, 4.0] {
         let at = |t: f64| plan.evaluate(t).unwrap();
@@ -457,7 +484,7 @@ fn the_flexible_plan_is_followed_and_the_rigid_one_is_not() {
     let arm = space_arm();
     let (kp, kd) = (vec![1000.0; 7], vec![100.0; 7]);
     for base in [BaseMode::Held, BaseMode::Free] {
-        let plan = plan_slew(&arm, &GOAL, None, &space_limits(), base, &[]).unwrap();
+        let plan = plan_slew(&arm, &GOAL, None, &space_limits(base), base, &[]).unwrap();
         let flexible = plan.track(1e-3, &kp, &kd, 2.0).unwrap();
         assert!(
             flexible.tracking_error < 1e-5,
@@ -493,11 +520,64 @@ fn the_flexible_plan_is_followed_and_the_rigid_one_is_not() {
     }
 }
 
+/// The measures recomputed from the trajectory, independently of `track`.
+#[test]
+fn tracking_measures_are_what_they_say() {
+    let arm = space_arm();
+    let plan = plan_slew(
+        &arm,
+        &GOAL,
+        None,
+        &space_limits(BaseMode::Free),
+        BaseMode::Free,
+        &[],
+    )
+    .unwrap()
+    .rigid()
+    .unwrap();
+    let dt = 2e-3;
+    // settle = 0: only the final state is at or after the slew's end
+    let run = plan.track(dt, &[1000.0; 7], &[100.0; 7], 0.0).unwrap();
+    let traj = &run.trajectory;
+    let layout = arm.layout();
+    let last = traj.state(traj.len() - 1);
+    let final_deflection = (0..7)
+        .map(|i| (last[layout.theta()][i] - last[layout.q()][i]).abs())
+        .fold(0.0, f64::max);
+    assert!(traj.t[traj.len() - 2] < plan.duration() && traj.t[traj.len() - 1] >= plan.duration());
+    assert_eq!(run.residual_deflection, final_deflection);
+    assert!(final_deflection > 1e-5, "{final_deflection}");
+    let final_error = (0..7)
+        .map(|i| (last[layout.q()][i] - GOAL[i]).abs())
+        .fold(0.0, f64::max);
+    assert_eq!(run.residual_link_error, final_error);
+    let mut peak = [0.0_f64; 7];
+    for row in traj.u.chunks_exact(7) {
+        for i in 0..7 {
+            peak[i] = peak[i].max(row[i].abs());
+        }
+    }
+    assert_eq!(run.peak_motor_torque, peak.to_vec());
+    let mut worst: f64 = 0.0;
+    for k in (0..traj.len()).step_by(7) {
+        let planned = plan.evaluate(traj.t[k]).unwrap();
+        let q = &traj.state(k)[layout.q()];
+        for (a, b) in q.iter().zip(&planned.q) {
+            worst = worst.max((a - b).abs());
+        }
+    }
+    assert!(
+        worst <= run.tracking_error && worst > 0.9 * run.tracking_error,
+        "{worst} vs {}",
+        run.tracking_error
+    );
+}
+
 #[test]
 fn planning_rejects_bad_requests_with_what_and_where() {
     let arm = space_arm();
     let message = |r: orbitflex::Result<Plan>| r.unwrap_err().to_string();
-    let limits = space_limits();
+    let limits = space_limits(BaseMode::Held);
     assert_eq!(
         Limits::new(vec![1.0, 0.0], vec![1.0], None, None)
             .unwrap_err()
@@ -536,7 +616,7 @@ fn planning_rejects_bad_requests_with_what_and_where() {
             BaseMode::Held,
             &[]
         )),
-        "q_goal: equals q_start: there is nothing to slew"
+        "q_goal: equals q_start (to 1e-12 rad): there is nothing to slew"
     );
     assert_eq!(
         message(plan_slew(
@@ -547,7 +627,7 @@ fn planning_rejects_bad_requests_with_what_and_where() {
             BaseMode::Held,
             &[GOAL.to_vec()]
         )),
-        "q_goal: equals waypoints[0]: there is nothing to slew"
+        "q_goal: equals waypoints[0] (to 1e-12 rad): there is nothing to slew"
     );
     assert_eq!(
         message(plan_slew(
@@ -560,6 +640,39 @@ fn planning_rejects_bad_requests_with_what_and_where() {
         )),
         "waypoints[0]: expected length 7, given length 6"
     );
+    let mut near = GOAL;
+    near[2] += 1e-13;
+    assert_eq!(
+        message(plan_slew(
+            &arm,
+            &GOAL,
+            Some(&near),
+            &limits,
+            BaseMode::Held,
+            &[]
+        )),
+        "q_goal: equals q_start (to 1e-12 rad): there is nothing to slew"
+    );
+    assert_eq!(
+        message(plan_slew(&arm, &GOAL, None, &limits, BaseMode::Free, &[])),
+        "limits: base_force and base_torque bound the wrench that holds a held base; a free base \
+         receives none (base = \"free\"): leave them out"
+    );
+    // the fields are public: a plan checks them again
+    for (speed, shown) in [(0.0, "0"), (-0.5, "-0.5"), (f64::NAN, "NaN")] {
+        let mut bad = space_limits(BaseMode::Held);
+        bad.joint_speed = vec![speed];
+        assert_eq!(
+            message(plan_slew(&arm, &GOAL, None, &bad, BaseMode::Held, &[])),
+            format!("joint_speed: expected a finite limit > 0, given {shown}")
+        );
+    }
+    // a tiny slew still gets a finite, feasible plan (no NaN counts as within the limits)
+    let mut close = [0.0; 7];
+    close[0] = 1e-9;
+    let tiny_plan = plan_slew(&arm, &close, None, &limits, BaseMode::Held, &[]).unwrap();
+    assert!(tiny_plan.duration().is_finite() && tiny_plan.duration() > 0.0);
+    check_limits(&tiny_plan, 200);
     // reachable in principle (zero gravity), but only after about 1e150 s
     let tiny = Limits::new(vec![1e-300], vec![1.0], None, None).unwrap();
     let err = message(plan_slew(&arm, &GOAL, None, &tiny, BaseMode::Held, &[]));
@@ -586,12 +699,20 @@ fn planning_rejects_bad_requests_with_what_and_where() {
 #[test]
 fn references_average_the_feedforward_and_cover_the_run() {
     let arm = space_arm();
-    let plan = plan_slew(&arm, &GOAL, None, &space_limits(), BaseMode::Held, &[]).unwrap();
+    let plan = plan_slew(
+        &arm,
+        &GOAL,
+        None,
+        &space_limits(BaseMode::Held),
+        BaseMode::Held,
+        &[],
+    )
+    .unwrap();
     let dt = 0.01;
     let r = plan.reference(dt, Some(1400)).unwrap();
     assert_eq!(
         (r.steps, r.u.len(), r.base_wrench.len(), r.base_pose.len()),
-        (1400, 9800, 8400, 9800)
+        (1400, 9800, 8400, 9807)
     );
     // Simpson's average of a smooth u against a fine midpoint rule
     let k = 400;

@@ -30,6 +30,13 @@ const INTERVALS: usize = 512;
 const BISECTION_TOLERANCE: f64 = 1e-10;
 /// Peaks within this fraction of their limit are refined between samples.
 const REFINE_ABOVE: f64 = 0.98;
+/// The closest two samples may be (in `s`): shorter intervals would amplify round-off in the
+/// deflection's second rate (`deflection::advance`).
+const MIN_SPACING: f64 = 1e-4;
+/// How far back (in `s`) [`Plan::evaluate`] starts integrating the deflection from a sample.
+const LOOKBACK: f64 = 1.0 / 1024.0;
+/// Consecutive stops closer than this in every joint (rad) are refused.
+pub const NOTHING_TO_SLEW: f64 = 1e-12;
 /// Doubling steps before a request is declared unreachable.
 const MAX_DOUBLINGS: usize = 60;
 
@@ -118,8 +125,19 @@ impl Limits {
         Self::new(vec![motor_torque], vec![joint_speed], None, None)
     }
 
-    /// These limits for `n` joints: single values repeated, others checked for length `n`.
+    /// These limits for `n` joints: single values repeated, others checked for length `n`; every
+    /// value checked again (the fields are public).
     pub fn for_joints(&self, n: usize) -> Result<Limits> {
+        check_positive("motor_torque", &self.motor_torque)?;
+        check_positive("joint_speed", &self.joint_speed)?;
+        for (what, v) in [
+            ("base_force", self.base_force),
+            ("base_torque", self.base_torque),
+        ] {
+            if let Some(v) = v {
+                check_positive(what, &[v])?;
+            }
+        }
         let expand = |what: &str, v: &Vec<f64>| match v.len() {
             1 => Ok(vec![v[0]; n]),
             len if len == n => Ok(v.clone()),
@@ -292,9 +310,10 @@ pub struct Reference {
     pub theta_dot_ref: Vec<f64>,
     /// The base wrench averaged over the step (6 wide; zero unless held).
     pub base_wrench: Vec<f64>,
-    /// The planned link angles at the start of each step (n wide), to measure tracking.
+    /// The planned link angles at every state time `k dt`, `k = 0 … steps` (`steps + 1` rows, n
+    /// wide), to measure tracking.
     pub q: Vec<f64>,
-    /// The planned base pose `[r_B; quat_B]` at the start of each step (7 wide).
+    /// The planned base pose `[r_B; quat_B]` at every state time (`steps + 1` rows, 7 wide).
     pub base_pose: Vec<f64>,
 }
 
@@ -325,12 +344,13 @@ pub struct Samples {
     pub base_pose: Vec<f64>,
 }
 
-/// Plans the shortest rest-to-rest slew of the fixed path shape from `q_start` to `q_goal`
-/// through `waypoints` (stopping at each) under `limits` (module docs). The arm starts with
-/// relaxed springs (`θ = q`) and its base at `base_pose`'s pose (default: origin, identity).
+/// Plans the shortest rest-to-rest slew of the fixed path shape from `q_start` (default zero)
+/// to `q_goal` through `waypoints` (stopping at each) under `limits` (module docs). The arm
+/// starts at rest with relaxed springs (`θ = q`), its base at the origin with identity attitude:
+/// a free base's planned pose is relative to where it starts.
 ///
-/// Errors: wrong lengths, non-finite values, two consecutive stops that are equal, or limits no
-/// duration can meet.
+/// Errors: wrong lengths, non-finite values, non-positive limits, base limits with a free base,
+/// two consecutive stops closer than [`NOTHING_TO_SLEW`], or limits no duration can meet.
 pub fn plan_slew(
     arm: &FlexibleArm,
     q_goal: &[f64],
@@ -341,6 +361,14 @@ pub fn plan_slew(
 ) -> Result<Plan> {
     let n = arm.dof();
     let limits = limits.for_joints(n)?;
+    if base == BaseMode::Free && (limits.base_force.is_some() || limits.base_torque.is_some()) {
+        return Err(Error::InvalidArgument {
+            what: "limits".into(),
+            message: "base_force and base_torque bound the wrench that holds a held base; a free \
+                      base receives none (base = \"free\"): leave them out"
+                .into(),
+        });
+    }
     let zeros = vec![0.0; n];
     let start = q_start.unwrap_or(&zeros);
     check_vector("q_start", start, n)?;
@@ -352,7 +380,11 @@ pub fn plan_slew(
     }
     stops.push(q_goal.to_vec());
     for k in 1..stops.len() {
-        if stops[k] == stops[k - 1] {
+        let step = stops[k]
+            .iter()
+            .zip(&stops[k - 1])
+            .fold(0.0_f64, |m, (b, a)| m.max((b - a).abs()));
+        if step <= NOTHING_TO_SLEW {
             let name = |k: usize| match k {
                 0 => "q_start".to_string(),
                 k if k == stops.len() - 1 => "q_goal".to_string(),
@@ -360,7 +392,10 @@ pub fn plan_slew(
             };
             return Err(Error::InvalidArgument {
                 what: name(k),
-                message: format!("equals {}: there is nothing to slew", name(k - 1)),
+                message: format!(
+                    "equals {} (to {NOTHING_TO_SLEW:e} rad): there is nothing to slew",
+                    name(k - 1)
+                ),
             });
         }
     }
@@ -510,7 +545,12 @@ impl Plan {
     fn worst(&self, p: &Point) -> (f64, Constraint, Option<usize>, f64, f64) {
         let mut worst = (0.0, Constraint::JointSpeed, None, 0.0, 0.0);
         let mut consider = |value: f64, limit: f64, c: Constraint, joint: Option<usize>| {
-            let ratio = value / limit;
+            // a NaN (an overflowing trial duration) breaches every limit
+            let ratio = if value.is_nan() {
+                f64::INFINITY
+            } else {
+                value / limit
+            };
             if ratio > worst.0 {
                 worst = (ratio, c, joint, value, limit);
             }
@@ -608,10 +648,10 @@ impl Plan {
                 }
             }
             added.sort_by(f64::total_cmp);
-            added.dedup_by(|a, b| (*a - *b).abs() < 1e-12);
+            added.dedup_by(|a, b| (*a - *b).abs() < MIN_SPACING);
             let fresh: Vec<f64> = added
                 .into_iter()
-                .filter(|s| seg.s.iter().all(|x| (x - s).abs() > 1e-12))
+                .filter(|s| seg.s.iter().all(|x| (x - s).abs() >= MIN_SPACING))
                 .collect();
             if fresh.is_empty() || round == 3 {
                 self.finish(seg, w);
@@ -733,16 +773,16 @@ impl Plan {
         self.segments.iter().map(|s| s.duration).collect()
     }
 
-    /// The limit that binds over the whole plan (the binding of its longest segment's peak ratio:
-    /// every segment has one at ratio 1 unless its speed bound alone sets it).
+    /// The limit that binds the plan: that of its longest segment (every segment is as short as
+    /// its limits allow, so each has a binding limit at ratio 1; [`Plan::bindings`] lists them).
     pub fn binding(&self) -> &Binding {
-        let mut best = &self.segments[0].binding;
+        let mut best = &self.segments[0];
         for seg in &self.segments {
-            if seg.binding.value / seg.binding.limit > best.value / best.limit {
-                best = &seg.binding;
+            if seg.duration > best.duration {
+                best = seg;
             }
         }
-        best
+        &best.binding
     }
 
     /// The binding limit of each segment.
@@ -850,8 +890,12 @@ impl Plan {
             .unwrap_or(last);
         let seg = &self.segments[k];
         let w = 1.0 / seg.duration;
-        let s = ((t - seg.t0) * w).clamp(0.0, 1.0);
-        let j = seg.s.partition_point(|x| *x <= s).max(1) - 1;
+        let mut s = ((t - seg.t0) * w).clamp(0.0, 1.0);
+        if s < 1e-12 {
+            s = 0.0; // at rest; avoids intervals that underflow
+        }
+        // integrate from a sample at least LOOKBACK back (short intervals amplify round-off)
+        let j = seg.s.partition_point(|x| *x <= s - LOOKBACK).max(1) - 1;
         let mut before = Point::new(n);
         self.point(seg, seg.s[j], &seg.jets[j], w, None, &mut before);
         before
@@ -887,8 +931,9 @@ impl Plan {
 
     /// Everything at time `t` (s) of the plan, computed afresh from the inverse dynamics at that
     /// instant (not interpolated between samples; the deflection of damped joints is integrated
-    /// exactly from the sample before). Before the start and after the end the arm rests at the
-    /// first and last stop.
+    /// exactly from a sample before). Before the start the arm rests at the first stop. After the
+    /// end the links rest at the goal; a damped joint's motor may still settle (its deflection
+    /// decays as `e^{−k t/d}`).
     pub fn evaluate(&self, t: f64) -> Result<PlanPoint> {
         crate::args::check_finite("t", &[t])?;
         let mut p = Point::new(self.arm.dof());
@@ -952,6 +997,8 @@ impl Plan {
             }
             std::mem::swap(&mut start, &mut end);
         }
+        r.q.extend_from_slice(&start.q);
+        r.base_pose.extend_from_slice(&pose);
         Ok(r)
     }
 }

@@ -62,7 +62,8 @@ pub fn joint_rotation(axis: &Vec3, q: &Jet<f64>, r0: &Mat3) -> Jet<Mat3> {
 }
 
 /// The jet of `x(t)` solving `A(t) x(t) = b(t)` for 6×6 `A`: `A x⁽ᵏ⁾ = b⁽ᵏ⁾ − Σ_{i≥1} C(k, i)
-/// A⁽ⁱ⁾ x⁽ᵏ⁻ⁱ⁾`, one factorisation for all orders. `None` if `A` is singular.
+/// A⁽ⁱ⁾ x⁽ᵏ⁻ⁱ⁾`, one Cholesky factorisation for all orders. `None` unless `A` is symmetric
+/// positive definite (as a composite inertia is).
 pub fn solve6(a: &Jet<Matrix6<f64>>, b: &Jet<Vector6<f64>>) -> Option<Jet<Vector6<f64>>> {
     let factor = a[0].cholesky()?;
     let mut x = [Vector6::zeros(); TERMS];

@@ -18,10 +18,11 @@ pub struct Tracking {
     /// Per joint, the peak commanded motor torque `max |u_i|` over the run (N·m): feedforward
     /// plus the PD's correction.
     pub peak_motor_torque: Vec<f64>,
-    /// `max |q_i − q_plan,i|` over the run, all joints (rad).
+    /// `max |q_i − q_plan,i|` over every state of the run, all joints (rad).
     pub tracking_error: f64,
-    /// After the slew: the largest deflection `|θ_i − q_i|` (rad), the residual vibration of
-    /// the joints (zero for an arm at rest).
+    /// Over the states at or after the slew's end (the final state at least): the largest
+    /// deflection `|θ_i − q_i|` (rad), the residual vibration of the joints (zero for an arm at
+    /// rest).
     pub residual_deflection: f64,
     /// After the slew: the largest `|q_i − q_goal,i|` (rad).
     pub residual_link_error: f64,
@@ -95,7 +96,8 @@ fn measure(plan: &Plan, trajectory: Trajectory, reference: Reference) -> Trackin
             *peak = peak.max(u.abs());
         }
     }
-    for k in 0..reference.steps {
+    // every state, the final one included
+    for k in 0..=reference.steps.min(trajectory.len().saturating_sub(1)) {
         let x = trajectory.state(k);
         let (q, theta) = (&x[layout.q()], &x[layout.theta()]);
         let planned = &reference.q[k * n..(k + 1) * n];
