@@ -1,5 +1,5 @@
 //! Minimum-time rest-to-rest slews under motor-torque, joint-speed and base-actuation limits
-//! (docs/model.md §8.2), and their per-step tables for [`crate::integrate::simulate`].
+//! (docs/model.md §8.2), and their per-step tables for [`crate::integrate::simulate()`].
 //!
 //! The path shape is fixed and time-scaled, as in the paper: between consecutive stops (start,
 //! waypoints, goal) `q(t) = q_a + (q_b − q_a) σ(t/T)` with the degree-9 polynomial
@@ -294,7 +294,7 @@ pub struct Plan {
     segments: Vec<Segment>,
 }
 
-/// Per-step tables for [`crate::integrate::simulate`] from a plan ([`Plan::reference`]); each
+/// Per-step tables for [`crate::integrate::simulate()`] from a plan ([`Plan::reference`]); each
 /// is `steps × width`, row-major, row `k` for step `k` (time `k dt` to `(k+1) dt`).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Reference {

@@ -66,7 +66,7 @@ impl Observer for Watch<'_> {
 
 type RunResult = Result<Trajectory, Box<SimulationFailure>>;
 
-/// [`integrate::simulate`] without the GIL. A pending `KeyboardInterrupt` (or an exception from
+/// [`integrate::simulate()`] without the GIL. A pending `KeyboardInterrupt` (or an exception from
 /// the progress callback) stops the run and is raised as it is.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn run_releasing_gil(
@@ -91,7 +91,7 @@ pub(crate) fn run_releasing_gil(
     }
 }
 
-/// [`integrate::simulate`] holding the GIL, for a controller that calls Python.
+/// [`integrate::simulate()`] holding the GIL, for a controller that calls Python.
 pub(crate) fn run_with_gil(
     arm: &FlexibleArm,
     x0: &[f64],
