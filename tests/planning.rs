@@ -333,7 +333,8 @@ fn the_built_in_slews_are_as_short_as_their_limits_allow() {
         "{}",
         held.duration()
     );
-    assert!((b.time - 7.645_112_6).abs() < 1e-6, "{}", b.time);
+    // the torque norm peaks at 7.64509 s (a 4e-6 s grid of evaluate() around it agrees)
+    assert!((b.time - 7.645_089_3).abs() < 1e-6, "{}", b.time);
     let free = plan_slew(
         &arm,
         &GOAL,

@@ -2,7 +2,9 @@
 
 Rigid floating-base dynamics in the operator form of the source derivation (Appendix A, eqs.
 A.1-A.19, of "Trajectory Generation for Flexible-Joint Space Manipulators", Frontiers in Robotics
-and AI, 2022) and in O(n) recursive form, Spong flexible joints, and a fixed-step RK4 simulator.
+and AI, 2022) and in O(n) recursive form, Spong flexible joints, a fixed-step RK4 simulator, and
+minimum-time slews planned with the flexible-joint inverse dynamics (``plan_slew``, ``Limits``,
+``Plan``).
 The model, its conventions and equations are documented in docs/model.md.
 
 Conventions: spatial vectors are ``[angular; linear]`` in the body's own frame; the base twist is
@@ -23,12 +25,15 @@ from ._core import (
     SPACE_ARM_URDF,
     FlexibleArm,
     FlexibleJoints,
+    Limits,
     ModelError,
     MotorPD,
+    Plan,
     Robot,
     SimulationError,
     Trajectory,
     __version__,
+    plan_slew,
 )
 from . import models
 
@@ -38,6 +43,9 @@ __all__ = [
     "FlexibleArm",
     "MotorPD",
     "Trajectory",
+    "Limits",
+    "Plan",
+    "plan_slew",
     "ModelError",
     "SimulationError",
     "models",

@@ -1,11 +1,19 @@
-"""Command line: ``orbitflex demo`` and ``orbitflex simulate URDF``.
+"""Command line: ``orbitflex demo``, ``orbitflex simulate URDF`` and ``orbitflex plan URDF``.
 
-Both run the same job: a free-floating slew of the arm under the built-in motor-side PD
-controller, long enough to show the base's reaction and the joints' vibration, then print a
-summary and write the trajectory, ``summary.json`` and plots into an output folder.
+``demo`` and ``simulate`` run the same job: a free-floating slew of the arm under the built-in
+motor-side PD controller, long enough to show the base's reaction and the joints' vibration, then
+print a summary and write the trajectory, ``summary.json`` and plots into an output folder. The
+demo then plans a minimum-time slew of the built-in arm under limits, with the flexible joints
+and as if they were rigid, runs both plans on the flexible arm and compares them.
 
-Exit codes: 0 for a completed run, 1 when the run diverged (the outputs then describe the
-finite part before the failure), 2 for a usage error (one line ``orbitflex: error: FLAG: ...``).
+``plan`` does that for a URDF: it plans the minimum-time slew to ``--goal`` under
+``--motor-torque``, ``--joint-speed`` (and, for a held base, ``--base-force``, ``--base-torque``)
+limits, plans it again as if the joints were rigid, tracks both on the flexible arm, and writes
+the plans, the comparison, ``plan_summary.json`` and plots.
+
+Exit codes: 0 for a completed run, 1 when a run diverged (the outputs then describe the finite
+part before the failure; ``plan`` writes none), 2 for a usage error (one line
+``orbitflex: error: FLAG: ...``).
 """
 
 from __future__ import annotations
@@ -26,7 +34,8 @@ from typing import Any, Dict, List, NoReturn, Optional, Sequence, TextIO, Tuple,
 import numpy as np
 import numpy.typing as npt
 
-from . import FlexibleArm, FlexibleJoints, MotorPD, Robot, SimulationError, Trajectory, __version__, models
+from . import (FlexibleArm, FlexibleJoints, Limits, MotorPD, Plan, Robot, SimulationError, Trajectory, __version__,
+               models, plan_slew)
 
 Array = npt.NDArray[np.float64]
 Rows = npt.NDArray[np.intp]  # indices of the rows drawn in a plot
@@ -104,8 +113,9 @@ def cli_words(message: str) -> str:
         return "--locked-joints " + ",".join(names)
 
     message = re.sub(r"locked_joints=\[([^\]]*)\]", locked, message)
-    message = re.sub(r"(?<![\w-])locked_joints\b", "--locked-joints", message)
-    return re.sub(r"(?<![\w-])ee_link\b", "--ee-link", message)
+    # the keywords, not a link or joint of that name (names are quoted: 'ee_link')
+    message = re.sub(r"(?<![\w'\"-])locked_joints(?![\w'\"])", "--locked-joints", message)
+    return re.sub(r"(?<![\w'\"-])ee_link(?![\w'\"])", "--ee-link", message)
 
 
 def urdf_error(error: Exception) -> CliError:
@@ -216,14 +226,14 @@ def free_memory() -> Optional[int]:
         return None
 
 
-def check_memory(steps: int, n: int) -> None:
+def check_memory(steps: int, n: int, flag: str = "--duration/--dt",
+                 advice: str = "shorten --duration or lengthen --dt") -> None:
     parts = run_bytes(steps, n)
     need, free = sum(parts.values()), free_memory()
     if free is not None and need > free:
         sizes = ", ".join(f"{name} {gb(size)}" for name, size in parts.items())
-        raise CliError("--duration/--dt", f"{steps:,} steps of {n} joints need about {gb(need)} "
-                                          f"({sizes}) but {gb(free)} of memory is free; shorten "
-                                          f"--duration or lengthen --dt")
+        raise CliError(flag, f"{steps:,} steps of {n} joints need about {gb(need)} ({sizes}) but "
+                             f"{gb(free)} of memory is free; {advice}")
 
 
 def gb(size: int) -> str:
@@ -246,6 +256,7 @@ class Job:
     bus_side: float  # m, edge of the cube drawn for the bus in ee_path.png
     bus_com: Array  # m, base frame: the cube's centre
     note: Optional[str] = None  # printed under the header
+    compare_plans: bool = False  # also plan the demo's slew and compare it with its rigid-joint plan
 
 
 @dataclass
@@ -334,15 +345,38 @@ def run(job: Job, args: argparse.Namespace) -> int:
     if job.note:
         print(job.note)
     outcome = simulate(job.arm, pd, steps, args.dt, progress=not args.quiet)
+    comparison, note = demo_comparison(job.arm, job.name, args.dt) if job.compare_plans else (None, None)
     with np.errstate(all="ignore"):  # a diverged run's finite part may overflow in the summary
         summary = summarise(job.name, outcome, steps)
-        files = write_outputs(job, outcome, summary, out, args)
+        if comparison is not None:
+            summary["planned_slew"] = {"goal_rad": DEMO_PLAN_GOAL.tolist(), "base": comparison.plan.base,
+                                       "limits": limits_dict(comparison.plan.limits),
+                                       **comparison_summary(comparison)}
+        files = write_outputs(job, outcome, summary, out, args, comparison)
     print_summary(summary, job.arm.dof)
+    if comparison is not None:
+        print_demo_comparison(comparison, note)
+    descriptions = {**OUTPUTS, **PLAN_OUTPUTS}
     width = max(len(str(f)) for f in files)
     print(f"\nwrote {len(files)} files:")
     for f in files:
-        print(f"  {str(f):<{width}}  {OUTPUTS[f.name]}")
+        print(f"  {str(f):<{width}}  {descriptions[f.name]}")
     return 0 if outcome.failure is None else 1
+
+
+def print_demo_comparison(c: Comparison, note: Optional[str]) -> None:
+    """The demo's planned slew beside its rigid-joint plan."""
+    limits = c.plan.limits
+    goal = ", ".join(f"{v:g}" for v in DEMO_PLAN_GOAL)
+    print(f"\norbitflex: minimum-time slew of '{c.name}' to q = [{goal}] rad, free floating, planned "
+          f"with the flexible joints and as if they were rigid")
+    print(f"  limits              motor torque {gain_text(np.asarray(limits.motor_torque))} N·m, "
+          f"joint speed {gain_text(np.asarray(limits.joint_speed))} rad/s")
+    print(f"  flexible plan       {c.plan.duration:.4f} s, binding {describe_binding(c.plan)}")
+    print(f"  rigid-joint plan    {c.rigid.duration:.4f} s, binding {describe_binding(c.rigid)}")
+    if note:
+        print(f"  note                {note}")
+    print_comparison(c)
 
 
 def output_folder(path: str) -> Path:
@@ -357,7 +391,7 @@ def output_folder(path: str) -> Path:
 
 
 def write_outputs(job: Job, outcome: Outcome, summary: Dict[str, Any], out: Path,
-                  args: argparse.Namespace) -> List[Path]:
+                  args: argparse.Namespace, comparison: Optional["Comparison"] = None) -> List[Path]:
     traj = outcome.traj
     files = [out / "trajectory.npz"]
     try:
@@ -369,6 +403,10 @@ def write_outputs(job: Job, outcome: Outcome, summary: Dict[str, Any], out: Path
         files[-1].write_text(json.dumps(summary, indent=2))
         if not args.no_plots:
             files += plot(job, outcome, args.dt, out)
+            if comparison is not None:
+                figures = Figures(out, plan_caption(comparison))
+                plot_plan_vs_rigid(figures, comparison)
+                files += figures.files
     except OSError as e:
         raise CliError("--out", f"cannot write {files[-1]}: {e.strerror or e}") from None
     return files
@@ -744,14 +782,673 @@ def plot_momentum(figures: Figures, traj: Trajectory, rows: Rows) -> None:
 
 
 # ---------------------------------------------------------------------------------------------
-# the two commands
+# planned slews: `orbitflex plan` and the demo's planned-vs-rigid comparison
+# ---------------------------------------------------------------------------------------------
+
+# The demo's planned slew (rad) and limits (link side): the shoulder joints may use 60 N·m, the
+# elbow 30 N·m, the wrist 15 N·m; every joint 0.5 rad/s. The elbow's torque binds.
+DEMO_PLAN_GOAL = np.array([0.8, -0.6, 0.5, 1.0, -0.7, 0.6, 0.9])
+DEMO_MOTOR_TORQUE = np.array([60.0, 60.0, 60.0, 30.0, 15.0, 15.0, 15.0])
+DEMO_JOINT_SPEED = 0.5
+# The demo's tracking PD (N·m/rad, N·m·s/rad): a stiff motor servo (RK4 limit at rest 7.4 ms).
+DEMO_KP, DEMO_KD = 1000.0, 100.0
+# Default tracking PD of `orbitflex plan`: each motor a critically damped servo at this
+# frequency on its own inertia j: kp = j ω², kd = 2 j ω.
+SERVO_HZ = 5.0
+# Default RK4 step of the tracking runs (s), lowered to a round value within this share of the
+# stability limit when the limit requires it.
+TRACK_DT = 1e-3
+DT_MARGIN = 0.8
+
+PLAN_OUTPUTS = {
+    "plan.npz": "both plans' arrays, the per-step reference tables, the tracking runs and measures",
+    "plan_summary.json": "the summary above, as numbers",
+    "plan_angles.png": "planned link angles q, with the stops and the binding instant",
+    "plan_deflection.png": "planned joint deflection θ − q per joint, and the tracking run's",
+    "plan_motor_torque.png": "planned motor torque u per joint against its limits (dashed)",
+    "plan_base.png": "held base: the wrench that holds it, against its limits; free: its attitude",
+    "plan_vs_rigid.png": "flexible plan vs rigid-joint plan, both run on the flexible arm",
+}
+
+PLAN_EPILOG = """\
+Values per joint (--goal, --start, --waypoint, --motor-torque, --joint-speed, --kp, --kd) are
+one value for every joint or one per joint, in the URDF's chain order (base to EE); angles in
+rad, link side.
+
+The planner (orbitflex.plan_slew) moves every joint along q_a + (q_b − q_a) σ(t/T), σ of degree
+9 with derivatives 1–4 zero at both ends, and finds the shortest T per segment for which every
+limit holds, with the flexible-joint inverse dynamics (so u includes the motors' extra work to
+stretch the springs). The rigid-joint plan of the same slew ignores the springs. Both are then
+simulated on the flexible arm (RK4, a motor PD around the plan's θ with its feedforward u, and for
+a held base the base wrench), and compared: peak commanded torque against the limit, tracking
+error, residual vibration after the slew, base disturbance.
+
+tracking PD: by default kp = j (2π·{hz:g} Hz)² and kd = 2 j (2π·{hz:g} Hz) per joint, j the motor
+inertia: a critically damped motor servo. --dt must be within the RK4 stability limit of that
+loop (checked; the default 1 ms is lowered when needed).
+
+examples:
+  orbitflex plan ur5_robot.urdf --ee-link tool0 --base-mass 500 --goal 0.5 -0.4 0.6 0.3 0.2 0.1 \\
+      --motor-torque 150 150 150 28 28 28 --joint-speed 1.0 --base free
+  orbitflex plan arm.urdf --params joints.toml --goal 0.5 --waypoint 0.2 --motor-torque 40 \\
+      --joint-speed 0.8 --base held --base-force 50 --base-torque 40
+""".format(hz=SERVO_HZ)
+
+
+def servo_gains(arm: FlexibleArm, hz: float = SERVO_HZ) -> Tuple[Array, Array]:
+    """``kp = j ω²``, ``kd = 2 j ω`` (ω = 2π hz): each motor a critically damped servo on its own
+    inertia ``j``."""
+    _, j, _, _ = arm.parameters
+    w = 2 * np.pi * hz
+    return j * w**2, 2 * j * w
+
+
+def round_down(x: float) -> float:
+    """The largest 1, 2 or 5 times a power of ten that is at most ``x`` (> 0)."""
+    decade = 10.0 ** math.floor(math.log10(x))
+    return next(m * decade for m in (5, 2, 1) if m * decade <= x * (1 + 1e-12))
+
+
+def tracking_limit(arm: FlexibleArm, stops: Array, kp: Array, kd: Array) -> float:
+    """The RK4 stability limit (s) of the arm under the tracking PD, the smallest over the
+    stops (at rest, springs relaxed)."""
+    return min(arm.rk4_stability_limit(arm.state(q=stop), MotorPD(kp, kd, stop)) for stop in stops)
+
+
+def tracking_dt(limit: float, requested: Optional[float], flag: str = "--dt") -> Tuple[float, Optional[str]]:
+    """The tracking step: ``requested`` if within ``limit``, else a clean error; by default
+    TRACK_DT, or a round value within DT_MARGIN of the limit (with a note saying so)."""
+    if requested is not None:
+        if requested > limit:
+            raise CliError(flag, f"{requested:g} s is past the RK4 stability limit {limit:.3g} s of the "
+                                 f"arm under the tracking PD (at rest at the stops); use {flag} "
+                                 f"{round_down(DT_MARGIN * limit):g} or less, or lower --kp/--kd")
+        return requested, None
+    if TRACK_DT <= DT_MARGIN * limit:
+        return TRACK_DT, None
+    dt = round_down(DT_MARGIN * limit)
+    return dt, (f"dt = {seconds(dt)}: the default {seconds(TRACK_DT)} is past {DT_MARGIN:.0%} of the RK4 "
+                f"stability limit {limit:.3g} s of the arm under the tracking PD")
+
+
+@dataclass
+class Comparison:
+    """A plan and its rigid-joint counterpart, both tracked on the flexible arm."""
+
+    name: str  # the model
+    plan: Plan
+    rigid: Plan
+    flexible_run: Dict[str, Any]  # Plan.track's dict
+    rigid_run: Dict[str, Any]
+    dt: float
+    kp: Array
+    kd: Array
+    settle: float
+    elapsed: float  # s of wall time for planning and tracking
+
+    @property
+    def runs(self) -> Tuple[Tuple[str, Plan, Dict[str, Any]], Tuple[str, Plan, Dict[str, Any]]]:
+        return (("flexible plan", self.plan, self.flexible_run), ("rigid-joint plan", self.rigid, self.rigid_run))
+
+
+def compare(name: str, plan: Plan, dt: float, kp: Array, kd: Array, settle: float) -> Comparison:
+    """Plans the rigid-joint counterpart of ``plan`` and tracks both on the flexible arm."""
+    start = time.perf_counter()
+    rigid = plan.rigid()
+    flexible_run = plan.track(dt, kp, kd, settle)
+    rigid_run = rigid.track(dt, kp, kd, settle)
+    return Comparison(name, plan, rigid, flexible_run, rigid_run, dt, kp, kd, settle,
+                      time.perf_counter() - start)
+
+
+def torque_share(plan: Plan, run: Dict[str, Any]) -> Tuple[float, int]:
+    """The largest commanded ``peak |u_i| / limit_i`` of a run, and its joint."""
+    share = run["peak_motor_torque"] / np.asarray(plan.limits.motor_torque)
+    return float(share.max()), int(share.argmax())
+
+
+def comparison_summary(c: Comparison) -> Dict[str, Any]:
+    names = c.plan.arm.robot.joint_names
+    out: Dict[str, Any] = {"dt_s": c.dt, "kp": c.kp.tolist(), "kd": c.kd.tolist(), "settle_s": c.settle}
+    for key, plan, run in (("flexible", c.plan, c.flexible_run), ("rigid", c.rigid, c.rigid_run)):
+        share, joint = torque_share(plan, run)
+        binding = plan.binding
+        out[key] = {
+            "duration_s": plan.duration,
+            "binding": {k: binding[k] for k in ("limit", "joint", "joint_name", "segment", "time", "value", "bound")},
+            "peak_motor_torque_Nm": run["peak_motor_torque"].tolist(),
+            "peak_torque_over_limit": share,
+            "peak_torque_joint": names[joint],
+            "tracking_error_rad": run["tracking_error"],
+            "residual_deflection_rad": run["residual_deflection"],
+            "residual_link_error_rad": run["residual_link_error"],
+            "base_position_error_m": run["base_position_error"],
+            "base_attitude_error_rad": run["base_attitude_error"],
+        }
+    return out
+
+
+def describe_binding(plan: Plan) -> str:
+    """The binding limit of the plan, and its segment when there are several."""
+    b = plan.binding
+    segment = f" in segment {b['segment'] + 1}" if len(plan.segment_durations) > 1 else ""
+    return describe(b) + segment
+
+
+def describe(b: Dict[str, Any]) -> str:
+    """A binding limit in words: which, on which joint, its peak and when."""
+    unit = {"motor_torque": "N·m", "joint_speed": "rad/s", "base_force": "N", "base_torque": "N·m"}[b["limit"]]
+    where = f" on {b['joint_name']} (joint {b['joint']})" if b["joint"] is not None else ""
+    return f"{b['limit']}{where}: {b['value']:.4g} of {b['bound']:.4g} {unit} at t = {b['time']:.3f} s"
+
+
+def print_comparison(c: Comparison) -> None:
+    """The measures of both tracking runs side by side."""
+    names = c.plan.arm.robot.joint_names
+    print(f"  tracking runs       both plans on the flexible arm, RK4 dt = {seconds(c.dt)}, {c.settle:g} s at "
+          f"rest after each slew ({c.elapsed:.2g} s of wall time),")
+    print(f"                      motor PD kp = {gain_text(c.kp)} N·m/rad, kd = {gain_text(c.kd)} N·m·s/rad")
+    if c.plan.base == "held":
+        print("                      the bus is held by each plan's own base wrench, open loop (no bus controller)")
+    rows: List[Tuple[str, str, str]] = [("", "flexible plan", "rigid-joint plan")]
+    rows.append(("duration", f"{c.plan.duration:.4f} s", f"{c.rigid.duration:.4f} s"))
+    cells = []
+    for plan, run in ((c.plan, c.flexible_run), (c.rigid, c.rigid_run)):
+        share, joint = torque_share(plan, run)
+        over = " OVER" if share > 1 + 1e-9 else ""
+        cells.append(f"{run['peak_motor_torque'][joint]:.4g} N·m = {share:.1%} of the limit on {names[joint]}{over}")
+    rows.append(("peak commanded torque", cells[0], cells[1]))
+    for label, key, unit in (("tracking error max|q − q_plan|", "tracking_error", "rad"),
+                             ("residual deflection max|θ − q|", "residual_deflection", "rad"),
+                             ("residual link error max|q − q_goal|", "residual_link_error", "rad"),
+                             ("base position error", "base_position_error", "m"),
+                             ("base attitude error", "base_attitude_error", "rad")):
+        rows.append((label, f"{c.flexible_run[key]:.2e} {unit}", f"{c.rigid_run[key]:.2e} {unit}"))
+    widths = [max(len(r[k]) for r in rows) for k in range(3)]
+    for r in rows:
+        print(f"  {r[0]:<{widths[0]}}  {r[1]:<{widths[1]}}  {r[2]}")
+    ratio = c.rigid_run["residual_deflection"] / max(c.flexible_run["residual_deflection"], 1e-300)
+    times = f"{ratio:,.0f}" if ratio >= 100 else f"{ratio:.3g}"
+    print(f"  after the stop the rigid-joint plan leaves {times}× the flexible plan's residual deflection")
+
+
+def gain_range(values: Array) -> str:
+    """``= v`` if every joint has it, else ``min … max``."""
+    if np.all(values == values[0]):
+        return f"= {values[0]:.4g}"
+    return f"{values.min():.3g} … {values.max():.3g} per joint"
+
+
+def gain_text(values: Array) -> str:
+    """One number if every joint has it, else the list."""
+    if np.all(values == values[0]):
+        return f"{values[0]:.4g}"
+    return "[" + ", ".join(f"{v:.4g}" for v in values) + "]"
+
+
+PLAN_ERROR_FLAGS = (
+    (r"\bq_goal\b", "--goal"),
+    (r"\bq_start\b", "--start"),
+    (r"\bwaypoints\b", "--waypoint"),
+    (r"\bmotor_torque\b", "--motor-torque"),
+    (r"\bjoint_speed\b", "--joint-speed"),
+    (r"\bbase_force\b", "--base-force"),
+    (r"\bbase_torque\b", "--base-torque"),
+)
+
+
+def plan_error(error: Exception) -> CliError:
+    """A planner's error under the flag of the first argument it names (else ``URDF``: the
+    model), in the CLI's words."""
+    message = re.sub(r"^limits(?:\.|: )", "", str(error))
+    found = [(m.start(), flag) for pattern, flag in PLAN_ERROR_FLAGS for m in [re.search(pattern, message)] if m]
+    flag = min(found)[1] if found else "URDF"
+    for pattern, name in PLAN_ERROR_FLAGS:
+        message = re.sub(pattern, name, message)
+    if message.startswith(flag + ": "):  # "--goal: --goal: ..." reads "--goal: ..."
+        message = message[len(flag) + 2:]
+    return CliError(flag, message)
+
+
+def check_stops(stops: List[Tuple[str, Array]]) -> None:
+    """Consecutive stops must differ (the planner says so too; here in the CLI's words)."""
+    for (name_a, a), (name_b, b) in zip(stops, stops[1:]):
+        if np.array_equal(a, b):
+            flag, _, which = name_b.partition(" ")
+            subject = f"waypoint {which} " if which else ""
+            raise CliError(flag, f"{subject}equals {name_a}: there is nothing to slew between them")
+
+
+def plan_job(args: argparse.Namespace) -> Tuple[Job, Plan]:
+    """The arm of the URDF and its planned slew, from the command line."""
+    arm, side, com, note = load_arm(args)
+    robot = arm.robot
+    goal = per_joint(args.goal, "--goal", robot)
+    start = per_joint(args.start, "--start", robot, default=0.0)
+    waypoints = [per_joint(w, "--waypoint", robot) for w in args.waypoint or []]
+    start_name = "--start" if args.start is not None else "--start (default 0 for every joint)"
+    check_stops([(start_name, start)] + [(f"--waypoint {k + 1}", w) for k, w in enumerate(waypoints)]
+                + [("--goal", goal)])
+    if args.base == "free":
+        for flag, value in (("--base-force", args.base_force), ("--base-torque", args.base_torque)):
+            if value is not None:
+                raise CliError(flag, "bounds the wrench of the actuators that hold the base; a free-"
+                                     "floating base (--base free) has none: add --base held or drop it")
+    try:
+        limits = Limits(per_joint(args.motor_torque, "--motor-torque", robot),
+                        per_joint(args.joint_speed, "--joint-speed", robot),
+                        args.base_force, args.base_torque)
+        plan = plan_slew(arm, goal, q_start=start, limits=limits, base=args.base,
+                         waypoints=waypoints or None)
+    except ValueError as e:
+        raise plan_error(e) from None
+    return Job(arm, robot.name, goal - start, side, com, note), plan
+
+
+def tracking_setup(arm: FlexibleArm, plan: Plan, args: argparse.Namespace) -> Tuple[float, Array, Array, float, Optional[str]]:
+    """``(dt, kp, kd, RK4 limit, note)`` for the tracking runs."""
+    kp_default, kd_default = servo_gains(arm)
+    kp = kp_default if args.kp is None else per_joint(args.kp, "--kp", arm.robot)
+    kd = kd_default if args.kd is None else per_joint(args.kd, "--kd", arm.robot)
+    limit = tracking_limit(arm, plan.stops, kp, kd)
+    dt, note = tracking_dt(limit, args.dt)
+    return dt, kp, kd, limit, note
+
+
+def plan_command(args: argparse.Namespace) -> int:
+    job, plan = plan_job(args)
+    arm, robot = job.arm, job.arm.robot
+    dt, kp, kd, limit, dt_note = tracking_setup(arm, plan, args)
+    out = output_folder(args.out)
+    print(f"{job.name}: {arm.dof} joints, total mass {robot.total_mass:.1f} kg, {plan.base} base; "
+          f"tracking runs at dt = {seconds(dt)} (RK4 limit under the PD at the stops: {limit:.3g} s)")
+    for note in (job.note, dt_note):
+        if note:
+            print(note)
+    steps = math.ceil((1.01 * plan.duration + args.settle) / dt)
+    check_memory(steps, arm.dof, "--dt", "lengthen --dt or shorten --settle")
+    try:
+        comparison = compare(job.name, plan, dt, kp, kd, args.settle)
+    except SimulationError as e:
+        print(f"orbitflex: the tracking run failed: {failure_reason(e)}; no outputs written (exit code 1)",
+              file=sys.stderr)
+        return 1
+    summary = {"model": job.name, "joints": robot.joint_names, "base": plan.base,
+               "stops": plan.stops.tolist(), "segment_durations_s": plan.segment_durations.tolist(),
+               "limits": limits_dict(plan.limits), **comparison_summary(comparison)}
+    files = write_plan_outputs(comparison, summary, out, args.no_plots)
+    print_plan_summary(comparison)
+    width = max(len(str(f)) for f in files)
+    print(f"\nwrote {len(files)} files:")
+    for f in files:
+        print(f"  {str(f):<{width}}  {PLAN_OUTPUTS[f.name]}")
+    return 0
+
+
+def limits_dict(limits: Limits) -> Dict[str, Any]:
+    return {"motor_torque_Nm": np.asarray(limits.motor_torque).tolist(),
+            "joint_speed_rad_s": np.asarray(limits.joint_speed).tolist(),
+            "base_force_N": limits.base_force, "base_torque_Nm": limits.base_torque}
+
+
+def print_plan_summary(c: Comparison) -> None:
+    plan = c.plan
+    segments = len(plan.segment_durations)
+    parts = f" ({segments} segments: " + ", ".join(f"{d:.3f}" for d in plan.segment_durations) + " s)" if segments > 1 else ""
+    print(f"\norbitflex: minimum-time slew of '{c.name}' ({plan.arm.dof} flexible joints, {plan.base} base)")
+    print(f"  duration            {plan.duration:.4f} s{parts}")
+    print(f"  binding limit       {describe_binding(plan)}")
+    if segments > 1:
+        for k, b in enumerate(plan.bindings):
+            print(f"    segment {k + 1}         {describe(b)}")
+    print(f"  rigid-joint plan    {c.rigid.duration:.4f} s, binding {describe_binding(c.rigid)}")
+    print_comparison(c)
+
+
+def write_plan_outputs(c: Comparison, summary: Dict[str, Any], out: Path, no_plots: bool) -> List[Path]:
+    files = [out / "plan.npz"]
+    try:
+        np.savez(files[0], **plan_arrays(c))
+        files.append(out / "plan_summary.json")
+        files[-1].write_text(json.dumps(summary, indent=2))
+        if not no_plots:
+            files += plot_plan(c, out)
+    except OSError as e:
+        raise CliError("--out", f"cannot write {files[-1]}: {e.strerror or e}") from None
+    return files
+
+
+SAMPLED = ("t", "q", "qd", "qdd", "theta", "theta_dot", "u", "tau", "base_wrench", "base_twist", "base_pose")
+MEASURES = ("slew_end", "peak_motor_torque", "tracking_error", "residual_deflection", "residual_link_error",
+            "base_position_error", "base_attitude_error")
+
+
+def plan_arrays(c: Comparison) -> Dict[str, Any]:
+    """Everything in plan.npz: the flexible plan's samples unprefixed (as on ``Plan``), the
+    rigid-joint plan's with ``rigid_``; the reference tables the runs followed
+    (``reference_*``, ``rigid_reference_*``); the runs (``run_t``, ``run_x``, ``run_u`` and
+    ``rigid_run_*``, columns named by ``columns``); the measures (``tracking_error``, …,
+    ``rigid_tracking_error``, …); the limits, the binding limit, dt and the gains."""
+    limits = c.plan.limits
+    arrays: Dict[str, Any] = {
+        "joint_names": np.array(c.plan.arm.robot.joint_names), "base": np.array(c.plan.base),
+        "stops": c.plan.stops, "dt": c.dt, "kp": c.kp, "kd": c.kd, "settle": c.settle,
+        "motor_torque_limit": np.asarray(limits.motor_torque), "joint_speed_limit": np.asarray(limits.joint_speed),
+        "base_force_limit": np.nan if limits.base_force is None else limits.base_force,
+        "base_torque_limit": np.nan if limits.base_torque is None else limits.base_torque,
+    }
+    for prefix, plan, run in (("", c.plan, c.flexible_run), ("rigid_", c.rigid, c.rigid_run)):
+        for name in SAMPLED:
+            arrays[prefix + name] = getattr(plan, name)
+        arrays[prefix + "segment_durations"] = plan.segment_durations
+        b = plan.binding
+        arrays[prefix + "binding_limit"] = np.array(b["limit"])
+        arrays[prefix + "binding_joint"] = -1 if b["joint"] is None else b["joint"]
+        for key in ("segment", "time", "value", "bound"):
+            arrays[f"{prefix}binding_{key}"] = b[key]
+        for name, table in run["reference"].items():
+            arrays[f"{prefix}reference_{name}"] = table
+        traj = run["trajectory"]
+        arrays[prefix + "run_t"], arrays[prefix + "run_x"], arrays[prefix + "run_u"] = traj.t, traj.x, traj.u
+        for name in MEASURES:
+            arrays[prefix + name] = run[name]
+    arrays["columns"] = np.array(c.flexible_run["trajectory"].column_names())
+    return arrays
+
+
+# ---- plots of a plan -------------------------------------------------------------------------
+
+
+def plan_caption(c: Comparison) -> str:
+    return (f"model {c.name}, {c.plan.base} base; plan {c.plan.duration:.3f} s (rigid-joint plan "
+            f"{c.rigid.duration:.3f} s); tracking runs: RK4 dt = {seconds(c.dt)}, {c.settle:g} s settling")
+
+
+def plot_plan(c: Comparison, out: Path) -> List[Path]:
+    figures = Figures(out, plan_caption(c))
+    plot_plan_angles(figures, c)
+    plot_plan_deflection(figures, c)
+    plot_plan_torque(figures, c)
+    plot_plan_base(figures, c)
+    plot_plan_vs_rigid(figures, c)
+    return figures.files
+
+
+def mark_segments(ax: Any, plan: Plan) -> None:
+    """Dotted vertical lines where the arm stops between segments."""
+    for end in np.cumsum(plan.segment_durations)[:-1]:
+        ax.axvline(end, color="gray", ls=":", lw=1)
+
+
+def mark_binding(ax: Any, plan: Plan) -> None:
+    """A dashed red line where each segment's binding limit peaks."""
+    bindings = plan.bindings
+    for b in bindings:
+        joint = f" on {b['joint_name']}" if b["joint_name"] else ""
+        segment = f"segment {b['segment'] + 1} " if len(bindings) > 1 else ""
+        ax.axvline(b["time"], color="tab:red", ls="--", lw=0.9,
+                   label=f"{segment}binding: {b['limit']}{joint}, t = {b['time']:.3g} s")
+
+
+def plot_plan_angles(figures: Figures, c: Comparison) -> None:
+    plan, names = c.plan, c.plan.arm.robot.joint_names
+    fig, ax = figures.new("Planned link angles q(t): rest to rest through the stops", height=5.0)
+    ends = np.r_[0.0, np.cumsum(plan.segment_durations)]
+    for i, name in enumerate(names):
+        ax.plot(plan.t, np.degrees(plan.q[:, i]), lw=1.5, color=f"C{i % 10}", label=name)
+        ax.plot(ends, np.degrees(plan.stops[:, i]), "o", color=f"C{i % 10}", ms=4)
+    mark_segments(ax, plan)
+    mark_binding(ax, plan)
+    ax.set(xlabel="time (s)", ylabel="q (deg)",
+           title="dots: the stops (start, waypoints, goal), where the arm is at rest")
+    ax.title.set_fontsize(9)
+    joint_legend(ax, "joint")
+    figures.save(fig, "plan_angles.png")
+
+
+def joint_panels(figures: Figures, title: str, n: int) -> Tuple[Any, Any]:
+    cols = 1 if n <= 4 else 2
+    rows = math.ceil(n / cols)
+    fig, axes = figures.new(title, rows=rows, height=1.6 + 1.5 * rows, cols=cols, sharex=True, squeeze=False)
+    for i, ax in enumerate(axes.flat):
+        ax.set_visible(i < n)
+    for ax in axes[-1]:
+        ax.set_xlabel("time (s)")
+    if n % cols:
+        axes[-2, -1].xaxis.set_tick_params(labelbottom=True)
+        axes[-2, -1].set_xlabel("time (s)")
+    return fig, axes
+
+
+def plot_plan_deflection(figures: Figures, c: Comparison) -> None:
+    """One panel per joint: the planned deflection and the one of the flexible plan's tracking
+    run, which follows it; after the slew the springs relax."""
+    plan, names = c.plan, c.plan.arm.robot.joint_names
+    traj = c.flexible_run["trajectory"]
+    rows = plot_rows(len(traj.t))
+    planned, simulated = plan.theta - plan.q, traj.deflection[rows]
+    fig, axes = joint_panels(figures, "Planned joint deflection θ − q (spring stretch) and the tracking run's",
+                             len(names))
+    for i, ax in enumerate(axes.flat[: len(names)]):
+        factor, unit = angle_unit(float(max(np.abs(planned[:, i]).max(), np.abs(simulated[:, i]).max())))
+        ax.plot(plan.t, planned[:, i] * factor, lw=2.2, color=f"C{i % 10}", alpha=0.6, label="plan")
+        ax.plot(traj.t[rows], simulated[:, i] * factor, lw=0.9, color="black", ls="--", label="tracking run")
+        ax.axhline(0, color="black", lw=0.5)
+        ax.axvline(plan.duration, color="gray", ls=":", lw=1, label="end of the slew")
+        ax.set_ylabel(f"θ − q ({unit})")
+        ax.set_title(f"{names[i]}: planned peak {np.abs(planned[:, i]).max() * factor:.3g} {unit}", fontsize=8.5)
+        if i == 0:
+            ax.legend(fontsize=7.5, loc="best")
+    figures.save(fig, "plan_deflection.png")
+
+
+def plot_plan_torque(figures: Figures, c: Comparison) -> None:
+    """One panel per joint: the planned motor torque between its dashed limits; the binding
+    joint's peak marked."""
+    plan, names = c.plan, c.plan.arm.robot.joint_names
+    limit = np.asarray(plan.limits.motor_torque)
+    bindings = plan.bindings
+    fig, axes = joint_panels(figures, "Planned motor torque u against its limits (dashed); red dots: where "
+                                      "a limit binds", len(names))
+    for i, ax in enumerate(axes.flat[: len(names)]):
+        u = plan.u[:, i]
+        ax.plot(plan.t, u, lw=1.3, color=f"C{i % 10}")
+        for sign in (1, -1):
+            ax.axhline(sign * limit[i], color="black", ls="--", lw=0.9)
+        ax.axhline(0, color="black", lw=0.4)
+        peak = int(np.abs(u).argmax())
+        binds = [b for b in bindings if b["limit"] == "motor_torque" and b["joint"] == i]
+        for b in binds:
+            sign = np.sign(np.interp(b["time"], plan.t, u))
+            ax.plot(b["time"], sign * b["value"], "o", color="tab:red", ms=5)
+        ax.set_ylim(-1.15 * limit[i], 1.15 * limit[i])
+        ax.set_ylabel("u (N·m)")
+        share = abs(u[peak]) / limit[i]
+        where = ""
+        if binds:
+            where = " — binds" + (" in segment " + ", ".join(str(b["segment"] + 1) for b in binds)
+                                  if len(bindings) > 1 else "")
+        ax.set_title(f"{names[i]}: peak {abs(u[peak]):.3g} of {limit[i]:.3g} N·m ({share:.1%}){where}",
+                     fontsize=8.5, color="tab:red" if binds else "black")
+        mark_segments(ax, plan)
+    figures.save(fig, "plan_motor_torque.png")
+
+
+def plot_plan_base(figures: Figures, c: Comparison) -> None:
+    plan = c.plan
+    if plan.base == "held":
+        fig, axes = figures.new("Held base: the wrench its actuators apply (base frame)", rows=2, height=6.5,
+                                sharex=True)
+        limits = (plan.limits.base_torque, plan.limits.base_force)
+        for ax, k, symbol, unit, bound, what in ((axes[0], 0, "n", "N·m", limits[0], "moment about the base origin"),
+                                                 (axes[1], 3, "F", "N", limits[1], "force")):
+            values = plan.base_wrench[:, k:k + 3]
+            for a, axis in enumerate("xyz"):
+                ax.plot(plan.t, values[:, a], lw=1, label=f"${symbol}_{axis}$")
+            norm = np.linalg.norm(values, axis=1)
+            ax.plot(plan.t, norm, color="black", lw=1.8, label=f"$|{symbol}|$ (peak {norm.max():.3g} {unit})")
+            if bound is not None:
+                ax.axhline(bound, color="black", ls="--", lw=0.9, label=f"limit {bound:.3g} {unit}")
+            ax.axhline(0, color="black", lw=0.4)
+            ax.set(ylabel=f"${symbol}_B$ ({unit})", title=what + ("" if bound is not None else " (no limit given)"))
+            ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))
+        axes[1].set(xlabel="time (s)")
+        figures.save(fig, "plan_base.png")
+        return
+    fig, axes = figures.new("Free-floating base: its planned reaction to the slew (zero momentum)", rows=2,
+                            height=6.5, sharex=True)
+    quat = plan.base_pose[:, 3:]
+    yaw, pitch, roll = euler_zyx(quat)
+    for angle, label in ((yaw, "yaw (about z)"), (pitch, "pitch (about y′)"), (roll, "roll (about x″)")):
+        axes[0].plot(plan.t, np.degrees(angle), lw=1.2, label=label)
+    total = rotation_angle_deg(quat[0], quat)
+    axes[0].plot(plan.t, total, color="black", lw=2, label=f"total rotation ({total[-1]:.3g}° at the end)")
+    axes[0].set(ylabel="attitude (deg)", title="Euler angles, intrinsic z-y′-x″: R = Rz(yaw) · Ry(pitch) · Rx(roll)")
+    shift = (plan.base_pose[:, :3] - plan.base_pose[0, :3]) * 1e3
+    for a, axis in enumerate("xyz"):
+        axes[1].plot(plan.t, shift[:, a], lw=1.2, label=f"$\\Delta r_{axis}$")
+    axes[1].set(xlabel="time (s)", ylabel="base origin shift (mm)", title="base origin, inertial frame")
+    for ax in axes:
+        ax.axhline(0, color="black", lw=0.4)
+        ax.title.set_fontsize(9)
+        ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))
+    figures.save(fig, "plan_base.png")
+
+
+def run_series(run: Dict[str, Any]) -> Dict[str, Array]:
+    """Per step of a tracking run: the link error, the deflection and the base's departure from
+    the plan (NaN where exactly zero, for log axes)."""
+    traj, ref = run["trajectory"], run["reference"]
+    x_q, x_theta, pose = traj.q, traj.theta, traj.base_pose
+    series = {
+        "t": ref["t"],
+        "tracking": np.abs(x_q - ref["q"]).max(axis=1),
+        "deflection": np.abs(x_theta - x_q).max(axis=1),
+        "attitude": relative_rotation(ref["base_pose"][:, 3:], pose[:, 3:]),
+        "position": np.linalg.norm(pose[:, :3] - ref["base_pose"][:, :3], axis=1),
+    }
+    for key in ("tracking", "deflection", "attitude", "position"):
+        series[key] = np.where(series[key] > 0, series[key], np.nan)
+    return series
+
+
+def relative_rotation(a: Array, b: Array) -> Array:
+    """The angle (rad) of the rotation from unit quaternions ``a`` to ``b`` (x, y, z, w), (k, 4)
+    each: ``2 atan2(|vec(a* ⊗ b)|, |w(a* ⊗ b)|)``, accurate for small angles too (unlike
+    ``arccos`` of the dot product, which bottoms out near 1e-8 rad)."""
+    av, aw, bv, bw = a[:, :3], a[:, 3], b[:, :3], b[:, 3]
+    w = aw * bw + np.sum(av * bv, axis=1)
+    v = aw[:, None] * bv - bw[:, None] * av - np.cross(av, bv)
+    angle: Array = 2 * np.arctan2(np.linalg.norm(v, axis=1), np.abs(w))
+    return angle
+
+
+def log_floor(curves: Sequence[Tuple[Array, Array]], start: float) -> float:
+    """A lower limit for a log axis of ``(t, values)`` curves that leaves out the first instants
+    (where errors grow from exactly zero) but keeps the smallest levels after ``start`` (s)."""
+    later = np.concatenate([v[t >= start] for t, v in curves])
+    later = later[np.isfinite(later) & (later > 0)]
+    if later.size == 0:
+        return 1e-16
+    return 10.0 ** math.floor(math.log10(0.5 * float(np.percentile(later, 2))))
+
+
+def plot_plan_vs_rigid(figures: Figures, c: Comparison) -> None:
+    """The flexible plan against the rigid-joint plan of the same slew, both run on the flexible
+    arm: peak commanded torque against the limit, tracking error, deflection (residual vibration
+    after the slew), base disturbance, and the measures."""
+    names = c.plan.arm.robot.joint_names
+    fig = figures.plt.figure(figsize=(14, 8.6), layout="constrained")
+    fig.suptitle("Flexible plan vs rigid-joint plan of the same slew, both run on the flexible arm under a "
+                 f"motor PD (kp {gain_range(c.kp)} N·m/rad, kd {gain_range(c.kd)} N·m·s/rad)\n{figures.caption}",
+                 fontsize=11)
+    grid = fig.add_gridspec(2, 3)
+    colours = {"flexible plan": "tab:blue", "rigid-joint plan": "tab:orange"}
+    bars = fig.add_subplot(grid[0, 0])
+    x = np.arange(len(names))
+    for k, (label, plan, run) in enumerate(c.runs):
+        share = 100 * run["peak_motor_torque"] / np.asarray(plan.limits.motor_torque)
+        bars.bar(x + (k - 0.5) * 0.38, share, 0.38, color=colours[label], label=label)
+        for i in np.flatnonzero(share > 100 + 1e-7):
+            bars.annotate(f"{run['peak_motor_torque'][i]:.3g} N·m", (x[i] + (k - 0.5) * 0.38, share[i]),
+                          ha="center", va="bottom", fontsize=7.5, color="tab:red")
+    bars.axhline(100, color="tab:red", ls="--", lw=1, label="limit")
+    bars.set_xticks(x, names, rotation=35, ha="right", fontsize=8)
+    bars.set(ylabel="peak commanded |u| / limit (%)", ylim=(0, 145),
+             title="peak commanded motor torque (feedforward + PD)")
+    bars.title.set_fontsize(9.5)
+    bars.legend(fontsize=7.5, loc="upper center", ncol=3)
+    panels = (
+        (fig.add_subplot(grid[0, 1]), "tracking", "rad", "link tracking error max|q − q_plan|"),
+        (fig.add_subplot(grid[0, 2]), "deflection", "rad", "joint deflection max|θ − q|: residual vibration"),
+        (fig.add_subplot(grid[1, 0]), "attitude", "rad", "base attitude departure from the plan"),
+        (fig.add_subplot(grid[1, 1]), "position", "m", "base position departure from the plan"),
+    )
+    series = {label: run_series(run) for label, _, run in c.runs}
+    end = c.plan.duration
+    for ax, key, unit, title in panels:
+        for label, plan, run in c.runs:
+            s = series[label]
+            ax.semilogy(s["t"], s[key], lw=1.1, color=colours[label], label=label)
+        t = series["flexible plan"]["t"]
+        ax.axvspan(end, t[-1], color="0.92", zorder=0, label="after the slew (at rest)")
+        ax.set_ylim(bottom=log_floor([(s["t"], s[key]) for s in series.values()], 0.05 * end))
+        ax.set(xlabel="time (s)", ylabel=f"{key_label(key)} ({unit})", title=title, xlim=(0, t[-1]))
+        ax.title.set_fontsize(9.5)
+        ax.legend(fontsize=7.5, loc="lower left" if key == "deflection" else "lower right")
+    table = fig.add_subplot(grid[1, 2])
+    table.axis("off")
+    table.set_title("measures (residual: from the end of the slew on)", fontsize=9.5)
+    rows = [["duration", f"{c.plan.duration:.3f} s", f"{c.rigid.duration:.3f} s"]]
+    shares = [torque_share(plan, run) for _, plan, run in c.runs]
+    rows.append(["peak |u| / limit", *[f"{share:.1%}" + (" OVER" if share > 1 + 1e-9 else "") for share, _ in shares]])
+    rows.append(["  on joint", *[names[joint] for _, joint in shares]])
+    for label, key, unit in (("tracking error", "tracking_error", "rad"),
+                             ("residual deflection", "residual_deflection", "rad"),
+                             ("residual link error", "residual_link_error", "rad"),
+                             ("base position error", "base_position_error", "m"),
+                             ("base attitude error", "base_attitude_error", "rad")):
+        rows.append([label, *[f"{run[key]:.2e} {unit}" for _, _, run in c.runs]])
+    cell = table.table(cellText=rows, colLabels=["", "flexible plan", "rigid-joint plan"], cellLoc="left",
+                       colWidths=[0.34, 0.33, 0.33], bbox=[0.0, 0.08, 1.0, 0.84])
+    cell.auto_set_font_size(False)
+    cell.set_fontsize(8)
+    figures.save(fig, "plan_vs_rigid.png")
+
+
+def key_label(key: str) -> str:
+    return {"tracking": "max|q − q_plan|", "deflection": "max|θ − q|", "attitude": "rotation angle",
+            "position": "|r_B − r_B,plan|"}[key]
+
+
+# ---- the demo's comparison -------------------------------------------------------------------
+
+
+def demo_comparison(arm: FlexibleArm, name: str, requested_dt: float) -> Tuple[Comparison, Optional[str]]:
+    """The demo's planned slew of the built-in arm (free floating) and its rigid-joint plan,
+    tracked with the demo's PD at the run's dt (or the largest round dt within the stability
+    limit below it)."""
+    limits = Limits(DEMO_MOTOR_TORQUE, DEMO_JOINT_SPEED)
+    plan = plan_slew(arm, DEMO_PLAN_GOAL, limits=limits, base="free")
+    kp, kd = np.full(arm.dof, DEMO_KP), np.full(arm.dof, DEMO_KD)
+    limit = tracking_limit(arm, plan.stops, kp, kd)
+    dt, note = requested_dt, None
+    if requested_dt > DT_MARGIN * limit:
+        dt = round_down(DT_MARGIN * limit)
+        note = (f"the planned slew is tracked at dt = {seconds(dt)}: --dt {requested_dt:g} is past "
+                f"{DT_MARGIN:.0%} of the RK4 limit {limit:.3g} s under its PD")
+    return compare(name, plan, dt, kp, kd, 2.0), note
+
+
+# ---------------------------------------------------------------------------------------------
+# the commands
 # ---------------------------------------------------------------------------------------------
 
 
 def demo_job(args: argparse.Namespace) -> Job:
     robot = models.space_arm()
     arm = FlexibleArm(robot, models.space_arm_joints())
-    return Job(arm, robot.name, SPACE_ARM_SLEW, BUS_SIDE, np.zeros(3))
+    return Job(arm, robot.name, SPACE_ARM_SLEW, BUS_SIDE, np.zeros(3), compare_plans=True)
 
 
 def joint_list(values: Optional[List[str]]) -> List[str]:
@@ -801,7 +1498,10 @@ def sketch_side(robot: Robot) -> float:
     return max(min(2 * float(np.linalg.norm(bodies[1])), 0.3 * reach), 1e-3)
 
 
-def simulate_job(args: argparse.Namespace) -> Job:
+def load_arm(args: argparse.Namespace) -> Tuple[FlexibleArm, float, Array, Optional[str]]:
+    """The URDF's arm on its bus with the joint parameters of --params (or the scaled defaults);
+    with the side and centre of the cube drawn for the bus, and a note when the defaults are
+    used."""
     robot = load_robot(args)
     robot, side, com = mount_on_bus(robot, args)
     note = None
@@ -813,13 +1513,27 @@ def simulate_job(args: argparse.Namespace) -> Job:
         arm = FlexibleArm(robot, joints)
     except (ValueError, OSError) as e:
         raise CliError("--params", cli_words(str(e))) from None
-    slew = np.full(robot.dof, 0.3) if args.slew is None else np.asarray(args.slew, dtype=float)
-    if len(slew) == 1:
-        slew = np.full(robot.dof, slew[0])
-    if len(slew) != robot.dof:
-        raise CliError("--slew", f"expected 1 or {robot.dof} values (one per joint: "
-                                 f"{', '.join(robot.joint_names)}), given {len(slew)}")
-    return Job(arm, robot.name, slew, side, com, note)
+    return arm, side, com, note
+
+
+def per_joint(values: Optional[Sequence[float]], flag: str, robot: Robot, default: Optional[float] = None) -> Array:
+    """``values`` for every joint: one value (for all) or one per joint, in the robot's order."""
+    if values is None:
+        assert default is not None
+        return np.full(robot.dof, default)
+    array = np.asarray(values, dtype=float)
+    if len(array) == 1:
+        return np.full(robot.dof, array[0])
+    if len(array) != robot.dof:
+        raise CliError(flag, f"expected 1 or {robot.dof} values (one per joint: "
+                             f"{', '.join(robot.joint_names)}), given {len(array)}")
+    return array
+
+
+def simulate_job(args: argparse.Namespace) -> Job:
+    arm, side, com, note = load_arm(args)
+    slew = per_joint(args.slew, "--slew", arm.robot, default=0.3)
+    return Job(arm, arm.robot.name, slew, side, com, note)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -842,30 +1556,79 @@ def common_options(p: argparse.ArgumentParser, duration: float) -> None:
     p.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
+def model_options(p: argparse.ArgumentParser, verb: str) -> None:
+    """The URDF, its joint parameters and its bus."""
+    p.add_argument("urdf", metavar="URDF", help="path to the URDF; the root link is the floating base")
+    p.add_argument("--params", metavar="TOML", default=None,
+                   help="joint parameters keyed by joint name (keys below; default: scaled to the links)")
+    p.add_argument("--ee-link", metavar="LINK", default=None, help="EE link (default: the unique leaf)")
+    p.add_argument("--locked-joints", metavar="NAMES", action="append", default=None,
+                   help="joints held at zero (e.g. fingers): a comma-separated list; repeatable")
+    if verb == "simulate":
+        p.add_argument("--slew", metavar="RAD", type=finite, nargs="+", default=None,
+                       help="slew per joint, rad: one value for every joint, or one per joint (default 0.3)")
+    p.add_argument("--base-mass", metavar="KG", type=positive, default=None,
+                   help="mount the arm on a bus of this mass, replacing the root link's inertia")
+    p.add_argument("--base-inertia", metavar=("IXX", "IYY", "IZZ"), type=finite, nargs=3, default=None,
+                   help=f"the bus's principal moments about its COM, kg·m² (default: a solid "
+                        f"{BUS_SIDE:g} m cube of --base-mass)")
+    p.add_argument("--base-com", metavar=("X", "Y", "Z"), type=finite, nargs=3, default=None,
+                   help="the bus's COM in the root link's frame, m (default 0 0 0, the root link's "
+                        "origin; 0 0 -0.75 puts a 1.5 m bus under an arm that points up z)")
+
+
 def simulate_options(sim: argparse.ArgumentParser) -> None:
-    sim.add_argument("urdf", metavar="URDF", help="path to the URDF; the root link is the floating base")
-    sim.add_argument("--params", metavar="TOML", default=None,
-                     help="joint parameters keyed by joint name (keys below; default: scaled to the links)")
-    sim.add_argument("--ee-link", metavar="LINK", default=None, help="EE link (default: the unique leaf)")
-    sim.add_argument("--locked-joints", metavar="NAMES", action="append", default=None,
-                     help="joints held at zero (e.g. fingers): a comma-separated list; repeatable")
-    sim.add_argument("--slew", metavar="RAD", type=finite, nargs="+", default=None,
-                     help="slew per joint, rad: one value for every joint, or one per joint (default 0.3)")
-    sim.add_argument("--base-mass", metavar="KG", type=positive, default=None,
-                     help="mount the arm on a bus of this mass, replacing the root link's inertia")
-    sim.add_argument("--base-inertia", metavar=("IXX", "IYY", "IZZ"), type=finite, nargs=3, default=None,
-                     help=f"the bus's principal moments about its COM, kg·m² (default: a solid "
-                          f"{BUS_SIDE:g} m cube of --base-mass)")
-    sim.add_argument("--base-com", metavar=("X", "Y", "Z"), type=finite, nargs=3, default=None,
-                     help="the bus's COM in the root link's frame, m (default 0 0 0, the root link's "
-                          "origin; 0 0 -0.75 puts a 1.5 m bus under an arm that points up z)")
+    model_options(sim, "simulate")
+
+
+def non_negative(text: str) -> float:
+    value = finite(text)
+    if not value >= 0:
+        raise argparse.ArgumentTypeError(f"expected a finite number >= 0, given {text}")
+    return value
+
+
+def plan_options(p: argparse.ArgumentParser) -> None:
+    model_options(p, "plan")
+    slew = p.add_argument_group("the slew (rad, link side; one value for every joint, or one per joint)")
+    slew.add_argument("--goal", metavar="RAD", type=finite, nargs="+", required=True, help="where the slew ends")
+    slew.add_argument("--start", metavar="RAD", type=finite, nargs="+", default=None,
+                      help="where it starts, at rest with relaxed springs (default 0)")
+    slew.add_argument("--waypoint", metavar="RAD", type=finite, nargs="+", action="append", default=None,
+                      help="a stop on the way, where the arm comes to rest; repeatable, in order")
+    slew.add_argument("--base", choices=("held", "free"), default="held",
+                      help="held: the bus's actuators hold it inertially still (and --base-force, "
+                           "--base-torque bound them); free: free floating from rest (default %(default)s)")
+    limits = p.add_argument_group("limits (link side; one value for every joint, or one per joint)")
+    limits.add_argument("--motor-torque", metavar="NM", type=positive, nargs="+", required=True,
+                        help="|u_i| bound, N·m (motor torque after the gearbox)")
+    limits.add_argument("--joint-speed", metavar="RAD_S", type=positive, nargs="+", required=True,
+                        help="|q̇_i| bound, rad/s")
+    limits.add_argument("--base-force", metavar="N", type=positive, default=None,
+                        help="bound on the norm of the force holding the bus, N (--base held; default none)")
+    limits.add_argument("--base-torque", metavar="NM", type=positive, default=None,
+                        help="bound on the norm of the moment holding the bus, N·m (--base held; default none)")
+    runs = p.add_argument_group("the tracking runs (both plans simulated on the flexible arm)")
+    runs.add_argument("--dt", metavar="S", type=positive, default=None,
+                      help=f"RK4 step, s (default {TRACK_DT:g}, lowered when past {DT_MARGIN * 100:.0f}%% of the "
+                           "RK4 stability limit of the arm under the PD; a --dt past the limit is refused)")
+    runs.add_argument("--kp", metavar="NM_PER_RAD", type=non_negative, nargs="+", default=None,
+                      help=f"motor PD stiffness, N·m/rad (default j·(2π·{SERVO_HZ:g} Hz)², j the motor inertia)")
+    runs.add_argument("--kd", metavar="NMS_PER_RAD", type=non_negative, nargs="+", default=None,
+                      help=f"motor PD damping, N·m·s/rad (default 2 j·(2π·{SERVO_HZ:g} Hz))")
+    runs.add_argument("--settle", metavar="S", type=non_negative, default=2.0,
+                      help="time simulated at rest after each slew, to measure the residual vibration, s "
+                           "(default %(default)s)")
+    p.add_argument("--out", metavar="DIR", default="orbitflex_out",
+                   help="output folder, created if missing (default %(default)s)")
+    p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
 
 
 def build_parser() -> Parser:
     parser = Parser(prog="orbitflex", description="Flexible-joint space manipulator simulation: a "
                     "free-floating slew of an arm on a spacecraft bus.")
     parser.add_argument("--version", action="version", version=f"orbitflex {__version__}")
-    sub = parser.add_subparsers(dest="command", metavar="{demo,simulate}")
+    sub = parser.add_subparsers(dest="command", metavar="{demo,simulate,plan}")
     demo = sub.add_parser("demo", help="simulate the built-in space arm (bus + 7-joint arm), free floating",
                           description="Simulates the built-in space arm (a 500 kg bus with a 7-joint arm) "
                                       "slewing free-floating, and writes the trajectory, a summary and plots.")
@@ -876,6 +1639,15 @@ def build_parser() -> Parser:
                          epilog=SIMULATE_EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
     simulate_options(sim)
     common_options(sim, 10.0)
+    plan = sub.add_parser("plan", help="plan a minimum-time slew of your URDF under limits, beside its "
+                          "rigid-joint plan",
+                          description="Plans the minimum-time rest-to-rest slew of your URDF under motor-torque,\n"
+                                      "joint-speed and base limits with the flexible-joint model, plans the same\n"
+                                      "slew as if the joints were rigid, simulates both on the flexible arm, and\n"
+                                      "writes the plans, the comparison, a summary and plots.",
+                          epilog=PLAN_EPILOG + "\n" + SIMULATE_EPILOG.split("\nexamples:")[0],
+                          formatter_class=argparse.RawDescriptionHelpFormatter)
+    plan_options(plan)
     return parser
 
 
@@ -896,6 +1668,8 @@ def main(argv: Optional[List[str]] = None) -> int:
         parser.print_help()
         return 0
     try:
+        if args.command == "plan":
+            return plan_command(args)
         if args.dt > args.duration:
             raise CliError("--dt", f"expected at most --duration ({args.duration:g} s), given {args.dt:g}")
         job = demo_job(args) if args.command == "demo" else simulate_job(args)

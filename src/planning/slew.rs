@@ -14,7 +14,8 @@
 //! only rescales, integrates the deflection (when the joints are damped) and compares with the
 //! limits. The shortest duration is bracketed and bisected to 1e-10 relative. Samples: 512
 //! intervals per segment, plus, after each solve, the vertex of a parabola through every local
-//! peak within 2% of its limit (then solved again), so a peak between samples is not missed.
+//! peak within 2% of its limit (then solved again; a vertex closer than 1e-4 to a sample moves
+//! that sample onto it), up to six rounds, so a peak between samples is not missed.
 
 use super::deflection;
 use super::flatness::{classical, rigid_jets, BaseMode, JetScratch, RigidJets};
@@ -33,6 +34,11 @@ const REFINE_ABOVE: f64 = 0.98;
 /// The closest two samples may be (in `s`): shorter intervals would amplify round-off in the
 /// deflection's second rate (`deflection::advance`).
 const MIN_SPACING: f64 = 1e-4;
+/// A peak's vertex closer than [`MIN_SPACING`] to a sample moves that sample onto it, unless it
+/// is already this close.
+const MOVE_AT_LEAST: f64 = 1e-12;
+/// Rounds of solving and refining the peaks (each round adds or moves samples at the vertices).
+const REFINE_ROUNDS: usize = 6;
 /// How far back (in `s`) [`Plan::evaluate`] starts integrating the deflection from a sample.
 const LOOKBACK: f64 = 1.0 / 1024.0;
 /// Consecutive stops closer than this in every joint (rad) are refused.
@@ -229,6 +235,10 @@ pub struct PlanPoint {
     pub qdd: Vec<f64>,
     /// `θ` (rad).
     pub theta: Vec<f64>,
+    /// The deflection `θ − q` (rad) at full precision (not the difference of `theta` and `q`,
+    /// which loses the digits below the angle's rounding); what
+    /// [`FlexibleArm::inverse_dynamics`] takes for damped joints.
+    pub deflection: Vec<f64>,
     /// `θ̇` (rad/s).
     pub theta_dot: Vec<f64>,
     /// `θ̈` (rad/s²).
@@ -631,7 +641,7 @@ impl Plan {
 
     fn solve_segment(&self, scratch: &mut JetScratch, seg: &mut Segment) -> Result<()> {
         let mut hint = None;
-        for round in 0..4 {
+        for round in 0..REFINE_ROUNDS {
             let w = self.shortest(seg, hint)?;
             hint = Some(w);
             // refine every local peak near its limit between its neighbours
@@ -649,19 +659,39 @@ impl Plan {
             }
             added.sort_by(f64::total_cmp);
             added.dedup_by(|a, b| (*a - *b).abs() < MIN_SPACING);
-            let fresh: Vec<f64> = added
-                .into_iter()
-                .filter(|s| seg.s.iter().all(|x| (x - s).abs() >= MIN_SPACING))
-                .collect();
-            if fresh.is_empty() || round == 3 {
+            let mut changed = false;
+            for s in added {
+                let at = seg.s.partition_point(|x| *x < s);
+                // the nearest sample, if closer than MIN_SPACING: move it onto the vertex when
+                // that keeps it MIN_SPACING from its neighbours (the ends never move)
+                let near = [at.wrapping_sub(1), at]
+                    .into_iter()
+                    .filter(|&j| j < seg.s.len() && (seg.s[j] - s).abs() < MIN_SPACING)
+                    .min_by(|&a, &b| (seg.s[a] - s).abs().total_cmp(&(seg.s[b] - s).abs()));
+                match near {
+                    None => {
+                        let jets = self.unit_jets(scratch, seg, s)?;
+                        seg.s.insert(at, s);
+                        seg.jets.insert(at, jets);
+                        changed = true;
+                    }
+                    Some(j) => {
+                        let movable = j > 0
+                            && j + 1 < seg.s.len()
+                            && s - seg.s[j - 1] >= MIN_SPACING
+                            && seg.s[j + 1] - s >= MIN_SPACING
+                            && (seg.s[j] - s).abs() > MOVE_AT_LEAST;
+                        if movable {
+                            seg.jets[j] = self.unit_jets(scratch, seg, s)?;
+                            seg.s[j] = s;
+                            changed = true;
+                        }
+                    }
+                }
+            }
+            if !changed || round == REFINE_ROUNDS - 1 {
                 self.finish(seg, w);
                 return Ok(());
-            }
-            for s in fresh {
-                let at = seg.s.partition_point(|x| *x < s);
-                let jets = self.unit_jets(scratch, seg, s)?;
-                seg.s.insert(at, s);
-                seg.jets.insert(at, jets);
             }
         }
         unreachable!("the loop returns in its last round")
@@ -944,6 +974,7 @@ impl Plan {
             qd: p.qd,
             qdd: p.qdd,
             theta: p.theta,
+            deflection: p.deflection,
             theta_dot: p.theta_dot,
             theta_ddot: p.theta_ddot,
             u: p.u,

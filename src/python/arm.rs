@@ -1,4 +1,5 @@
-//! `orbitflex.FlexibleArm`: state, derivative, step, diagnostics and ``simulate``.
+//! `orbitflex.FlexibleArm`: state, derivative, step, diagnostics, ``simulate`` and the
+//! flexible-joint inverse dynamics.
 
 use super::control::{schedule, PyCallable, PyMotorPD};
 use super::convert::{array1, array2, count, real, vector, vector_or};
@@ -11,6 +12,7 @@ use crate::args::Loads;
 use crate::error::Error;
 use crate::flex::{ArmWorkspace, FlexibleArm, Inputs, StateSpec};
 use crate::integrate::{self, Controller, Schedule, Wrenches};
+use crate::planning::{BaseMode, LinkMotion};
 use numpy::{PyArray1, PyArray2};
 use pyo3::exceptions::PyRuntimeWarning;
 use pyo3::prelude::*;
@@ -385,6 +387,81 @@ impl PyFlexibleArm {
             .arm
             .derivative_jacobians(&mut self.ws(), &x, &inputs.inputs())?;
         Ok((array2(py, &j.x), array2(py, &j.u)))
+    }
+
+    /// Flexible-joint inverse dynamics (differential flatness): what the motors and the base do
+    /// so that the links move with ``q`` (rad), ``qd`` (rad/s), ``qdd`` (rad/s²), ``qddd``
+    /// (rad/s³) and ``qdddd`` (rad/s⁴) at this instant (n each, no EE wrench).
+    ///
+    /// ``base="held"``: the base's actuators hold it inertially still (``V_B = 0``, ``α_B = 0``)
+    /// and ``base_wrench`` says with what; ``base="free"``: free floating with zero total
+    /// momentum (as from rest), ``base_wrench = 0`` and ``base_twist``, ``base_acc`` say how the
+    /// base moves.
+    ///
+    /// ``deflection``: the current ``θ − q`` (rad, n), required exactly when some joint has
+    /// damping ``d > 0`` (its deflection then obeys ``d δ̇ + k δ = τ`` and depends on the
+    /// motion's history; ``plan_slew`` integrates it); it must be omitted when every ``d = 0``
+    /// (then ``θ − q = τ/k``).
+    ///
+    /// Returns a dict of arrays: ``theta`` (rad), ``theta_dot`` (rad/s), ``theta_ddot``
+    /// (rad/s²): motor angles and rates, link side; ``u = j θ̈ + β θ̇ + τ`` (N·m): motor
+    /// torques; ``tau`` (N·m): spring torques on the links (the rigid inverse dynamics); and,
+    /// in the base frame, ``base_twist`` ``[ω_B (rad/s); v_B (m/s)]``, ``base_acc``, the
+    /// classical ``[ω̇_B (rad/s²); v̇_B + ω_B × v_B (m/s²)]`` as in :meth:`Robot.forward_dynamics`,
+    /// and ``base_wrench`` ``[moment (N·m, about the base origin); force (N)]`` applied to the
+    /// base. With these, :meth:`derivative` at the matching state returns ``qdd`` and
+    /// ``theta_ddot``.
+    #[pyo3(signature = (q, qd, qdd, qddd, qdddd, base="held", deflection=None))]
+    #[allow(clippy::too_many_arguments)]
+    fn inverse_dynamics<'py>(
+        &self,
+        py: Python<'py>,
+        q: &Bound<'py, PyAny>,
+        qd: &Bound<'py, PyAny>,
+        qdd: &Bound<'py, PyAny>,
+        qddd: &Bound<'py, PyAny>,
+        qdddd: &Bound<'py, PyAny>,
+        base: &str,
+        deflection: Option<&Bound<'py, PyAny>>,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let n = Some(self.n());
+        let (q, qd, qdd, qddd, qdddd) = (
+            vector(q, "q", n)?,
+            vector(qd, "qd", n)?,
+            vector(qdd, "qdd", n)?,
+            vector(qddd, "qddd", n)?,
+            vector(qdddd, "qdddd", n)?,
+        );
+        let base = BaseMode::from_name(base)?;
+        // the length is checked after the misuse (deflection given for undamped joints)
+        let deflection = deflection
+            .filter(|o| !o.is_none())
+            .map(|o| vector(o, "deflection", None))
+            .transpose()?;
+        let motion = LinkMotion {
+            q: &q,
+            qd: &qd,
+            qdd: &qdd,
+            qddd: &qddd,
+            qdddd: &qdddd,
+        };
+        let out = self
+            .arm
+            .inverse_dynamics(&motion, base, deflection.as_deref())?;
+        let d = PyDict::new(py);
+        for (name, v) in [
+            ("theta", &out.theta[..]),
+            ("theta_dot", &out.theta_dot[..]),
+            ("theta_ddot", &out.theta_ddot[..]),
+            ("u", &out.u[..]),
+            ("tau", &out.tau[..]),
+            ("base_twist", &out.base_twist[..]),
+            ("base_acc", &out.base_acc[..]),
+            ("base_wrench", &out.base_wrench[..]),
+        ] {
+            d.set_item(name, array1(py, v))?;
+        }
+        Ok(d)
     }
 
     /// Total energy at state ``x`` (J): rigid kinetic + motor kinetic + spring.

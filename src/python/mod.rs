@@ -3,19 +3,21 @@
 //!
 //! Arrays cross as numpy float64, are converted once to Rust values, the work runs in Rust and
 //! results return as new arrays. Long-running calls (URDF loading, `simulate` without a Python
-//! controller, trajectory diagnostics) release the GIL; per-call dynamics keep it, as releasing
-//! it would cost more than the call.
+//! controller, trajectory diagnostics, planning and tracking slews) release the GIL; per-call
+//! dynamics keep it, as releasing it would cost more than the call.
 //!
 //! One file per class: `robot` (`Robot`), `joints` (`FlexibleJoints`), `control` (`MotorPD`,
-//! input schedules, Python controllers), `arm` (`FlexibleArm`), `trajectory` (`Trajectory`);
-//! `run` drives a simulation with or without the GIL; `errors` maps [`crate::Error`] onto the
-//! Python exceptions; `convert` turns numpy arrays into Rust values.
+//! input schedules, Python controllers), `arm` (`FlexibleArm`), `trajectory` (`Trajectory`),
+//! `plan` (`Limits`, `Plan`, `plan_slew`); `run` drives a simulation with or without the GIL;
+//! `errors` maps [`crate::Error`] onto the Python exceptions; `convert` turns numpy arrays into
+//! Rust values.
 
 mod arm;
 mod control;
 mod convert;
 mod errors;
 mod joints;
+mod plan;
 mod robot;
 mod run;
 mod trajectory;
@@ -34,5 +36,8 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<control::PyMotorPD>()?;
     m.add_class::<arm::PyFlexibleArm>()?;
     m.add_class::<trajectory::PyTrajectory>()?;
+    m.add_class::<plan::PyLimits>()?;
+    m.add_class::<plan::PyPlan>()?;
+    m.add_function(wrap_pyfunction!(plan::py_plan_slew, m)?)?;
     Ok(())
 }

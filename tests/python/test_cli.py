@@ -30,6 +30,8 @@ PNGS = {
     "ee_path.png",
     "momentum_drift.png",
 }
+# the demo adds its planned slew beside the rigid-joint plan (tests/python/test_planning.py)
+DEMO_PNGS = PNGS | {"plan_vs_rigid.png"}
 
 URDF = """<?xml version="1.0"?>
 <robot name="two_link_sat">
@@ -143,8 +145,8 @@ def test_demo_writes_trajectory_summary_and_plots(demo_run):
     assert (out / "trajectory.npz").is_file()
     assert (out / "summary.json").is_file()
     pngs = {p.name for p in out.glob("*.png")}
-    assert pngs == PNGS
-    for name in PNGS:
+    assert pngs == DEMO_PNGS
+    for name in DEMO_PNGS:
         data = (out / name).read_bytes()
         assert data[:8] == b"\x89PNG\r\n\x1a\n" and len(data) > 1000, name
 
@@ -154,7 +156,7 @@ def test_demo_lists_every_file_it_wrote(demo_run):
     result, out = demo_run
     assert result.returncode == 0, result.stderr[-2000:]
     written = {p.name for p in out.iterdir()}
-    assert written == PNGS | {"trajectory.npz", "trajectory.csv", "summary.json"}
+    assert written == DEMO_PNGS | {"trajectory.npz", "trajectory.csv", "summary.json"}
     listed = [line.split() for line in result.stdout.splitlines() if str(out) in line]
     assert {Path(words[0]).name for words in listed} == written
     assert all(len(words) > 2 for words in listed)  # a description follows each path
@@ -516,6 +518,18 @@ def test_messages_name_the_flags_not_python_keywords(model_files, tmp_path, case
     assert "ee_link" not in result.stderr and "locked_joints" not in result.stderr, result.stderr
 
 
+def test_links_named_like_keywords_keep_their_names(model_files, tmp_path):
+    # UR5 names its flange 'ee_link': a message listing links must show that name, not a flag
+    urdf, params = model_files
+    branched = tmp_path / "branched.urdf"
+    branched.write_text(BRANCHED_URDF.replace('"antenna"', '"ee_link"'))
+    result = run_cli("simulate", branched, "--params", params, "--duration", "0.05",
+                     "--out", tmp_path / "o", "--quiet", cwd=tmp_path)
+    assert_clean_error(result, flag="--ee-link")
+    assert "candidate leaf links ('finger', 'ee_link')" in result.stderr, result.stderr
+    assert "pass --ee-link to choose one" in result.stderr
+
+
 # ---------------------------------------------------------------------------------------------
 # a real arm on a spacecraft bus: --base-mass, --base-inertia, --base-com
 # ---------------------------------------------------------------------------------------------
@@ -633,7 +647,7 @@ def test_diverged_run_summary_describes_the_finite_part(tmp_path):
     assert "finite part before the failure" in text
     assert "RK4 truncation" not in text  # the drift of a diverging run is no truncation error
     # the outputs of the finite part are written all the same
-    assert {p.name for p in out.iterdir()} == PNGS | {"trajectory.npz", "summary.json"}
+    assert {p.name for p in out.iterdir()} == DEMO_PNGS | {"trajectory.npz", "summary.json"}
 
 
 # ---------------------------------------------------------------------------------------------

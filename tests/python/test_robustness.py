@@ -55,7 +55,7 @@ def test_disconnected_cycles_are_errors_not_hangs_or_panics(xml, ee):
 def test_locked_branch_leaves_are_not_ee_candidates():
     xml = urdf(["base", "a", "tool", "jaw"],
                [("j1", "revolute", "base", "a"), ("tool_fix", "fixed", "a", "tool"), ("jaw", "prismatic", "a", "jaw")])
-    with pytest.raises(ModelError, match=r"2 candidate leaf links \(tool, jaw\).*locked_joints"):
+    with pytest.raises(ModelError, match=r"2 candidate leaf links \('tool', 'jaw'\).*locked_joints"):
         orbitflex.Robot.from_urdf_string(xml)
     with pytest.raises(ModelError, match="lock it"):
         orbitflex.Robot.from_urdf_string(xml, ee_link="tool")

@@ -39,7 +39,10 @@ pub(super) fn ee_link<'a>(
                  ee_link to choose one, or lock the joints of branches that are not the arm \
                  (locked_joints)",
                 many.len(),
-                many.join(", ")
+                many.iter()
+                    .map(|l| format!("'{l}'"))
+                    .collect::<Vec<_>>()
+                    .join(", ")
             ),
         }),
     }

@@ -1,0 +1,886 @@
+//! `orbitflex.Limits`, `orbitflex.plan_slew` and `orbitflex.Plan`: minimum-time rest-to-rest
+//! slews under motor-torque, joint-speed and base-actuation limits, and their tracking.
+
+use super::arm::PyFlexibleArm;
+use super::convert::{array1, as_float_array, count, matrix, real, row_major, vector};
+use super::errors::{simulation_error, ModelError};
+use super::joints::Param;
+use super::run::{run_releasing_gil, Progress};
+use super::trajectory::PyTrajectory;
+use crate::error::Error;
+use crate::integrate::{self, MotorPD, Schedule, Wrenches};
+use crate::planning::{plan_slew, BaseMode, Binding, Limits, Plan, Reference, Samples, Tracking};
+use numpy::{PyArray1, PyArray2};
+use pyo3::exceptions::{PyRuntimeWarning, PyTypeError};
+use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyList};
+use std::ffi::CString;
+
+/// A per-joint limit: a number (every joint) or one value per joint. Unlike [`Param::parse`],
+/// non-finite values pass here, so that [`Limits::new`] names them with the rule they break.
+fn limit_values(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<(Vec<f64>, bool)> {
+    let array = as_float_array(obj, what)?;
+    let shape: Vec<usize> = array.getattr("shape")?.extract()?;
+    match shape.len() {
+        0 => Ok((vec![real(obj, what)?], true)),
+        1 => {
+            let values = array.extract::<numpy::PyReadonlyArray1<f64>>()?;
+            Ok((values.as_array().to_vec(), false))
+        }
+        _ => Err(ModelError::new_err(format!(
+            "{what}: expected a number or a 1-D array (one value per joint), given shape {shape:?}"
+        ))),
+    }
+}
+
+/// An optional scalar bound: None, or a real number (checked by [`Limits::new`]).
+fn optional_bound(obj: Option<&Bound<'_, PyAny>>, what: &str) -> PyResult<Option<f64>> {
+    match obj {
+        Some(o) if !o.is_none() => Ok(Some(real(o, what)?)),
+        _ => Ok(None),
+    }
+}
+
+/// Bounds for :func:`plan_slew`, all link side and in SI units.
+///
+/// ``Limits(motor_torque, joint_speed, base_force=None, base_torque=None)``:
+///
+/// - ``motor_torque``: ``|u_i| ≤ motor_torque_i`` (N·m), the motor torque seen at the link
+///   (after the gearbox); a number for every joint or one value per joint.
+/// - ``joint_speed``: ``|q̇_i| ≤ joint_speed_i`` (rad/s), the link rate; a number or one value
+///   per joint.
+/// - ``base_force``: ``|F_B| ≤ base_force`` (N), the Euclidean norm of the force the base's
+///   actuators apply (base frame); None: unbounded. Applies to a held base only.
+/// - ``base_torque``: ``|n_B| ≤ base_torque`` (N·m), the norm of their moment about the base
+///   origin; None: unbounded. Applies to a held base only.
+///
+/// Every value must be finite and > 0. Per-joint lengths are checked against the arm when a slew
+/// is planned.
+#[pyclass(name = "Limits", module = "orbitflex", frozen)]
+#[derive(Clone)]
+pub struct PyLimits {
+    pub(crate) limits: Limits,
+    /// Whether motor_torque / joint_speed were given as one number (returned as a float).
+    scalar: [bool; 2],
+}
+
+impl PyLimits {
+    pub(crate) fn from_rust(limits: Limits) -> Self {
+        Self {
+            limits,
+            scalar: [false; 2],
+        }
+    }
+
+    fn values(&self, py: Python<'_>, which: usize) -> PyObject {
+        let v = if which == 0 {
+            &self.limits.motor_torque
+        } else {
+            &self.limits.joint_speed
+        };
+        if self.scalar[which] {
+            v[0].into_pyobject(py).expect("a float").into_any().unbind()
+        } else {
+            array1(py, v).into_any().unbind()
+        }
+    }
+}
+
+#[pymethods]
+impl PyLimits {
+    #[new]
+    #[pyo3(signature = (motor_torque, joint_speed, base_force=None, base_torque=None))]
+    fn new(
+        motor_torque: &Bound<'_, PyAny>,
+        joint_speed: &Bound<'_, PyAny>,
+        base_force: Option<&Bound<'_, PyAny>>,
+        base_torque: Option<&Bound<'_, PyAny>>,
+    ) -> PyResult<Self> {
+        let (torque, torque_scalar) = limit_values(motor_torque, "motor_torque")?;
+        let (speed, speed_scalar) = limit_values(joint_speed, "joint_speed")?;
+        let limits = Limits::new(
+            torque,
+            speed,
+            optional_bound(base_force, "base_force")?,
+            optional_bound(base_torque, "base_torque")?,
+        )?;
+        Ok(Self {
+            limits,
+            scalar: [torque_scalar, speed_scalar],
+        })
+    }
+
+    /// ``|u_i|`` bound (N·m, link side): a float (every joint) or an array (one per joint).
+    #[getter]
+    fn motor_torque(&self, py: Python<'_>) -> PyObject {
+        self.values(py, 0)
+    }
+    /// ``|q̇_i|`` bound (rad/s): a float (every joint) or an array (one per joint).
+    #[getter]
+    fn joint_speed(&self, py: Python<'_>) -> PyObject {
+        self.values(py, 1)
+    }
+    /// ``|F_B|`` bound (N), or None (unbounded); a held base only.
+    #[getter]
+    fn base_force(&self) -> Option<f64> {
+        self.limits.base_force
+    }
+    /// ``|n_B|`` bound (N·m, about the base origin), or None (unbounded); a held base only.
+    #[getter]
+    fn base_torque(&self) -> Option<f64> {
+        self.limits.base_torque
+    }
+
+    /// Pickle support.
+    fn __reduce__<'py>(slf: &Bound<'py, Self>) -> PyResult<(PyObject, PyObject)> {
+        let py = slf.py();
+        let me = slf.get();
+        let args = (
+            me.values(py, 0),
+            me.values(py, 1),
+            me.limits.base_force,
+            me.limits.base_torque,
+        );
+        Ok((
+            slf.get_type().into_any().unbind(),
+            args.into_pyobject(py)?.into_any().unbind(),
+        ))
+    }
+
+    fn __repr__(&self) -> String {
+        let show = |v: &Vec<f64>, scalar: bool| {
+            if scalar {
+                format!("{}", v[0])
+            } else {
+                format!("{v:?}")
+            }
+        };
+        let bound = |b: Option<f64>| b.map_or("None".to_string(), |v| format!("{v}"));
+        format!(
+            "Limits(motor_torque={}, joint_speed={}, base_force={}, base_torque={})",
+            show(&self.limits.motor_torque, self.scalar[0]),
+            show(&self.limits.joint_speed, self.scalar[1]),
+            bound(self.limits.base_force),
+            bound(self.limits.base_torque)
+        )
+    }
+}
+
+/// The sampled arrays of a plan, read-only.
+struct SampleArrays {
+    t: Py<PyArray1<f64>>,
+    /// `(name, rows × width)` in the order of [`SAMPLE_NAMES`].
+    tables: Vec<Py<PyArray2<f64>>>,
+}
+
+const SAMPLE_NAMES: [&str; 10] = [
+    "q",
+    "qd",
+    "qdd",
+    "theta",
+    "theta_dot",
+    "u",
+    "tau",
+    "base_wrench",
+    "base_twist",
+    "base_pose",
+];
+
+fn freeze(array: &Bound<'_, PyAny>) -> PyResult<()> {
+    let kwargs = PyDict::new(array.py());
+    kwargs.set_item("write", false)?;
+    array.call_method("setflags", (), Some(&kwargs))?;
+    Ok(())
+}
+
+impl SampleArrays {
+    fn new(py: Python<'_>, n: usize, s: Samples) -> PyResult<Self> {
+        let rows = s.t.len();
+        let t = PyArray1::from_vec(py, s.t);
+        freeze(t.as_any())?;
+        let columns = [
+            (s.q, n),
+            (s.qd, n),
+            (s.qdd, n),
+            (s.theta, n),
+            (s.theta_dot, n),
+            (s.u, n),
+            (s.tau, n),
+            (s.base_wrench, 6),
+            (s.base_twist, 6),
+            (s.base_pose, 7),
+        ];
+        let mut tables = Vec::with_capacity(columns.len());
+        for (values, width) in columns {
+            let a = row_major(py, rows, width, values);
+            freeze(a.as_any())?;
+            tables.push(a.unbind());
+        }
+        Ok(Self {
+            t: t.unbind(),
+            tables,
+        })
+    }
+}
+
+/// A planned slew ([`plan_slew`]): its samples, duration and binding limit.
+///
+/// Frames and units: joint quantities are link side, one column per joint in the arm's order
+/// (``arm.robot.joint_names``): ``q``, ``theta`` (rad), ``qd``, ``theta_dot`` (rad/s), ``qdd``
+/// (rad/s²), ``u`` (motor torque) and ``tau`` (spring torque ``k (θ − q) + d (θ̇ − q̇)``, N·m).
+/// Base quantities are ``[angular; linear]`` in the base frame: ``base_wrench`` ``[n_B (N·m,
+/// about the base origin); F_B (N)]`` applied to the base by its actuators (zero for a free
+/// base), ``base_twist`` ``[ω_B (rad/s); v_B (m/s)]`` (zero for a held base); ``base_pose``
+/// ``[r_B (m, inertial); quat_B (x, y, z, w)]``, starting at the origin with identity attitude.
+///
+/// The sample arrays (``t`` and the tables, one row per sample) are read-only; samples are
+/// denser near the peaks that bind. :meth:`evaluate` computes any instant afresh.
+#[pyclass(name = "Plan", module = "orbitflex", frozen)]
+pub struct PyPlan {
+    plan: Plan,
+    arm: Py<PyFlexibleArm>,
+    samples: SampleArrays,
+}
+
+/// Plans in Rust without the GIL and wraps the result.
+fn wrap(
+    py: Python<'_>,
+    arm: Py<PyFlexibleArm>,
+    solve: impl FnOnce() -> crate::Result<Plan> + Send,
+) -> PyResult<PyPlan> {
+    let (plan, samples) = py.allow_threads(|| {
+        let plan = solve()?;
+        let samples = plan.samples();
+        Ok::<_, Error>((plan, samples))
+    })?;
+    let n = plan.arm().dof();
+    Ok(PyPlan {
+        plan,
+        arm,
+        samples: SampleArrays::new(py, n, samples)?,
+    })
+}
+
+/// The waypoints argument: None, or (m, n) (a list of m waypoints, each n angles).
+fn waypoint_rows(obj: Option<&Bound<'_, PyAny>>, n: usize) -> PyResult<Vec<Vec<f64>>> {
+    let Some(obj) = obj.filter(|o| !o.is_none()) else {
+        return Ok(Vec::new());
+    };
+    let array = as_float_array(obj, "waypoints")?;
+    let shape: Vec<usize> = array.getattr("shape")?.extract()?;
+    match shape.as_slice() {
+        [0] => Ok(Vec::new()),
+        [len] => Err(ModelError::new_err(format!(
+            "waypoints: expected a list of waypoints, shape (m, {n}), given a 1-D array of \
+             length {len}; wrap a single waypoint in a list: waypoints=[q]"
+        ))),
+        _ => {
+            let (_, values) = matrix(&array, "waypoints", n)?;
+            Ok(values.chunks_exact(n).map(<[f64]>::to_vec).collect())
+        }
+    }
+}
+
+/// A binding limit as a dict.
+fn binding_dict<'py>(py: Python<'py>, b: &Binding, names: &[&str]) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    d.set_item("limit", b.constraint.name())?;
+    d.set_item("joint", b.joint)?;
+    d.set_item("joint_name", b.joint.map(|j| names[j]))?;
+    d.set_item("segment", b.segment)?;
+    d.set_item("time", b.time)?;
+    d.set_item("value", b.value)?;
+    d.set_item("bound", b.limit)?;
+    Ok(d)
+}
+
+/// Bytes of `steps` rows of `width` f64 values, if they fit in the memory available.
+fn check_steps(what: &str, steps: usize, width: usize) -> PyResult<()> {
+    let bytes = steps.checked_mul(width).and_then(|v| v.checked_mul(8));
+    let available = crate::io::available_memory();
+    let fits = match (bytes, available) {
+        (None, _) => false,
+        (Some(b), Some(a)) => (b as u64) <= a,
+        (Some(b), None) => b <= isize::MAX as usize,
+    };
+    if fits {
+        return Ok(());
+    }
+    Err(ModelError::new_err(format!(
+        "{what}: {steps} steps of {width} values each need {}, more than the {} available; \
+         lengthen dt or ask for fewer steps",
+        crate::args::describe_bytes(bytes),
+        available.map_or("memory".into(), |a| crate::args::describe_bytes(Some(
+            a as usize
+        )))
+    )))
+}
+
+/// The number of steps of `dt` that cover `seconds`, or an error naming `dt` when it is absurd.
+fn covering_steps(seconds: f64, dt: f64) -> PyResult<usize> {
+    crate::args::check_dt(dt)?;
+    let steps = (seconds / dt).ceil();
+    if steps.is_nan() || steps >= 1e15 {
+        return Err(ModelError::new_err(format!(
+            "dt: {dt:e} s makes {steps:.3e} steps of {seconds:.6} s; lengthen dt"
+        )));
+    }
+    Ok(steps as usize)
+}
+
+/// Gains for the tracking PD: a number or one per joint, checked against `n`.
+fn gains(obj: &Bound<'_, PyAny>, what: &str, n: usize) -> PyResult<Vec<f64>> {
+    let p = Param::parse(obj, what)?;
+    if let Some(len) = p.len().filter(|&len| len != n) {
+        return Err(ModelError::new_err(format!(
+            "{what}: expected a number or length {n} (one per joint), given length {len}"
+        )));
+    }
+    Ok(p.resolve(n))
+}
+
+/// The reference tables as a dict of (steps, width) per-step arrays, the (steps + 1, width)
+/// planned states `q` and `base_pose`, and their times `t` (steps + 1,).
+fn reference_dict<'py>(py: Python<'py>, r: Reference, n: usize) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    let t: Vec<f64> = (0..=r.steps).map(|k| k as f64 * r.dt).collect();
+    d.set_item("t", PyArray1::from_vec(py, t))?;
+    d.set_item("u", row_major(py, r.steps, n, r.u))?;
+    d.set_item("theta_ref", row_major(py, r.steps, n, r.theta_ref))?;
+    d.set_item("theta_dot_ref", row_major(py, r.steps, n, r.theta_dot_ref))?;
+    d.set_item("base_wrench", row_major(py, r.steps, 6, r.base_wrench))?;
+    d.set_item("q", row_major(py, r.steps + 1, n, r.q))?;
+    d.set_item("base_pose", row_major(py, r.steps + 1, 7, r.base_pose))?;
+    Ok(d)
+}
+
+/// The MotorPD and wrenches [`Plan::track`] runs with, for the stability check and to replay a
+/// failed run.
+fn tracking_loop(
+    plan: &Plan,
+    r: &Reference,
+    kp: &[f64],
+    kd: &[f64],
+) -> crate::Result<(MotorPD, Wrenches)> {
+    let n = plan.arm().dof();
+    let table = |values: &Vec<f64>, width| Schedule::Table {
+        values: values.clone(),
+        width,
+    };
+    let pd = MotorPD::new(
+        kp.to_vec(),
+        kd.to_vec(),
+        table(&r.theta_ref, n),
+        table(&r.theta_dot_ref, n),
+        table(&r.u, n),
+    )?;
+    let wrenches = Wrenches {
+        base: match plan.base() {
+            BaseMode::Held => table(&r.base_wrench, 6),
+            BaseMode::Free => Schedule::Zero,
+        },
+        ee: Schedule::Zero,
+    };
+    Ok((pd, wrenches))
+}
+
+impl PyPlan {
+    fn table(&self, py: Python<'_>, name: &str) -> Py<PyArray2<f64>> {
+        let k = SAMPLE_NAMES
+            .iter()
+            .position(|s| *s == name)
+            .expect("a sample table");
+        self.samples.tables[k].clone_ref(py)
+    }
+
+    fn joint_names(&self) -> Vec<&str> {
+        self.plan.arm().robot().joint_names()
+    }
+
+    /// The error of a run that stopped early: `SimulationError` with the finite part, replayed
+    /// (Plan::track keeps only the error).
+    fn failed_run(
+        &self,
+        py: Python<'_>,
+        error: Error,
+        dt: f64,
+        kp: &[f64],
+        kd: &[f64],
+        settle: f64,
+    ) -> PyResult<PyErr> {
+        let Error::Simulation { step, time, .. } = &error else {
+            return Ok(error.into());
+        };
+        let (step, time) = (*step, *time);
+        let message = error.to_string();
+        let plan = &self.plan;
+        let steps = covering_steps(plan.duration() + settle, dt)?;
+        let replay = py.allow_threads(|| {
+            let r = plan.reference(dt, Some(steps))?;
+            tracking_loop(plan, &r, kp, kd)
+        });
+        let trajectory = match replay {
+            Ok((mut pd, wrenches)) => {
+                let x0 = plan.initial_state();
+                let result = run_releasing_gil(
+                    py,
+                    plan.arm(),
+                    &x0,
+                    dt,
+                    steps,
+                    &mut pd,
+                    &wrenches,
+                    &mut Progress::new(None),
+                )?;
+                let record = match result {
+                    Ok(traj) => traj,
+                    Err(failure) => failure.trajectory,
+                };
+                let traj = PyTrajectory::from_run(py, self.arm.clone_ref(py), record)?;
+                Py::new(py, traj)?.into_any()
+            }
+            Err(_) => py.None(),
+        };
+        simulation_error(py, message, step, time, trajectory, None)
+    }
+}
+
+#[pymethods]
+impl PyPlan {
+    /// Total duration (s).
+    #[getter]
+    fn duration(&self) -> f64 {
+        self.plan.duration()
+    }
+    /// Each segment's duration (s): one segment per waypoint, plus one.
+    #[getter]
+    fn segment_durations<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        array1(py, &self.plan.segment_durations())
+    }
+    /// The limit that sets the duration: a dict ``{"limit": "motor_torque" | "joint_speed" |
+    /// "base_force" | "base_torque", "joint": index (0-based) or None, "joint_name": str or
+    /// None, "segment": index, "time": when it peaks (s from the start), "value": the peak
+    /// (magnitude; N·m, rad/s or N), "bound": the limit}``.
+    #[getter]
+    fn binding<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        binding_dict(py, self.plan.binding(), &self.joint_names())
+    }
+    /// The binding limit of each segment (dicts as :attr:`binding`).
+    #[getter]
+    fn bindings<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyList>> {
+        let names = self.joint_names();
+        let items = self
+            .plan
+            .bindings()
+            .iter()
+            .map(|b| binding_dict(py, b, &names))
+            .collect::<PyResult<Vec<_>>>()?;
+        PyList::new(py, items)
+    }
+    /// ``"held"`` (the base's actuators hold it inertially still) or ``"free"`` (free floating
+    /// from rest, zero momentum).
+    #[getter]
+    fn base(&self) -> &'static str {
+        self.plan.base().name()
+    }
+    /// Whether this is the rigid-joint plan (:meth:`rigid`).
+    #[getter]
+    fn is_rigid(&self) -> bool {
+        self.plan.is_rigid()
+    }
+    /// The limits planned for, one value per joint.
+    #[getter]
+    fn limits(&self) -> PyLimits {
+        PyLimits::from_rust(self.plan.limits().clone())
+    }
+    /// The arm planned for.
+    #[getter]
+    fn arm(&self, py: Python<'_>) -> Py<PyFlexibleArm> {
+        self.arm.clone_ref(py)
+    }
+    /// The stops, (m + 2, n) (rad): start, waypoints, goal.
+    #[getter]
+    fn stops<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
+        let stops = self.plan.stops();
+        let n = self.plan.arm().dof();
+        row_major(py, stops.len(), n, stops.concat())
+    }
+    /// Sample times (s), (k,).
+    #[getter]
+    fn t(&self, py: Python<'_>) -> Py<PyArray1<f64>> {
+        self.samples.t.clone_ref(py)
+    }
+    /// Link angles ``q`` (rad), (k, n).
+    #[getter]
+    fn q(&self, py: Python<'_>) -> Py<PyArray2<f64>> {
+        self.table(py, "q")
+    }
+    /// Link rates ``q̇`` (rad/s), (k, n).
+    #[getter]
+    fn qd(&self, py: Python<'_>) -> Py<PyArray2<f64>> {
+        self.table(py, "qd")
+    }
+    /// Link accelerations ``q̈`` (rad/s²), (k, n).
+    #[getter]
+    fn qdd(&self, py: Python<'_>) -> Py<PyArray2<f64>> {
+        self.table(py, "qdd")
+    }
+    /// Motor angles ``θ = q + δ`` (rad, link side), (k, n); zero deflection for a rigid plan.
+    #[getter]
+    fn theta(&self, py: Python<'_>) -> Py<PyArray2<f64>> {
+        self.table(py, "theta")
+    }
+    /// Motor rates ``θ̇`` (rad/s, link side), (k, n).
+    #[getter]
+    fn theta_dot(&self, py: Python<'_>) -> Py<PyArray2<f64>> {
+        self.table(py, "theta_dot")
+    }
+    /// Motor torques ``u = j θ̈ + β θ̇ + τ`` (N·m, link side), (k, n): the feedforward.
+    #[getter]
+    fn u(&self, py: Python<'_>) -> Py<PyArray2<f64>> {
+        self.table(py, "u")
+    }
+    /// Spring torques ``τ`` acting on the links (N·m), (k, n): the rigid inverse dynamics.
+    #[getter]
+    fn tau(&self, py: Python<'_>) -> Py<PyArray2<f64>> {
+        self.table(py, "tau")
+    }
+    /// ``[n_B (N·m, about the base origin); F_B (N)]`` the base's actuators apply, base frame,
+    /// (k, 6); zero for a free base.
+    #[getter]
+    fn base_wrench(&self, py: Python<'_>) -> Py<PyArray2<f64>> {
+        self.table(py, "base_wrench")
+    }
+    /// ``[ω_B (rad/s); v_B (m/s)]``, base frame, (k, 6); zero for a held base.
+    #[getter]
+    fn base_twist(&self, py: Python<'_>) -> Py<PyArray2<f64>> {
+        self.table(py, "base_twist")
+    }
+    /// ``[r_B (m); quat_B (x, y, z, w)]``, inertial frame, (k, 7); from the origin with
+    /// identity attitude (constant for a held base).
+    #[getter]
+    fn base_pose(&self, py: Python<'_>) -> Py<PyArray2<f64>> {
+        self.table(py, "base_pose")
+    }
+
+    /// Everything at time ``t`` (s) computed afresh from the inverse dynamics (not interpolated;
+    /// the deflection of damped joints is integrated exactly from the sample before): a dict of
+    /// ``t`` and arrays ``q``, ``qd``, ``qdd``, ``theta``, ``deflection`` (``θ − q`` at full
+    /// precision, rad: what :meth:`FlexibleArm.inverse_dynamics` takes for damped joints),
+    /// ``theta_dot``, ``theta_ddot``, ``u``, ``tau`` (n each, units as the class docstring),
+    /// ``base_twist``, the classical
+    /// ``base_acc`` ``[ω̇_B; v̇_B + ω_B × v_B]`` (rad/s², m/s²) and ``base_wrench`` (6 each,
+    /// base frame). Before the start and after the end the arm rests at the first and last stop.
+    fn evaluate<'py>(
+        &self,
+        py: Python<'py>,
+        t: &Bound<'py, PyAny>,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let t = real(t, "t")?;
+        let p = self.plan.evaluate(t)?;
+        let d = PyDict::new(py);
+        d.set_item("t", p.t)?;
+        for (name, v) in [
+            ("q", &p.q),
+            ("qd", &p.qd),
+            ("qdd", &p.qdd),
+            ("theta", &p.theta),
+            ("deflection", &p.deflection),
+            ("theta_dot", &p.theta_dot),
+            ("theta_ddot", &p.theta_ddot),
+            ("u", &p.u),
+            ("tau", &p.tau),
+        ] {
+            d.set_item(name, array1(py, v))?;
+        }
+        d.set_item("base_twist", array1(py, &p.base_twist))?;
+        d.set_item("base_acc", array1(py, &p.base_acc))?;
+        d.set_item("base_wrench", array1(py, &p.base_wrench))?;
+        Ok(d)
+    }
+
+    /// The state (13+4n,) a run of this plan starts from: ``q = θ = `` the start, at rest, base
+    /// at the origin with identity attitude.
+    fn initial_state<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        array1(py, &self.plan.initial_state())
+    }
+
+    /// Per-step tables for ``arm.simulate`` with steps of ``dt`` (s): ``steps`` rows (default:
+    /// enough to cover the plan; more steps hold the goal at rest), row ``k`` for the step from
+    /// ``k dt`` to ``(k+1) dt``. A dict of ``"u"`` (steps, n): the feedforward motor torque
+    /// (the plan's ``u`` averaged over the step, N·m); ``"theta_ref"``, ``"theta_dot_ref"``
+    /// (steps, n): ``θ`` (rad) and ``θ̇`` (rad/s) at the step's start, for a ``MotorPD``;
+    /// ``"base_wrench"`` (steps, 6): the wrench (averaged) that holds a held base, zero for a
+    /// free one; ``"q"`` (steps + 1, n) and ``"base_pose"`` (steps + 1, 7): the planned link
+    /// angles and base pose at every state time of the run, as in its :class:`Trajectory`, to
+    /// measure tracking; ``"t"`` (steps + 1,): those times ``k dt`` (s), so row ``k`` of the
+    /// per-step tables spans ``t[k]`` to ``t[k+1]``.
+    ///
+    /// ``MotorPD(kp, kd, r["theta_ref"], r["theta_dot_ref"], r["u"])`` with
+    /// ``base_wrench=r["base_wrench"]`` runs it (:meth:`track` does that).
+    #[pyo3(signature = (dt, steps=None))]
+    fn reference<'py>(
+        &self,
+        py: Python<'py>,
+        dt: &Bound<'py, PyAny>,
+        steps: Option<&Bound<'py, PyAny>>,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let dt = real(dt, "dt")?;
+        crate::args::check_dt(dt)?;
+        let steps_given = steps.is_some_and(|s| !s.is_none());
+        let steps = match steps.filter(|s| !s.is_none()) {
+            Some(s) => count(s, "steps")?,
+            None => covering_steps(self.plan.duration(), dt)?,
+        };
+        let n = self.plan.arm().dof();
+        let blame = if steps_given { "steps" } else { "dt" };
+        check_steps(blame, steps, 4 * n + 13)?;
+        let plan = &self.plan;
+        let r = py.allow_threads(|| plan.reference(dt, Some(steps)))?;
+        reference_dict(py, r, n)
+    }
+
+    /// The same slew planned as if the joints were rigid (``θ = q``, ``u = j q̈ + β q̇ + τ``),
+    /// under the same limits and base mode: what a planner that ignores joint flexibility makes.
+    fn rigid(&self, py: Python<'_>) -> PyResult<PyPlan> {
+        let plan = &self.plan;
+        wrap(py, self.arm.clone_ref(py), || plan.rigid())
+    }
+
+    /// Simulates the plan on its arm (the flexible one, also for a rigid plan) from
+    /// :meth:`initial_state` with RK4 steps of ``dt`` (s) for the slew plus ``settle`` s at
+    /// rest: a motor PD with gains ``kp`` (N·m/rad) and ``kd`` (N·m·s/rad) (numbers or one per
+    /// joint) around :meth:`reference`'s ``theta_ref``, ``theta_dot_ref``, with its feedforward
+    /// ``u`` and, for a held base, its base wrench.
+    ///
+    /// Returns a dict: ``"trajectory"`` (the ``Trajectory``), ``"reference"`` (the tables, as
+    /// :meth:`reference`), ``"slew_end"`` (s), ``"peak_motor_torque"`` (n,): ``max |u_i|``
+    /// commanded (feedforward + PD, N·m), ``"tracking_error"``: ``max |q − q_plan|`` over the
+    /// run (rad), ``"residual_deflection"``: after the slew, ``max |θ − q|`` (rad, the residual
+    /// vibration), ``"residual_link_error"``: after the slew, ``max |q − q_goal|`` (rad),
+    /// ``"base_position_error"`` (m) and ``"base_attitude_error"`` (rad): the largest departure
+    /// of the base from the plan's pose.
+    ///
+    /// Warns (``RuntimeWarning``) when ``dt`` is past the RK4 stability limit of the closed loop
+    /// at the start (``arm.rk4_stability_limit``); raises ``SimulationError`` if the run
+    /// diverges.
+    #[pyo3(signature = (dt, kp, kd, settle=None), text_signature = "($self, dt, kp, kd, settle=2.0)")]
+    fn track<'py>(
+        &self,
+        py: Python<'py>,
+        dt: &Bound<'py, PyAny>,
+        kp: &Bound<'py, PyAny>,
+        kd: &Bound<'py, PyAny>,
+        settle: Option<&Bound<'py, PyAny>>,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let n = self.plan.arm().dof();
+        let dt = real(dt, "dt")?;
+        let settle = match settle.filter(|s| !s.is_none()) {
+            Some(s) => real(s, "settle")?,
+            None => 2.0,
+        };
+        if !(settle.is_finite() && settle >= 0.0) {
+            return Err(ModelError::new_err(format!(
+                "settle: expected a finite time >= 0 (s), given {settle}"
+            )));
+        }
+        let (kp, kd) = (gains(kp, "kp", n)?, gains(kd, "kd", n)?);
+        let steps = covering_steps(self.plan.duration() + settle, dt)?;
+        let layout = self.plan.arm().layout();
+        check_steps("dt", steps, 2 * layout.len() + 4 * n + 13)?;
+        // the stability check on the loop at the start (the references do not enter it)
+        let x0 = self.plan.initial_state();
+        let probe = MotorPD::new(
+            kp.clone(),
+            kd.clone(),
+            Schedule::Zero,
+            Schedule::Zero,
+            Schedule::Zero,
+        )?;
+        if let Some(warning) = integrate::stability_warning(self.plan.arm(), &x0, dt, &probe)? {
+            PyErr::warn(
+                py,
+                &py.get_type::<PyRuntimeWarning>(),
+                &CString::new(warning).expect("no NUL in the message"),
+                1,
+            )?;
+        }
+        let plan = &self.plan;
+        let result = py.allow_threads(|| plan.track(dt, &kp, &kd, settle));
+        let Tracking {
+            trajectory,
+            reference,
+            slew_end,
+            peak_motor_torque,
+            tracking_error,
+            residual_deflection,
+            residual_link_error,
+            base_position_error,
+            base_attitude_error,
+        } = match result {
+            Ok(t) => t,
+            Err(e) => return Err(self.failed_run(py, e, dt, &kp, &kd, settle)?),
+        };
+        let d = PyDict::new(py);
+        let traj = PyTrajectory::from_run(py, self.arm.clone_ref(py), trajectory)?;
+        d.set_item("trajectory", Py::new(py, traj)?)?;
+        d.set_item("reference", reference_dict(py, reference, n)?)?;
+        d.set_item("slew_end", slew_end)?;
+        d.set_item("peak_motor_torque", array1(py, &peak_motor_torque))?;
+        d.set_item("tracking_error", tracking_error)?;
+        d.set_item("residual_deflection", residual_deflection)?;
+        d.set_item("residual_link_error", residual_link_error)?;
+        d.set_item("base_position_error", base_position_error)?;
+        d.set_item("base_attitude_error", base_attitude_error)?;
+        Ok(d)
+    }
+
+    /// Rebuilds a plan from :meth:`__reduce__`'s parts (for pickling) by planning it again:
+    /// the planner is deterministic, so the copy equals the original.
+    #[staticmethod]
+    fn _from_stops(
+        py: Python<'_>,
+        arm: Py<PyFlexibleArm>,
+        stops: &Bound<'_, PyAny>,
+        limits: PyLimits,
+        base: &str,
+        rigid: bool,
+    ) -> PyResult<PyPlan> {
+        let n = arm.get().arm.dof();
+        let (rows, values) = matrix(stops, "stops", n)?;
+        if rows < 2 {
+            return Err(ModelError::new_err(format!(
+                "stops: expected at least 2 rows (start and goal), given {rows}"
+            )));
+        }
+        let stops: Vec<Vec<f64>> = values.chunks_exact(n).map(<[f64]>::to_vec).collect();
+        let base = BaseMode::from_name(base)?;
+        let solve_arm = arm.get().arm.clone();
+        wrap(py, arm, move || {
+            let (start, goal) = (&stops[0], &stops[rows - 1]);
+            let plan = plan_slew(
+                &solve_arm,
+                goal,
+                Some(start),
+                &limits.limits,
+                base,
+                &stops[1..rows - 1],
+            )?;
+            if rigid {
+                plan.rigid()
+            } else {
+                Ok(plan)
+            }
+        })
+    }
+
+    /// Pickle support: the arm, the stops, the limits, the base mode and whether the plan is
+    /// rigid; unpickling plans again (tens of ms).
+    fn __reduce__<'py>(slf: &Bound<'py, Self>) -> PyResult<(PyObject, PyObject)> {
+        let py = slf.py();
+        let me = slf.get();
+        let args = (
+            me.arm(py),
+            me.stops(py),
+            me.limits(),
+            me.base(),
+            me.is_rigid(),
+        );
+        let constructor = slf.get_type().getattr("_from_stops")?;
+        Ok((
+            constructor.unbind(),
+            args.into_pyobject(py)?.into_any().unbind(),
+        ))
+    }
+
+    fn __repr__(&self) -> String {
+        let b = self.plan.binding();
+        let joint = b
+            .joint
+            .map_or(String::new(), |j| format!("[{}]", self.joint_names()[j]));
+        format!(
+            "Plan(duration={:.6} s, base='{}', rigid={}, binding={}{} at t={:.4} s, segments={})",
+            self.plan.duration(),
+            self.base(),
+            if self.plan.is_rigid() {
+                "True"
+            } else {
+                "False"
+            },
+            b.constraint.name(),
+            joint,
+            b.time,
+            self.plan.segment_durations().len()
+        )
+    }
+}
+
+/// Plans the shortest rest-to-rest slew of ``arm`` from ``q_start`` (default: zeros) to
+/// ``q_goal`` (rad, n each) through ``waypoints`` (a list of m stops, (m, n); the arm stops at
+/// each) under ``limits`` (an ``orbitflex.Limits``; required).
+///
+/// The path between stops is fixed: ``q(t) = q_a + (q_b − q_a) σ(t/T)`` with the degree-9
+/// polynomial ``σ`` whose derivatives 1–4 vanish at both ends; the planner finds per segment the
+/// shortest ``T`` for which every limit holds, with the flexible-joint inverse dynamics (so
+/// ``u`` includes the motors' extra effort to stretch the springs). The arm starts at rest with
+/// relaxed springs.
+///
+/// ``base``: ``"held"`` (the base's actuators hold it inertially still; ``limits.base_force``
+/// and ``limits.base_torque`` bound their wrench) or ``"free"`` (free floating from rest: zero
+/// momentum, the base moves in reaction; the base limits do not apply).
+///
+/// Releases the GIL while planning. Raises ``ModelError`` for wrong lengths, non-finite values,
+/// equal consecutive stops, or limits no duration can meet.
+#[pyfunction]
+#[pyo3(name = "plan_slew", signature = (arm, q_goal, q_start=None, limits=None, base="held", waypoints=None))]
+pub fn py_plan_slew(
+    py: Python<'_>,
+    arm: Bound<'_, PyFlexibleArm>,
+    q_goal: &Bound<'_, PyAny>,
+    q_start: Option<&Bound<'_, PyAny>>,
+    limits: Option<&Bound<'_, PyAny>>,
+    base: &str,
+    waypoints: Option<&Bound<'_, PyAny>>,
+) -> PyResult<PyPlan> {
+    let n = arm.get().arm.dof();
+    let limits = match limits.filter(|l| !l.is_none()) {
+        Some(l) => l
+            .downcast::<PyLimits>()
+            .map_err(|_| {
+                PyTypeError::new_err(format!(
+                    "plan_slew: limits: expected an orbitflex.Limits, given {}",
+                    l.get_type()
+                        .name()
+                        .map(|s| s.to_string())
+                        .unwrap_or_default()
+                ))
+            })?
+            .get()
+            .limits
+            .clone(),
+        None => {
+            return Err(PyTypeError::new_err(
+                "plan_slew: limits is required: limits=orbitflex.Limits(motor_torque, \
+                 joint_speed, base_force=None, base_torque=None)",
+            ))
+        }
+    };
+    let q_goal = vector(q_goal, "q_goal", Some(n))?;
+    let q_start = q_start
+        .filter(|o| !o.is_none())
+        .map(|o| vector(o, "q_start", Some(n)))
+        .transpose()?;
+    let base = BaseMode::from_name(base)?;
+    let waypoints = waypoint_rows(waypoints, n)?;
+    let rust_arm = &arm.get().arm;
+    wrap(py, arm.clone().unbind(), || {
+        plan_slew(
+            rust_arm,
+            &q_goal,
+            q_start.as_deref(),
+            &limits,
+            base,
+            &waypoints,
+        )
+    })
+}
