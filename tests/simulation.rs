@@ -426,6 +426,25 @@ fn joint_parameters_from_toml() {
     let err = FlexibleJoints::from_toml_str("[defaults]\nmotor_inertia = 1.0\n", &names, "test")
         .unwrap_err();
     assert!(err.to_string().contains("stiffness"), "{err}");
+    // a syntax error is one line: where (line, column of the offending character) and what
+    let err = FlexibleJoints::from_toml_str("[defaults]\nstiffness = [1,\n", &names, "j.toml")
+        .unwrap_err();
+    assert_eq!(
+        err.to_string(),
+        "j.toml: malformed joint-parameter TOML: line 2, column 16: invalid array, expected `]`"
+    );
+    let err = FlexibleJoints::from_toml_str(
+        "[defaults]\nstiffness = 1e4\nstiffness = 2\n",
+        &names,
+        "j.toml",
+    )
+    .unwrap_err();
+    assert!(!err.to_string().contains('\n'), "{err}");
+    assert!(
+        err.to_string()
+            .starts_with("j.toml: malformed joint-parameter TOML: line 3, column 1: "),
+        "{err}"
+    );
 }
 
 /// A controller or input table of the wrong size is an error before the run starts, not a panic or

@@ -131,7 +131,13 @@ def urdf_error(error: Exception) -> CliError:
 
 
 class Parser(argparse.ArgumentParser):
-    """argparse with one-line errors: ``orbitflex: error: --dt: ...`` (exit code 2)."""
+    """argparse with one-line errors: ``orbitflex: error: --dt: ...`` (exit code 2), and no
+    abbreviated flags (``--dur`` is an error, not ``--duration``: a flag added later must not
+    change what an existing script means)."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        kwargs.setdefault("allow_abbrev", False)
+        super().__init__(*args, **kwargs)
 
     def error(self, message: str) -> NoReturn:
         message = re.sub(r"^argument ([^:/ ]+)(?:/\S+)?: ", r"\1: ", message)

@@ -216,7 +216,7 @@ impl FlexibleJoints {
             format: "joint-parameter TOML",
             message,
         };
-        let file: TomlFile = toml::from_str(text).map_err(|e| malformed(e.to_string()))?;
+        let file: TomlFile = toml::from_str(text).map_err(|e| malformed(toml_error(text, &e)))?;
         if let Some(name) = file
             .joints
             .keys()
@@ -341,5 +341,28 @@ impl TomlFile {
             }
         }
         Ok(row)
+    }
+}
+
+/// A TOML parse error on one line: `line L, column C: what, expected what` (the parser's own
+/// rendering quotes the source over several lines).
+fn toml_error(text: &str, e: &toml::de::Error) -> String {
+    let what = e
+        .message()
+        .lines()
+        .map(str::trim)
+        .filter(|l| !l.is_empty())
+        .collect::<Vec<_>>()
+        .join(", ");
+    match e.span() {
+        Some(span) => {
+            // an error at the end of the input points just past its last character
+            let start = span.start.min(text.trim_end().len());
+            let before = text.get(..start).unwrap_or(text);
+            let line = before.matches('\n').count() + 1;
+            let column = before.rsplit('\n').next().map_or(0, |l| l.chars().count()) + 1;
+            format!("line {line}, column {column}: {what}")
+        }
+        None => what,
     }
 }

@@ -518,6 +518,25 @@ def test_messages_name_the_flags_not_python_keywords(model_files, tmp_path, case
     assert "ee_link" not in result.stderr and "locked_joints" not in result.stderr, result.stderr
 
 
+def test_flags_are_not_abbreviated(model_files, tmp_path):
+    # `--dur` is not `--duration`: a later flag starting with the same letters would change it
+    urdf, params = model_files
+    result = run_cli("simulate", urdf, "--params", params, "--dur", "0.05", "--out", tmp_path / "o",
+                     "--quiet", cwd=tmp_path)
+    assert_clean_error(result, "unrecognized arguments: --dur 0.05")
+    assert not (tmp_path / "o").exists()
+
+
+def test_a_toml_syntax_error_is_one_line_with_its_position(model_files, tmp_path):
+    urdf, _ = model_files
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[defaults]\nstiffness = [1,\n")
+    result = run_cli("simulate", urdf, "--params", bad, "--locked-joints", "finger_slide", "--duration", "0.05",
+                     "--out", tmp_path / "o", "--quiet", cwd=tmp_path)
+    assert_clean_error(result, "malformed joint-parameter TOML: line 2, column 16: invalid array, expected `]`",
+                       flag="--params")
+
+
 def test_links_named_like_keywords_keep_their_names(model_files, tmp_path):
     # UR5 names its flange 'ee_link': a message listing links must show that name, not a flag
     urdf, params = model_files
