@@ -186,6 +186,16 @@ pub fn check_dense(
     }
 }
 
+/// A number for a message: plain between 1e-3 and 1e6 (`30`, `0.5`), in exponent form outside
+/// (`1e-320`, `2.5e299`), never hundreds of digits.
+pub fn number(x: f64) -> String {
+    if x == 0.0 || !x.is_finite() || (1e-3..1e6).contains(&x.abs()) {
+        format!("{x}")
+    } else {
+        format!("{x:e}")
+    }
+}
+
 /// A byte count for messages: `2.6 GB`.
 pub fn describe_bytes(bytes: Option<usize>) -> String {
     match bytes {

@@ -937,14 +937,15 @@ def comparison_summary(c: Comparison) -> Dict[str, Any]:
 def describe_binding(plan: Plan) -> str:
     """The binding limit of the plan, and its segment when there are several."""
     b = plan.binding
-    segment = f" in segment {b['segment'] + 1}" if len(plan.segment_durations) > 1 else ""
+    count = len(plan.segment_durations)
+    segment = f" in segment {b['segment'] + 1} of {count}" if count > 1 else ""
     return describe(b) + segment
 
 
 def describe(b: Dict[str, Any]) -> str:
     """A binding limit in words: which, on which joint, its peak and when."""
     unit = {"motor_torque": "N·m", "joint_speed": "rad/s", "base_force": "N", "base_torque": "N·m"}[b["limit"]]
-    where = f" on {b['joint_name']} (joint {b['joint']})" if b["joint"] is not None else ""
+    where = f" on {b['joint_name']} (joint index {b['joint']})" if b["joint"] is not None else ""
     return f"{b['limit']}{where}: {b['value']:.4g} of {b['bound']:.4g} {unit} at t = {b['time']:.3f} s"
 
 
@@ -1613,7 +1614,8 @@ def plan_options(p: argparse.ArgumentParser) -> None:
     limits.add_argument("--base-force", metavar="N", type=positive, default=None,
                         help="bound on the norm of the force holding the bus, N (--base held; default none)")
     limits.add_argument("--base-torque", metavar="NM", type=positive, default=None,
-                        help="bound on the norm of the moment holding the bus, N·m (--base held; default none)")
+                        help="bound on the norm of the moment holding the bus, about the root link's origin "
+                             "(not the bus COM when --base-com moves it), N·m (--base held; default none)")
     runs = p.add_argument_group("the tracking runs (both plans simulated on the flexible arm)")
     runs.add_argument("--dt", metavar="S", type=positive, default=None,
                       help=f"RK4 step, s (default {TRACK_DT:g}, lowered when past {DT_MARGIN * 100:.0f}%% of the "

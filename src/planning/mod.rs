@@ -14,4 +14,4 @@ pub use slew::{
     plan_slew, sigma, Binding, Constraint, Limits, Plan, PlanPoint, Reference, Samples,
 };
 pub mod tracking;
-pub use tracking::Tracking;
+pub use tracking::{Tracking, TrackingSetup};

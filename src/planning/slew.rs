@@ -43,8 +43,11 @@ const REFINE_ROUNDS: usize = 6;
 const LOOKBACK: f64 = 1.0 / 1024.0;
 /// Consecutive stops closer than this in every joint (rad) are refused.
 pub const NOTHING_TO_SLEW: f64 = 1e-12;
-/// Doubling steps before a request is declared unreachable.
-const MAX_DOUBLINGS: usize = 60;
+/// The shortest segment duration tried (s): a speed limit that allows less (a huge number given
+/// to mean "no speed limit") starts the search here.
+const SHORTEST_TRIED: f64 = 1e-9;
+/// The longest segment duration tried (s, about 32 years): limits that need more are refused.
+const LONGEST_TRIED: f64 = 1e9;
 
 /// `σ(s)` coefficients, lowest power first.
 const SIGMA: [f64; 10] = [0.0, 0.0, 0.0, 0.0, 0.0, 126.0, -420.0, 540.0, -315.0, 70.0];
@@ -733,36 +736,44 @@ impl Plan {
             .zip(&self.limits.joint_speed)
             .map(|(d, l)| l / (d.abs() * sigma(0.5)[1]))
             .fold(f64::INFINITY, f64::min);
-        let start = hint.unwrap_or(speed_w);
+        let start = hint.unwrap_or(speed_w).min(1.0 / SHORTEST_TRIED);
         if self.feasible(seg, start) {
             return Ok(start);
         }
-        // widen downwards (longer durations) until feasible: from 1e-4 after a hint, by halves
-        // without one
-        let mut cut: f64 = if hint.is_some() { 1e-4 } else { 0.5 };
-        let (mut hi, mut lo) = (start, start * (1.0 - cut));
-        let mut widenings = 0;
+        // widen downwards (longer durations) until feasible: from a 1e-4 cut after a hint, by
+        // halves without one, then by squares of the factor (1/2, 1/4, 1/16, …) so that even a
+        // start 18 orders of magnitude too short is bracketed in a few steps
+        let mut factor: f64 = if hint.is_some() { 1.0 - 1e-4 } else { 0.5 };
+        let (mut hi, mut lo) = (start, start * factor);
         while !self.feasible(seg, lo) {
-            hi = lo;
-            cut = (cut * 4.0).min(0.5);
-            lo = hi * (1.0 - cut);
-            widenings += 1;
-            if widenings > MAX_DOUBLINGS {
+            if lo < 1.0 / LONGEST_TRIED {
                 let (_, _, c, joint, value, limit) = self.peak(seg, lo);
                 return Err(Error::InvalidArgument {
                     what: "limits".into(),
                     message: format!(
-                        "no duration up to {:.3e} s meets them: {}{} still needs {value:.3e}, \
-                         over its limit of {limit:e}",
-                        1.0 / lo,
+                        "no duration up to {LONGEST_TRIED:.0e} s meets them: {}{} still needs \
+                         {value:.3e}, over its limit of {}",
                         c.name(),
                         joint.map_or(String::new(), |j| format!("[{j}]")),
+                        crate::args::number(limit),
                     ),
                 });
             }
+            hi = lo;
+            factor = if factor > 0.5 {
+                (1.0 - 4.0 * (1.0 - factor)).max(0.5)
+            } else {
+                factor * factor
+            };
+            lo = (hi * factor).max(1.0 / LONGEST_TRIED * 0.5);
         }
+        // bisect: geometrically while the bracket spans more than a factor 2, then arithmetically
         while hi - lo > BISECTION_TOLERANCE * hi {
-            let mid = 0.5 * (lo + hi);
+            let mid = if hi > 2.0 * lo {
+                (lo * hi).sqrt()
+            } else {
+                0.5 * (lo + hi)
+            };
             if self.feasible(seg, mid) {
                 lo = mid;
             } else {
@@ -911,6 +922,15 @@ impl Plan {
     /// Everything at time `t` (s), computed afresh (not interpolated); after the end, the arm
     /// rests at the goal.
     fn at(&self, scratch: &mut JetScratch, t: f64, out: &mut Point) -> Result<()> {
+        let overtime = self.at_unsettled(scratch, t, out)?;
+        if overtime > 0.0 {
+            self.settle(out, overtime);
+        }
+        Ok(())
+    }
+
+    /// [`Plan::at`] without the settling after the end: returns how far `t` is past the end.
+    fn at_unsettled(&self, scratch: &mut JetScratch, t: f64, out: &mut Point) -> Result<f64> {
         let n = self.arm.dof();
         let last = self.segments.len() - 1;
         let k = self
@@ -934,29 +954,28 @@ impl Plan {
         let jets = self.unit_jets(scratch, seg, s)?;
         self.point(seg, s, &jets, w, Some((s - seg.s[j], &before)), out);
         // after the end the links rest (τ = 0) and a damped joint's leftover deflection decays
-        let overtime = t - (seg.t0 + seg.duration);
-        if overtime > 0.0 && !self.rigid {
-            let joints = self.arm.joints();
-            for i in 0..n {
-                let (k, d) = (joints.stiffness[i], joints.damping[i]);
-                if d > 0.0 {
-                    let [delta, rate, acc] = deflection::advance(
-                        k,
-                        d,
-                        overtime,
-                        out.deflection[i],
-                        &[0.0; 3],
-                        &[0.0; 3],
-                    );
-                    out.deflection[i] = delta;
-                    out.theta[i] = out.q[i] + delta;
-                    out.theta_dot[i] = rate;
-                    out.theta_ddot[i] = acc;
-                    out.u[i] = joints.motor_inertia[i] * acc + joints.motor_damping[i] * rate;
-                }
+        Ok(t - (seg.t0 + seg.duration))
+    }
+
+    /// The point at the plan's end (`s = 1` of the last segment) moved on by `overtime` s at
+    /// rest: the links stay, a damped joint's deflection decays as `e^{−k t/d}`.
+    fn settle(&self, out: &mut Point, overtime: f64) {
+        if self.rigid {
+            return;
+        }
+        let joints = self.arm.joints();
+        for i in 0..self.arm.dof() {
+            let (k, d) = (joints.stiffness[i], joints.damping[i]);
+            if d > 0.0 {
+                let [delta, rate, acc] =
+                    deflection::advance(k, d, overtime, out.deflection[i], &[0.0; 3], &[0.0; 3]);
+                out.deflection[i] = delta;
+                out.theta[i] = out.q[i] + delta;
+                out.theta_dot[i] = rate;
+                out.theta_ddot[i] = acc;
+                out.u[i] = joints.motor_inertia[i] * acc + joints.motor_damping[i] * rate;
             }
         }
-        Ok(())
     }
 
     /// Everything at time `t` (s) of the plan, computed afresh from the inverse dynamics at that
@@ -990,6 +1009,18 @@ impl Plan {
     /// step, Simpson's rule), `θ_ref` and `θ̇_ref` at each step's start for a
     /// [`crate::MotorPD`] around it, and the base wrench (averaged) that holds a held base.
     pub fn reference(&self, dt: f64, steps: Option<usize>) -> Result<Reference> {
+        self.reference_with(dt, steps, &mut |_| true)
+            .map(|r| r.expect("never stopped"))
+    }
+
+    /// [`Plan::reference`], asking `keep_going(k)` every 4096 steps whether to go on: `None`
+    /// when it says no (to stop a long computation on a user's interrupt).
+    pub fn reference_with(
+        &self,
+        dt: f64,
+        steps: Option<usize>,
+        keep_going: &mut dyn FnMut(usize) -> bool,
+    ) -> Result<Option<Reference>> {
         check_dt(dt)?;
         let n = self.arm.dof();
         let covering = (self.duration() / dt).ceil() as usize;
@@ -1001,17 +1032,34 @@ impl Plan {
             theta_ref: Vec::with_capacity(steps * n),
             theta_dot_ref: Vec::with_capacity(steps * n),
             base_wrench: Vec::with_capacity(steps * 6),
-            q: Vec::with_capacity(steps * n),
-            base_pose: Vec::with_capacity(steps * 7),
+            q: Vec::with_capacity((steps + 1) * n),
+            base_pose: Vec::with_capacity((steps + 1) * 7),
         };
         let mut pose = self.base_pose0;
         let mut scratch = JetScratch::new(self.arm.robot());
+        // the plan's end, once: every instant after it is this point settled (as in `at`)
+        let last = self.segments.last().expect("a plan has a segment");
+        let end_time = last.t0 + last.duration;
+        let mut rest = Point::new(n);
+        self.at_unsettled(&mut scratch, 2.0 * end_time + 1.0, &mut rest)?;
+        let evaluate = |scratch: &mut JetScratch, t: f64, out: &mut Point| -> Result<()> {
+            if t > end_time {
+                out.clone_from(&rest);
+                self.settle(out, t - end_time);
+                Ok(())
+            } else {
+                self.at(scratch, t, out)
+            }
+        };
         let (mut start, mut mid, mut end) = (Point::new(n), Point::new(n), Point::new(n));
-        self.at(&mut scratch, 0.0, &mut start)?;
+        evaluate(&mut scratch, 0.0, &mut start)?;
         for k in 0..steps {
+            if k % 4096 == 4095 && !keep_going(k) {
+                return Ok(None);
+            }
             let t = k as f64 * dt;
-            self.at(&mut scratch, t + 0.5 * dt, &mut mid)?;
-            self.at(&mut scratch, t + dt, &mut end)?;
+            evaluate(&mut scratch, t + 0.5 * dt, &mut mid)?;
+            evaluate(&mut scratch, t + dt, &mut end)?;
             r.theta_ref.extend_from_slice(&start.theta);
             r.theta_dot_ref.extend_from_slice(&start.theta_dot);
             r.q.extend_from_slice(&start.q);
@@ -1030,7 +1078,7 @@ impl Plan {
         }
         r.q.extend_from_slice(&start.q);
         r.base_pose.extend_from_slice(&pose);
-        Ok(r)
+        Ok(Some(r))
     }
 }
 

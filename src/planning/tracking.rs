@@ -32,12 +32,67 @@ pub struct Tracking {
     pub base_attitude_error: f64,
 }
 
+/// What a tracking run of a plan runs on: its length, tables, controller and wrenches
+/// ([`Plan::tracking_setup`]).
+#[derive(Debug, Clone)]
+pub struct TrackingSetup {
+    /// RK4 steps: the slew plus the settling time, covered.
+    pub steps: usize,
+    /// The plan's per-step tables for the run.
+    pub reference: Reference,
+    /// The motor PD around the reference, with its feedforward.
+    pub pd: MotorPD,
+    /// The base wrench table (held base) or none.
+    pub wrenches: Wrenches,
+}
+
 impl Plan {
     /// Simulates the plan on its arm from [`Plan::initial_state`] with RK4 steps of `dt`
     /// for the slew plus `settle` seconds: a [`MotorPD`] with gains `kp`, `kd` (per joint) around
     /// [`Plan::reference`]'s `θ_ref`, `θ̇_ref` with its feedforward `u`, and in held mode its base
-    /// wrench. Returns the run and its measures ([`Tracking`]).
+    /// wrench (open loop: nothing else holds the base). Returns the run and its measures
+    /// ([`Tracking`]).
+    ///
+    /// Errors: a bad `dt`, `settle` or gains; a `dt` longer than the plan; a `dt` past the RK4
+    /// stability limit of the tracking loop (arm, joints and PD linearised at the start), where
+    /// the run would diverge or mean nothing; a run that turns non-finite anyway.
     pub fn track(&self, dt: f64, kp: &[f64], kd: &[f64], settle: f64) -> Result<Tracking> {
+        let TrackingSetup {
+            steps,
+            reference,
+            mut pd,
+            wrenches,
+        } = self.tracking_setup(dt, kp, kd, settle)?;
+        let trajectory = self
+            .arm()
+            .simulate(&self.initial_state(), dt, steps, &mut pd, &wrenches)
+            .map_err(|failure| failure.error)?;
+        Ok(self.measure(trajectory, reference))
+    }
+
+    /// Checks the arguments of [`Plan::track`] and builds what its run runs on, for callers
+    /// that drive the simulation themselves (the Python binding, to keep a failed run's steps).
+    pub fn tracking_setup(
+        &self,
+        dt: f64,
+        kp: &[f64],
+        kd: &[f64],
+        settle: f64,
+    ) -> Result<TrackingSetup> {
+        self.tracking_setup_with(dt, kp, kd, settle, &mut |_| true)
+            .map(|setup| setup.expect("never stopped"))
+    }
+
+    /// [`Plan::tracking_setup`], asking `keep_going` while the tables are built (as
+    /// [`Plan::reference_with`]): `None` when it says no.
+    pub fn tracking_setup_with(
+        &self,
+        dt: f64,
+        kp: &[f64],
+        kd: &[f64],
+        settle: f64,
+        keep_going: &mut dyn FnMut(usize) -> bool,
+    ) -> Result<Option<TrackingSetup>> {
         if !(settle.is_finite() && settle >= 0.0) {
             return Err(Error::InvalidArgument {
                 what: "settle".into(),
@@ -46,14 +101,67 @@ impl Plan {
         }
         let n = self.arm().dof();
         crate::args::check_dt(dt)?;
-        let steps = ((self.duration() + settle) / dt).ceil() as usize;
-        let reference = self.reference(dt, Some(steps))?;
+        if dt > self.duration() {
+            return Err(Error::InvalidArgument {
+                what: "dt".into(),
+                message: format!(
+                    "{} s is longer than the plan ({} s): a tracking run needs steps shorter \
+                     than the slew",
+                    crate::args::number(dt),
+                    crate::args::number(self.duration())
+                ),
+            });
+        }
+        crate::args::check_length("kp", kp.len(), n)?;
+        crate::args::check_length("kd", kd.len(), n)?;
+        // the stability limit of the loop at the start (the references do not enter it)
+        let probe = MotorPD::new(
+            kp.to_vec(),
+            kd.to_vec(),
+            Schedule::Zero,
+            Schedule::Zero,
+            Schedule::Zero,
+        )?;
+        let limit = self
+            .arm()
+            .rk4_stability_limit(&self.initial_state(), &probe)?;
+        if dt > limit.dt {
+            return Err(Error::InvalidArgument {
+                what: "dt".into(),
+                message: format!(
+                    "{} s is past the RK4 stability limit {:.4e} s of the tracking loop (the arm, \
+                     its joints and the PD with these gains, linearised at the start{}): the run \
+                     would diverge or mean nothing; shorten dt or lower the gains",
+                    crate::args::number(dt),
+                    limit.dt,
+                    if limit.estimated {
+                        ", estimated joint by joint"
+                    } else {
+                        ""
+                    }
+                ),
+            });
+        }
+        let steps = ((self.duration() + settle) / dt).ceil();
+        if steps >= 1e15 {
+            return Err(Error::InvalidArgument {
+                what: "settle".into(),
+                message: format!(
+                    "{} s of settling at dt = {} s makes {steps:.3e} steps; shorten it",
+                    crate::args::number(settle),
+                    crate::args::number(dt)
+                ),
+            });
+        }
+        let steps = steps as usize;
+        let Some(reference) = self.reference_with(dt, Some(steps), keep_going)? else {
+            return Ok(None);
+        };
         let table = |values: &Vec<f64>, width| Schedule::Table {
             values: values.clone(),
             width,
         };
-        crate::args::check_length("kp", kp.len(), n)?;
-        let mut pd = MotorPD::new(
+        let pd = MotorPD::new(
             kp.to_vec(),
             kd.to_vec(),
             table(&reference.theta_ref, n),
@@ -67,11 +175,18 @@ impl Plan {
             },
             ee: Schedule::Zero,
         };
-        let trajectory = self
-            .arm()
-            .simulate(&self.initial_state(), dt, steps, &mut pd, &wrenches)
-            .map_err(|failure| failure.error)?;
-        Ok(measure(self, trajectory, reference))
+        Ok(Some(TrackingSetup {
+            steps,
+            reference,
+            pd,
+            wrenches,
+        }))
+    }
+
+    /// The measures of a tracking run on `reference` (every state of `trajectory` that the
+    /// reference covers; a failed run's finite part too).
+    pub fn measure(&self, trajectory: Trajectory, reference: Reference) -> Tracking {
+        measure(self, trajectory, reference)
     }
 }
 

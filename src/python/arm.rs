@@ -401,7 +401,8 @@ impl PyFlexibleArm {
     /// ``deflection``: the current ``θ − q`` (rad, n), required exactly when some joint has
     /// damping ``d > 0`` (its deflection then obeys ``d δ̇ + k δ = τ`` and depends on the
     /// motion's history; ``plan_slew`` integrates it); it must be omitted when every ``d = 0``
-    /// (then ``θ − q = τ/k``).
+    /// (then ``θ − q = τ/k``). With some joints damped and some not, only the damped joints'
+    /// entries are used; an undamped joint's deflection is always ``τ/k``.
     ///
     /// Returns a dict of arrays: ``theta`` (rad), ``theta_dot`` (rad/s), ``theta_ddot``
     /// (rad/s²): motor angles and rates, link side; ``u = j θ̈ + β θ̇ + τ`` (N·m): motor

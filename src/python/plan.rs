@@ -7,14 +7,15 @@ use super::errors::{simulation_error, ModelError};
 use super::joints::Param;
 use super::run::{run_releasing_gil, Progress};
 use super::trajectory::PyTrajectory;
+use crate::args::number;
 use crate::error::Error;
-use crate::integrate::{self, MotorPD, Schedule, Wrenches};
-use crate::planning::{plan_slew, BaseMode, Binding, Limits, Plan, Reference, Samples, Tracking};
+use crate::planning::{
+    plan_slew, BaseMode, Binding, Limits, Plan, Reference, Samples, Tracking, TrackingSetup,
+};
 use numpy::{PyArray1, PyArray2};
-use pyo3::exceptions::{PyRuntimeWarning, PyTypeError};
+use pyo3::exceptions::PyTypeError;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
-use std::ffi::CString;
 
 /// A per-joint limit: a number (every joint) or one value per joint. Unlike [`Param::parse`],
 /// non-finite values pass here, so that [`Limits::new`] names them with the rule they break.
@@ -322,10 +323,34 @@ fn covering_steps(seconds: f64, dt: f64) -> PyResult<usize> {
     let steps = (seconds / dt).ceil();
     if steps.is_nan() || steps >= 1e15 {
         return Err(ModelError::new_err(format!(
-            "dt: {dt:e} s makes {steps:.3e} steps of {seconds:.6} s; lengthen dt"
+            "dt: {} s makes {steps:.3e} steps of {} s; lengthen dt",
+            number(dt),
+            rounded(seconds)
         )));
     }
     Ok(steps as usize)
+}
+
+/// For a long computation without the GIL: false (stop) once a signal handler raised, keeping
+/// its exception (`KeyboardInterrupt` for Ctrl-C) in `pending`.
+fn keep_going(pending: &mut Option<PyErr>) -> bool {
+    Python::with_gil(|py| match py.check_signals() {
+        Ok(()) => true,
+        Err(e) => {
+            *pending = Some(e);
+            false
+        }
+    })
+}
+
+/// A computed duration for a message: six decimals in the usual range, else three significant
+/// digits in exponent form.
+fn rounded(seconds: f64) -> String {
+    if (1e-3..1e6).contains(&seconds) {
+        format!("{seconds:.6}")
+    } else {
+        format!("{seconds:.3e}")
+    }
 }
 
 /// Gains for the tracking PD: a number or one per joint, checked against `n`.
@@ -354,36 +379,6 @@ fn reference_dict<'py>(py: Python<'py>, r: Reference, n: usize) -> PyResult<Boun
     Ok(d)
 }
 
-/// The MotorPD and wrenches [`Plan::track`] runs with, for the stability check and to replay a
-/// failed run.
-fn tracking_loop(
-    plan: &Plan,
-    r: &Reference,
-    kp: &[f64],
-    kd: &[f64],
-) -> crate::Result<(MotorPD, Wrenches)> {
-    let n = plan.arm().dof();
-    let table = |values: &Vec<f64>, width| Schedule::Table {
-        values: values.clone(),
-        width,
-    };
-    let pd = MotorPD::new(
-        kp.to_vec(),
-        kd.to_vec(),
-        table(&r.theta_ref, n),
-        table(&r.theta_dot_ref, n),
-        table(&r.u, n),
-    )?;
-    let wrenches = Wrenches {
-        base: match plan.base() {
-            BaseMode::Held => table(&r.base_wrench, 6),
-            BaseMode::Free => Schedule::Zero,
-        },
-        ee: Schedule::Zero,
-    };
-    Ok((pd, wrenches))
-}
-
 impl PyPlan {
     fn table(&self, py: Python<'_>, name: &str) -> Py<PyArray2<f64>> {
         let k = SAMPLE_NAMES
@@ -395,53 +390,6 @@ impl PyPlan {
 
     fn joint_names(&self) -> Vec<&str> {
         self.plan.arm().robot().joint_names()
-    }
-
-    /// The error of a run that stopped early: `SimulationError` with the finite part, replayed
-    /// (Plan::track keeps only the error).
-    fn failed_run(
-        &self,
-        py: Python<'_>,
-        error: Error,
-        dt: f64,
-        kp: &[f64],
-        kd: &[f64],
-        settle: f64,
-    ) -> PyResult<PyErr> {
-        let Error::Simulation { step, time, .. } = &error else {
-            return Ok(error.into());
-        };
-        let (step, time) = (*step, *time);
-        let message = error.to_string();
-        let plan = &self.plan;
-        let steps = covering_steps(plan.duration() + settle, dt)?;
-        let replay = py.allow_threads(|| {
-            let r = plan.reference(dt, Some(steps))?;
-            tracking_loop(plan, &r, kp, kd)
-        });
-        let trajectory = match replay {
-            Ok((mut pd, wrenches)) => {
-                let x0 = plan.initial_state();
-                let result = run_releasing_gil(
-                    py,
-                    plan.arm(),
-                    &x0,
-                    dt,
-                    steps,
-                    &mut pd,
-                    &wrenches,
-                    &mut Progress::new(None),
-                )?;
-                let record = match result {
-                    Ok(traj) => traj,
-                    Err(failure) => failure.trajectory,
-                };
-                let traj = PyTrajectory::from_run(py, self.arm.clone_ref(py), record)?;
-                Py::new(py, traj)?.into_any()
-            }
-            Err(_) => py.None(),
-        };
-        simulation_error(py, message, step, time, trajectory, None)
     }
 }
 
@@ -457,7 +405,8 @@ impl PyPlan {
     fn segment_durations<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
         array1(py, &self.plan.segment_durations())
     }
-    /// The limit that sets the duration: a dict ``{"limit": "motor_torque" | "joint_speed" |
+    /// The limit that sets the duration of the longest segment (each segment's is in
+    /// :attr:`bindings`): a dict ``{"limit": "motor_torque" | "joint_speed" |
     /// "base_force" | "base_torque", "joint": index (0-based) or None, "joint_name": str or
     /// None, "segment": index, "time": when it peaks (s from the start), "value": the peak
     /// (magnitude; N·m, rad/s or N), "bound": the limit}``.
@@ -564,13 +513,16 @@ impl PyPlan {
     }
 
     /// Everything at time ``t`` (s) computed afresh from the inverse dynamics (not interpolated;
-    /// the deflection of damped joints is integrated exactly from the sample before): a dict of
+    /// the deflection of damped joints is integrated exactly from a sample at least 1/1024 of
+    /// the segment earlier): a dict of
     /// ``t`` and arrays ``q``, ``qd``, ``qdd``, ``theta``, ``deflection`` (``θ − q`` at full
     /// precision, rad: what :meth:`FlexibleArm.inverse_dynamics` takes for damped joints),
     /// ``theta_dot``, ``theta_ddot``, ``u``, ``tau`` (n each, units as the class docstring),
     /// ``base_twist``, the classical
     /// ``base_acc`` ``[ω̇_B; v̇_B + ω_B × v_B]`` (rad/s², m/s²) and ``base_wrench`` (6 each,
-    /// base frame). Before the start and after the end the arm rests at the first and last stop.
+    /// base frame). Before the start the arm rests at the first stop. After the end the links
+    /// rest at the goal; a damped joint's deflection keeps decaying (``e^{−k t/d}``), so its
+    /// ``theta``, ``theta_dot`` and ``u`` still change.
     fn evaluate<'py>(
         &self,
         py: Python<'py>,
@@ -636,7 +588,13 @@ impl PyPlan {
         let blame = if steps_given { "steps" } else { "dt" };
         check_steps(blame, steps, 4 * n + 13)?;
         let plan = &self.plan;
-        let r = py.allow_threads(|| plan.reference(dt, Some(steps)))?;
+        let mut interrupt = None;
+        let r = py.allow_threads(|| {
+            plan.reference_with(dt, Some(steps), &mut |_| keep_going(&mut interrupt))
+        })?;
+        let Some(r) = r else {
+            return Err(interrupt.expect("stopped only on a pending exception"));
+        };
         reference_dict(py, r, n)
     }
 
@@ -661,9 +619,12 @@ impl PyPlan {
     /// ``"base_position_error"`` (m) and ``"base_attitude_error"`` (rad): the largest departure
     /// of the base from the plan's pose.
     ///
-    /// Warns (``RuntimeWarning``) when ``dt`` is past the RK4 stability limit of the closed loop
-    /// at the start (``arm.rk4_stability_limit``); raises ``SimulationError`` if the run
-    /// diverges.
+    /// Raises ``ModelError`` for a ``dt`` longer than the plan or past the RK4 stability limit
+    /// of the tracking loop (the arm, its joints and the PD with these gains, linearised at the
+    /// start; see ``arm.rk4_stability_limit``), where the run would diverge or mean nothing;
+    /// ``SimulationError`` (with the finite part in ``.trajectory``) if the run turns
+    /// non-finite anyway. Ctrl-C stops the run with ``KeyboardInterrupt``. The held base is
+    /// held open loop, by the plan's own wrench.
     #[pyo3(signature = (dt, kp, kd, settle=None), text_signature = "($self, dt, kp, kd, settle=2.0)")]
     fn track<'py>(
         &self,
@@ -685,28 +646,65 @@ impl PyPlan {
             )));
         }
         let (kp, kd) = (gains(kp, "kp", n)?, gains(kd, "kd", n)?);
-        let steps = covering_steps(self.plan.duration() + settle, dt)?;
-        let layout = self.plan.arm().layout();
-        check_steps("dt", steps, 2 * layout.len() + 4 * n + 13)?;
-        // the stability check on the loop at the start (the references do not enter it)
-        let x0 = self.plan.initial_state();
-        let probe = MotorPD::new(
-            kp.clone(),
-            kd.clone(),
-            Schedule::Zero,
-            Schedule::Zero,
-            Schedule::Zero,
-        )?;
-        if let Some(warning) = integrate::stability_warning(self.plan.arm(), &x0, dt, &probe)? {
-            PyErr::warn(
-                py,
-                &py.get_type::<PyRuntimeWarning>(),
-                &CString::new(warning).expect("no NUL in the message"),
-                1,
-            )?;
+        crate::args::check_dt(dt)?;
+        // refuse a run too long for memory before its tables are built
+        let seconds = self.plan.duration() + settle;
+        let steps = (seconds / dt).ceil();
+        let blame = if settle > self.plan.duration() {
+            "settle"
+        } else {
+            "dt"
+        };
+        if steps >= 1e15 {
+            return Err(ModelError::new_err(format!(
+                "{blame}: dt = {} s over the plan's {} s plus settle = {} s makes {steps:.3e} \
+                 steps; lengthen dt or shorten settle",
+                number(dt),
+                rounded(self.plan.duration()),
+                number(settle)
+            )));
         }
+        let layout = self.plan.arm().layout();
+        check_steps(blame, steps as usize, 2 * layout.len() + 4 * n + 13)?;
         let plan = &self.plan;
-        let result = py.allow_threads(|| plan.track(dt, &kp, &kd, settle));
+        let mut interrupt = None;
+        let setup = py.allow_threads(|| {
+            plan.tracking_setup_with(dt, &kp, &kd, settle, &mut |_| keep_going(&mut interrupt))
+        })?;
+        let Some(TrackingSetup {
+            steps,
+            reference,
+            mut pd,
+            wrenches,
+        }) = setup
+        else {
+            return Err(interrupt.expect("stopped only on a pending exception"));
+        };
+        let x0 = plan.initial_state();
+        let run = run_releasing_gil(
+            py,
+            plan.arm(),
+            &x0,
+            dt,
+            steps,
+            &mut pd,
+            &wrenches,
+            &mut Progress::new(None),
+        )?;
+        let trajectory = match run {
+            Ok(trajectory) => trajectory,
+            Err(failure) => {
+                let (message, step, time) = match &failure.error {
+                    Error::Simulation { step, time, .. } => {
+                        (failure.error.to_string(), *step, *time)
+                    }
+                    other => return Err(other.clone().into()),
+                };
+                let traj = PyTrajectory::from_run(py, self.arm.clone_ref(py), failure.trajectory)?;
+                let traj = Py::new(py, traj)?.into_any();
+                return Err(simulation_error(py, message, step, time, traj, None)?);
+            }
+        };
         let Tracking {
             trajectory,
             reference,
@@ -717,10 +715,7 @@ impl PyPlan {
             residual_link_error,
             base_position_error,
             base_attitude_error,
-        } = match result {
-            Ok(t) => t,
-            Err(e) => return Err(self.failed_run(py, e, dt, &kp, &kd, settle)?),
-        };
+        } = py.allow_threads(|| plan.measure(trajectory, reference));
         let d = PyDict::new(py);
         let traj = PyTrajectory::from_run(py, self.arm.clone_ref(py), trajectory)?;
         d.set_item("trajectory", Py::new(py, traj)?)?;
@@ -843,6 +838,12 @@ pub fn py_plan_slew(
     waypoints: Option<&Bound<'_, PyAny>>,
 ) -> PyResult<PyPlan> {
     let n = arm.get().arm.dof();
+    if q_start.is_some_and(|s| s.is_instance_of::<PyLimits>()) {
+        return Err(PyTypeError::new_err(
+            "plan_slew: q_start: given an orbitflex.Limits (the third positional argument is \
+             q_start); pass the limits by name: plan_slew(arm, q_goal, limits=...)",
+        ));
+    }
     let limits = match limits.filter(|l| !l.is_none()) {
         Some(l) => l
             .downcast::<PyLimits>()

@@ -14,6 +14,9 @@ import json
 import math
 import pickle
 import re
+import subprocess
+import sys
+import textwrap
 import threading
 import time
 from pathlib import Path
@@ -608,13 +611,51 @@ def test_bad_reference_and_track_arguments_are_model_errors(demo_plan):
     assert error(demo_plan.evaluate, "a") == "t: expected a real number, given str ('a')"
 
 
-def test_tracking_past_the_stability_limit_warns_then_raises_with_the_finite_part(demo_plan):
-    with pytest.warns(RuntimeWarning, match=r"^dt = 5e-2 s exceeds the RK4 stability limit 7\.439\de-3 s"):
-        with pytest.raises(orbitflex.SimulationError) as e:
-            demo_plan.track(0.05, KP, KD, settle=0.0)
-    assert e.value.step > 0 and e.value.time == pytest.approx(e.value.step * 0.05)
-    assert len(e.value.trajectory) == e.value.step + 1
-    assert np.isfinite(e.value.trajectory.x).all()
+def test_tracking_refuses_a_step_that_cannot_follow_the_plan(demo_plan, space_arm):
+    # past the stability limit of the loop at the start (computed here independently) the run
+    # would diverge: refused before it starts, naming dt; a step longer than the plan too
+    limit = space_arm.rk4_stability_limit(demo_plan.initial_state(), orbitflex.MotorPD(KP, KD, np.zeros(7)))
+    assert limit == pytest.approx(7.439e-3, rel=1e-3)
+    with pytest.raises(ModelError, match=r"^dt: 0\.05 s is past the RK4 stability limit 7\.439\de-3 s of the "
+                                         r"tracking loop"):
+        demo_plan.track(0.05, KP, KD, settle=0.0)
+    with pytest.raises(ModelError, match=r"^dt: 100 s is longer than the plan \(5\.789"):
+        demo_plan.track(100.0, 1e-6, 1e-6, settle=0.0)
+    run = demo_plan.track(0.99 * limit, KP, KD, settle=0.0)
+    assert np.isfinite(run["trajectory"].x).all()
+    # an absurd settling time is blamed on settle, in short numbers
+    with pytest.raises(ModelError, match=r"^settle: dt = 0\.001 s over the plan's 5\.789481 s plus settle = 1e300 s makes"):
+        demo_plan.track(1e-3, KP, KD, settle=1e300)
+
+
+def test_ctrl_c_stops_a_long_tracking_run():
+    code = textwrap.dedent("""
+        import signal, threading, os, time, numpy as np, orbitflex
+        arm = orbitflex.FlexibleArm(orbitflex.models.space_arm(), orbitflex.models.space_arm_joints())
+        plan = orbitflex.plan_slew(arm, np.full(7, 0.3), limits=orbitflex.Limits(30.0, 0.5))
+        threading.Timer(0.5, lambda: os.kill(os.getpid(), signal.SIGINT)).start()
+        start = time.perf_counter()
+        try:
+            plan.track(1e-4, 1000.0, 100.0, settle=300.0)   # 3e6 steps: about a minute
+            print("FINISHED", time.perf_counter() - start)
+        except KeyboardInterrupt:
+            print("INTERRUPTED", time.perf_counter() - start)
+    """)
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    assert "INTERRUPTED" in out.stdout, out.stdout + out.stderr
+    assert float(out.stdout.split()[-1]) < 5.0, out.stdout
+
+
+def test_limits_given_in_the_place_of_q_start_are_named(space_arm):
+    with pytest.raises(TypeError, match=r"^plan_slew: q_start: given an orbitflex\.Limits .* limits=\.\.\."):
+        plan_slew(space_arm, GOAL, Limits(MOTOR_TORQUE, 0.5))
+
+
+def test_a_huge_speed_limit_means_no_speed_limit(space_arm):
+    plans = [plan_slew(space_arm, GOAL, limits=Limits(MOTOR_TORQUE, v), base="free") for v in (1e3, 1e18, 1.7e308)]
+    for plan in plans:
+        assert plan.binding["limit"] == "motor_torque"
+        assert plan.duration == pytest.approx(plans[0].duration, rel=2e-10)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -669,7 +710,7 @@ def test_plan_command_writes_its_outputs(plan_run, model_files):
     assert summary["flexible"]["binding"] == plan.binding
     text = result.stdout
     assert f"duration            {plan.duration:.4f} s (2 segments: " in text
-    assert "segment 1         motor_torque on shoulder (joint 0): 2 of 2 N·m at t = 1.282 s" in text
+    assert "segment 1         motor_torque on shoulder (joint index 0): 2 of 2 N·m at t = 1.282 s" in text
     for label in ("peak commanded torque", "tracking error", "residual deflection", "base attitude error",
                   "flexible plan", "rigid-joint plan", "× the flexible plan's residual deflection"):
         assert label in text, label
@@ -902,8 +943,8 @@ def test_demo_shows_the_planned_slew_beside_the_rigid_one(tmp_path):
     assert result.returncode == 0, result.stderr[-2000:]
     text = result.stdout
     assert "minimum-time slew of 'space_arm' to q = [0.8, -0.6, 0.5, 1, -0.7, 0.6, 0.9] rad, free floating" in text
-    assert "flexible plan       5.7895 s, binding motor_torque on elbow_pitch (joint 3): 30 of 30 N·m" in text
-    assert "rigid-joint plan    5.7906 s, binding motor_torque on elbow_pitch (joint 3)" in text
+    assert "flexible plan       5.7895 s, binding motor_torque on elbow_pitch (joint index 3): 30 of 30 N·m" in text
+    assert "rigid-joint plan    5.7906 s, binding motor_torque on elbow_pitch (joint index 3)" in text
     assert re.search(r"peak commanded torque +30 N·m = 100\.0% of the limit on elbow_pitch +32\.3 N·m = 107\.7% of "
                      r"the limit on elbow_pitch OVER", text), text
     assert re.search(r"residual deflection max\|θ − q\| +1\.08e-07 rad +7\.90e-04 rad", text), text
