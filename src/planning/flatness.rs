@@ -392,6 +392,26 @@ impl FlexibleArm {
                 + joints.motor_damping[i] * out.theta_dot[i]
                 + tau[0];
         }
+        let finite = [
+            &out.theta[..],
+            &out.theta_dot,
+            &out.theta_ddot,
+            &out.u,
+            &out.base_twist,
+            &out.base_acc,
+            &out.base_wrench,
+        ]
+        .iter()
+        .all(|v| v.iter().all(|x| x.is_finite()));
+        if !finite {
+            return Err(Error::InvalidArgument {
+                what: "motion".into(),
+                message: "too large for floating point: the inverse dynamics of q, qd, qdd, \
+                          qddd, qdddd overflowed (the torques grow as q̇² and the motor terms \
+                          with the higher derivatives)"
+                    .into(),
+            });
+        }
         Ok(out)
     }
 }

@@ -1025,6 +1025,15 @@ impl Plan {
         let n = self.arm.dof();
         let covering = (self.duration() / dt).ceil() as usize;
         let steps = steps.unwrap_or(covering);
+        if !(steps as f64 * dt).is_finite() {
+            return Err(Error::InvalidArgument {
+                what: "dt".into(),
+                message: format!(
+                    "{steps} steps of {} s do not end at a finite time",
+                    crate::args::number(dt)
+                ),
+            });
+        }
         let mut r = Reference {
             dt,
             steps,

@@ -587,6 +587,9 @@ def test_inverse_dynamics_deflection_misuse_is_a_model_error(space_arm):
     assert error(space_arm, GOAL, z, z, z, z, deflection=z * np.nan) == "deflection: element 0 is not finite (NaN)"
     assert error(undamped, GOAL, z, z, z[:6], z) == "qddd: expected length 7, given length 6"
     assert error(undamped, GOAL, z, z, z, z, base="fixed") == 'base: expected "held" or "free", given "fixed"'
+    # finite but absurd rates overflow: an error, not arrays of inf and NaN
+    assert error(undamped, GOAL, np.full(7, 1e200), z, z, z).startswith(
+        "motion: too large for floating point: the inverse dynamics of q, qd, qdd, qddd, qdddd overflowed")
 
 
 def test_bad_reference_and_track_arguments_are_model_errors(demo_plan):
@@ -600,6 +603,7 @@ def test_bad_reference_and_track_arguments_are_model_errors(demo_plan):
     assert error(demo_plan.reference, 1e-300) == "dt: 1e-300 s makes 5.789e300 steps of 5.789481 s; lengthen dt"
     assert error(demo_plan.reference, 1e-3, steps=-1).startswith("steps: expected an integer from 0 to ")
     assert error(demo_plan.reference, 1e-3, steps=1.5) == "steps: expected an integer >= 0, given float (1.5)"
+    assert error(demo_plan.reference, 1e308, steps=3) == "dt: 3 steps of 1e308 s do not end at a finite time"
     assert re.fullmatch(r"steps: 100000000000000 steps of 41 values each need 32800000\.0 GB, more than the "
                         r".* available; lengthen dt or ask for fewer steps",
                         error(demo_plan.reference, 1e-3, steps=10**14))
