@@ -151,12 +151,12 @@ impl PyLimits {
     fn __repr__(&self) -> String {
         let show = |v: &Vec<f64>, scalar: bool| {
             if scalar {
-                format!("{}", v[0])
+                format!("{:?}", v[0])
             } else {
                 format!("{v:?}")
             }
         };
-        let bound = |b: Option<f64>| b.map_or("None".to_string(), |v| format!("{v}"));
+        let bound = |b: Option<f64>| b.map_or("None".to_string(), |v| format!("{v:?}"));
         format!(
             "Limits(motor_torque={}, joint_speed={}, base_force={}, base_torque={})",
             show(&self.limits.motor_torque, self.scalar[0]),
@@ -794,8 +794,8 @@ impl PyPlan {
             .joint
             .map_or(String::new(), |j| format!("[{}]", self.joint_names()[j]));
         format!(
-            "Plan(duration={:.6} s, base='{}', rigid={}, binding={}{} at t={:.4} s, segments={})",
-            self.plan.duration(),
+            "Plan(duration={} s, base='{}', rigid={}, binding={}{} at t={} s, segments={})",
+            rounded(self.plan.duration()),
             self.base(),
             if self.plan.is_rigid() {
                 "True"
@@ -804,7 +804,11 @@ impl PyPlan {
             },
             b.constraint.name(),
             joint,
-            b.time,
+            if (1e-3..1e6).contains(&b.time) {
+                format!("{:.4}", b.time)
+            } else {
+                format!("{:.4e}", b.time)
+            },
             self.plan.segment_durations().len()
         )
     }

@@ -489,7 +489,10 @@ def test_limits_keep_what_they_were_given():
     np.testing.assert_array_equal(limits.joint_speed, [0.5, 0.6, 0.7])
     assert (limits.base_force, limits.base_torque) == (12.5, 8.0)
     assert Limits(1, 2).base_force is None and Limits(1, 2).base_torque is None
-    assert repr(limits) == "Limits(motor_torque=30, joint_speed=[0.5, 0.6, 0.7], base_force=12.5, base_torque=8)"
+    assert repr(limits) == "Limits(motor_torque=30.0, joint_speed=[0.5, 0.6, 0.7], base_force=12.5, base_torque=8.0)"
+    # the repr is Python: it evaluates back to the same limits, tiny numbers in exponent form
+    assert repr(eval(repr(limits), {"Limits": Limits})) == repr(limits)
+    assert repr(Limits(1e-320, 1)) == "Limits(motor_torque=1e-320, joint_speed=1.0, base_force=None, base_torque=None)"
     again = pickle.loads(pickle.dumps(limits))
     assert repr(again) == repr(limits)
 
