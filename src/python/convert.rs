@@ -74,7 +74,13 @@ pub fn matrix(obj: &Bound<'_, PyAny>, what: &str, width: usize) -> PyResult<(usi
         )));
     }
     let values: Vec<f64> = a.as_array().iter().copied().collect();
-    check_finite(what, &values)?;
+    // name the row: `u[12]: element 3 is not finite (NaN)`
+    if let Some(at) = values.iter().position(|v| !v.is_finite()) {
+        check_finite(
+            &format!("{what}[{}]", at / width),
+            &values[at - at % width..][..width],
+        )?;
+    }
     Ok((shape[0], values))
 }
 

@@ -564,6 +564,9 @@ def test_bad_plan_requests_are_model_errors(space_arm):
     assert error(GOAL, limits=limits, waypoints=[np.ones(6)]) == "waypoints: expected shape (rows, 7), given shape (1, 6)"
     assert error(GOAL, limits=limits, base="fixed") == 'base: expected "held" or "free", given "fixed"'
     assert error(GOAL * np.nan, limits=limits) == "q_goal: element 0 is not finite (NaN)"
+    bad = GOAL / 3
+    bad[2] = np.inf
+    assert error(GOAL, limits=limits, waypoints=[GOAL / 2, bad]) == "waypoints[1]: element 2 is not finite (inf)"
     assert error(GOAL, limits=Limits(1e-300, 0.5)).startswith("limits: no duration up to ")
     with pytest.raises(TypeError, match=r"^plan_slew: limits is required: limits=orbitflex.Limits\(motor_torque, "):
         plan_slew(space_arm, GOAL)
