@@ -803,17 +803,28 @@ fn references_average_the_feedforward_and_cover_the_run() {
 
 // ---- Tests that pin behaviour the mutation run (cargo mutants on src/planning/) found unchecked.
 
+/// `(k, j, d, β)` of a slowly relaxing damped spring: `d/k = 0.5 s`, comparable to a slew, so
+/// the deflection a segment leaves is visible; `j λ² ≠ β λ` (`λ = k/d`), so a relaxing spring
+/// needs a motor torque.
+const SLOW_SPRING: (f64, f64, f64, f64) = (200.0, 0.3, 100.0, 1.0);
+
+/// The built-in arm with [`SLOW_SPRING`] joints.
+fn slow_spring_arm() -> FlexibleArm {
+    let (k, j, d, beta) = SLOW_SPRING;
+    FlexibleArm::new(
+        Robot::space_arm(),
+        FlexibleJoints::uniform(7, k, j, d, beta).unwrap(),
+    )
+    .unwrap()
+}
+
 /// At a waypoint the links rest (`q̇ = q̈ = q⃛ = q⁗ = 0`, so `τ = τ̇ = 0`), but a slow damped spring
 /// still carries the deflection the first segment left: there `d δ̇ + k δ = 0`, so
 /// `θ̇ = δ̇ = −(k/d) δ`, `θ̈ = δ̈ = (k/d)² δ` and `u = j θ̈ + β θ̇`.
 #[test]
 fn a_slow_damped_spring_relaxes_through_a_waypoint() {
-    let (k, j, d, beta) = (200.0, 0.5, 100.0, 1.0);
-    let arm = FlexibleArm::new(
-        Robot::space_arm(),
-        FlexibleJoints::uniform(7, k, j, d, beta).unwrap(),
-    )
-    .unwrap();
+    let arm = slow_spring_arm();
+    let (k, j, d, beta) = SLOW_SPRING;
     let waypoint: Vec<f64> = GOAL.iter().map(|g| 0.5 * g).collect();
     let limits = space_limits(BaseMode::Free);
     let plan = plan_slew(&arm, &GOAL, None, &limits, BaseMode::Free, &[waypoint]).unwrap();
@@ -845,5 +856,467 @@ fn a_slow_damped_spring_relaxes_through_a_waypoint() {
             "{i}: {} vs {u}",
             p.u[i]
         );
+    }
+}
+
+/// A free base receives no actuator wrench: either base limit alone is refused, not only both.
+#[test]
+fn a_free_base_refuses_either_base_limit_alone() {
+    let arm = space_arm();
+    for (force, torque) in [(Some(80.0), None), (None, Some(60.0))] {
+        let limits = Limits::new(vec![30.0], vec![0.5], force, torque).unwrap();
+        let err = plan_slew(&arm, &GOAL, None, &limits, BaseMode::Free, &[])
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.starts_with("limits: base_force and base_torque bound the wrench"),
+            "{err}"
+        );
+    }
+}
+
+/// Each segment reports its own binding limit (segment index, absolute time within the segment,
+/// the value `evaluate` shows there, at ratio 1), and `binding()` is the longest segment's.
+#[test]
+fn each_segment_binds_and_the_plan_reports_its_longest() {
+    let arm = space_arm();
+    // a short first hop, then the long slew: the second segment is the longer one
+    let waypoint: Vec<f64> = GOAL.iter().map(|g| 0.1 * g).collect();
+    let plan = plan_slew(
+        &arm,
+        &GOAL,
+        None,
+        &space_limits(BaseMode::Held),
+        BaseMode::Held,
+        &[waypoint],
+    )
+    .unwrap();
+    let durations = plan.segment_durations();
+    assert!(durations[1] > 2.0 * durations[0], "{durations:?}");
+    assert_eq!(plan.duration(), durations[0] + durations[1]);
+    let bindings = plan.bindings();
+    assert_eq!(plan.binding(), &bindings[1]);
+    let limits = plan.limits();
+    let mut t0 = 0.0;
+    for (k, b) in bindings.iter().enumerate() {
+        assert_eq!(b.segment, k);
+        assert!(
+            b.time > t0 && b.time < t0 + durations[k],
+            "segment {k}: {} not in ({t0}, {})",
+            b.time,
+            t0 + durations[k]
+        );
+        assert!((b.value / b.limit - 1.0).abs() < 1e-8, "{b:?}");
+        // the reported value is the quantity at the reported instant
+        let p = plan.evaluate(b.time).unwrap();
+        let (value, limit) = match (b.constraint, b.joint) {
+            (Constraint::MotorTorque, Some(j)) => (p.u[j].abs(), limits.motor_torque[j]),
+            (Constraint::JointSpeed, Some(j)) => (p.qd[j].abs(), limits.joint_speed[j]),
+            (Constraint::BaseTorque, None) => (
+                p.base_wrench[..3].iter().map(|f| f * f).sum::<f64>().sqrt(),
+                limits.base_torque.unwrap(),
+            ),
+            (Constraint::BaseForce, None) => (
+                p.base_wrench[3..].iter().map(|f| f * f).sum::<f64>().sqrt(),
+                limits.base_force.unwrap(),
+            ),
+            other => panic!("{other:?}"),
+        };
+        assert_eq!(b.limit, limit);
+        assert!((value - b.value).abs() < 1e-9 * b.value, "{value} vs {b:?}");
+        t0 += durations[k];
+    }
+}
+
+/// After the end the links rest at the goal (`τ = 0`), so a damped spring's leftover deflection
+/// decays freely: `δ(T + t) = δ(T) e^{−k t/d}`, `θ̇ = δ̇ = −(k/d) δ`, `θ̈ = (k/d)² δ` and
+/// `u = j θ̈ + β θ̇`. The reference tables after the end show the same instants.
+#[test]
+fn after_the_end_a_damped_spring_decays_freely() {
+    let arm = slow_spring_arm();
+    let (k, j, d, beta) = SLOW_SPRING;
+    let lambda = k / d;
+    let plan = plan_slew(
+        &arm,
+        &GOAL,
+        None,
+        &space_limits(BaseMode::Held),
+        BaseMode::Held,
+        &[],
+    )
+    .unwrap();
+    let end = plan.duration();
+    let at_end = plan.evaluate(end).unwrap();
+    for wait in [0.05, 0.3, 1.7] {
+        let p = plan.evaluate(end + wait).unwrap();
+        for (i, &goal) in GOAL.iter().enumerate() {
+            let delta = at_end.deflection[i] * (-lambda * wait).exp();
+            // the spring has not relaxed at the end (joint 6 least: 8e-7 rad)
+            assert!(
+                at_end.deflection[i].abs() > 1e-7,
+                "{i}: {}",
+                at_end.deflection[i]
+            );
+            assert!(
+                (p.deflection[i] - delta).abs() < 1e-14 * delta.abs(),
+                "{i}: {} vs {delta}",
+                p.deflection[i]
+            );
+            assert_eq!((p.q[i], p.qd[i], p.qdd[i], p.tau[i]), (goal, 0.0, 0.0, 0.0));
+            assert!((p.theta[i] - (goal + delta)).abs() < 1e-15);
+            let (rate, acc) = (-lambda * delta, lambda * lambda * delta);
+            assert!((p.theta_dot[i] - rate).abs() < 1e-14 * rate.abs());
+            assert!((p.theta_ddot[i] - acc).abs() < 1e-14 * acc.abs());
+            let u = j * acc + beta * rate;
+            assert!(
+                (p.u[i] - u).abs() < 1e-14 * u.abs(),
+                "{i}: {} vs {u}",
+                p.u[i]
+            );
+        }
+    }
+    // the per-step tables before and after the end are those instants (θ_ref, θ̇_ref at each
+    // step's start, u as Simpson's average of the start, middle and end)
+    let dt = 0.05;
+    let steps = (end / dt).ceil() as usize + 20;
+    let r = plan.reference(dt, Some(steps)).unwrap();
+    for k in [steps / 2, steps - 10, steps - 1] {
+        let t = k as f64 * dt;
+        let (a, m, b) = (
+            plan.evaluate(t).unwrap(),
+            plan.evaluate(t + 0.5 * dt).unwrap(),
+            plan.evaluate(t + dt).unwrap(),
+        );
+        for i in 0..7 {
+            assert_eq!(r.theta_ref[k * 7 + i], a.theta[i], "{k} {i}");
+            assert_eq!(r.theta_dot_ref[k * 7 + i], a.theta_dot[i], "{k} {i}");
+            assert_eq!(r.q[k * 7 + i], a.q[i], "{k} {i}");
+            let u = (a.u[i] + 4.0 * m.u[i] + b.u[i]) / 6.0;
+            assert!(
+                (r.u[k * 7 + i] - u).abs() <= 1e-15 * u.abs().max(1e-300),
+                "{k} {i}"
+            );
+        }
+        for c in 0..6 {
+            let f = (a.base_wrench[c] + 4.0 * m.base_wrench[c] + b.base_wrench[c]) / 6.0;
+            assert!(
+                (r.base_wrench[k * 6 + c] - f).abs() <= 1e-15 * f.abs(),
+                "{k} {c}"
+            );
+        }
+    }
+    assert_eq!(r.q[steps * 7..], GOAL);
+}
+
+/// The plan's sample table is the plan at those instants: times from 0 to the end, increasing,
+/// the join of two segments once; every row what `evaluate` computes afresh there.
+#[test]
+fn samples_are_the_plan_at_the_sample_times() {
+    let arm = arm(random_chain(6, 21), 8, 0.3);
+    let goal: Vec<f64> = Rng::new(5).vector(6, -1.0, 1.0);
+    let waypoint: Vec<f64> = Rng::new(7).vector(6, -1.0, 1.0);
+    for base in [BaseMode::Held, BaseMode::Free] {
+        let held = base == BaseMode::Held;
+        let limits = Limits::new(
+            vec![5.0],
+            vec![1.0, 1.2, 0.8, 1.0, 2.0, 2.0],
+            held.then_some(20.0),
+            held.then_some(10.0),
+        )
+        .unwrap();
+        let plan = plan_slew(
+            &arm,
+            &goal,
+            None,
+            &limits,
+            base,
+            std::slice::from_ref(&waypoint),
+        )
+        .unwrap();
+        let s = plan.samples();
+        let rows = s.t.len();
+        assert!(rows > 2 * 512, "{rows}");
+        assert_eq!(s.t[0], 0.0);
+        assert!((s.t[rows - 1] - plan.duration()).abs() < 1e-12 * plan.duration());
+        assert!(s.t.windows(2).all(|w| w[1] > w[0]), "not increasing");
+        let join = plan.segment_durations()[0];
+        assert_eq!(s.t.iter().filter(|t| (*t - join).abs() < 1e-9).count(), 1);
+        for (name, table, width) in [
+            ("q", &s.q, 6),
+            ("qd", &s.qd, 6),
+            ("qdd", &s.qdd, 6),
+            ("theta", &s.theta, 6),
+            ("theta_dot", &s.theta_dot, 6),
+            ("u", &s.u, 6),
+            ("tau", &s.tau, 6),
+            ("base_wrench", &s.base_wrench, 6),
+            ("base_twist", &s.base_twist, 6),
+            ("base_pose", &s.base_pose, 7),
+        ] {
+            assert_eq!(table.len(), rows * width, "{name}");
+        }
+        for row in (0..rows).step_by(37).chain([rows - 1]) {
+            let p = plan.evaluate(s.t[row]).unwrap();
+            let (wrench, twist) = (&p.base_wrench[..], &p.base_twist[..]);
+            for (name, table, want) in [
+                ("q", &s.q, &p.q[..]),
+                ("qd", &s.qd, &p.qd),
+                ("qdd", &s.qdd, &p.qdd),
+                ("theta", &s.theta, &p.theta),
+                ("theta_dot", &s.theta_dot, &p.theta_dot),
+                ("u", &s.u, &p.u),
+                ("tau", &s.tau, &p.tau),
+                ("base_wrench", &s.base_wrench, wrench),
+                ("base_twist", &s.base_twist, twist),
+            ] {
+                // to 1e-9 of the quantity's largest value over the plan (the deflection is
+                // integrated from another sample; the time goes through t = t0 + s T and back)
+                let scale = table.iter().fold(0.0_f64, |a, v| a.max(v.abs()));
+                let width = want.len();
+                let got = &table[row * width..(row + 1) * width];
+                let error = got
+                    .iter()
+                    .zip(want)
+                    .fold(0.0_f64, |a, (g, w)| a.max((g - w).abs()));
+                assert!(
+                    error <= 1e-9 * scale,
+                    "{base:?} {name} row {row}: {got:?} vs {want:?}"
+                );
+            }
+            let wrench = &s.base_wrench[row * 6..(row + 1) * 6];
+            let twist = &s.base_twist[row * 6..(row + 1) * 6];
+            if held {
+                assert_eq!(twist, [0.0; 6]);
+                assert_eq!(
+                    s.base_pose[row * 7..(row + 1) * 7],
+                    [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0]
+                );
+            } else {
+                assert_eq!(wrench, [0.0; 6]);
+            }
+        }
+        if !held {
+            // the base pose, integrated over the samples in s, against the reference's RK4 in t
+            // at 4096 steps across the plan (two integrations of the same kinematics)
+            let steps = 4096;
+            let r = plan
+                .reference(plan.duration() / steps as f64, Some(steps))
+                .unwrap();
+            let (mine, theirs) = (&s.base_pose[(rows - 1) * 7..], &r.base_pose[steps * 7..]);
+            assert!(relative(mine, theirs) < 1e-9, "{mine:?} vs {theirs:?}");
+            // the base moved (so the comparison says something)
+            assert!(mine[..3].iter().any(|x| x.abs() > 1e-3), "{mine:?}");
+        }
+    }
+}
+
+/// The names the bindings and messages use, both ways; and what a plan says it was planned for:
+/// its stops, base mode, per-joint limits, and the state a run of it starts from (`q = θ` the
+/// start, at rest, base at the origin with identity attitude).
+#[test]
+fn names_and_what_a_plan_was_planned_for() {
+    for (mode, name) in [(BaseMode::Held, "held"), (BaseMode::Free, "free")] {
+        assert_eq!(mode.name(), name);
+        assert_eq!(BaseMode::from_name(name).unwrap(), mode);
+    }
+    for (c, name) in [
+        (Constraint::MotorTorque, "motor_torque"),
+        (Constraint::JointSpeed, "joint_speed"),
+        (Constraint::BaseForce, "base_force"),
+        (Constraint::BaseTorque, "base_torque"),
+    ] {
+        assert_eq!(c.name(), name);
+    }
+    assert_eq!(
+        Limits::uniform(30.0, 0.5).unwrap(),
+        Limits::new(vec![30.0], vec![0.5], None, None).unwrap()
+    );
+    let arm = space_arm();
+    let start = [0.1, 0.2, -0.3, 0.0, 0.1, -0.1, 0.2];
+    let waypoint = vec![0.3; 7];
+    for base in [BaseMode::Held, BaseMode::Free] {
+        let limits = space_limits(base);
+        let plan = plan_slew(
+            &arm,
+            &GOAL,
+            Some(&start),
+            &limits,
+            base,
+            std::slice::from_ref(&waypoint),
+        )
+        .unwrap();
+        assert_eq!(plan.base(), base);
+        assert_eq!(plan.arm().dof(), 7);
+        assert_eq!(
+            plan.stops(),
+            [start.to_vec(), waypoint.clone(), GOAL.to_vec()]
+        );
+        let expanded = plan.limits();
+        assert_eq!(expanded.motor_torque, limits.motor_torque);
+        assert_eq!(expanded.joint_speed, vec![0.5; 7]);
+        assert_eq!(
+            (expanded.base_force, expanded.base_torque),
+            (limits.base_force, limits.base_torque)
+        );
+        let layout = arm.layout();
+        let x = plan.initial_state();
+        assert_eq!(x.len(), layout.len());
+        assert_eq!(x[layout.q()], start);
+        assert_eq!(x[layout.theta()], start);
+        assert_eq!(x[layout.base_pose()], [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0]);
+        for rates in [layout.base_twist(), layout.qd(), layout.theta_dot()] {
+            assert!(x[rates].iter().all(|v| *v == 0.0));
+        }
+    }
+}
+
+/// `reference_with` and `tracking_setup_with` ask whether to go on every 4096 steps (after steps
+/// 4095, 8191, …) and give up with `None` when told to; otherwise they build what `reference`
+/// and `tracking_setup` build. The setup's tables are the reference's: θ_ref, θ̇_ref and the
+/// feedforward for the PD, the base wrench for a held base (none for a free one), and the run
+/// covers the slew and the settling time.
+#[test]
+fn long_table_builds_ask_to_go_on_and_the_setup_runs_on_the_reference() {
+    let arm = space_arm();
+    let (kp, kd) = (vec![1000.0; 7], vec![100.0; 7]);
+    for base in [BaseMode::Held, BaseMode::Free] {
+        let plan = plan_slew(&arm, &GOAL, None, &space_limits(base), base, &[]).unwrap();
+        if base == BaseMode::Held {
+            // 100 steps in the plan, the rest at rest after it (cheap)
+            let (dt, steps) = (plan.duration() / 100.0, 8200);
+            let mut asked = Vec::new();
+            let r = plan
+                .reference_with(dt, Some(steps), &mut |k| {
+                    asked.push(k);
+                    true
+                })
+                .unwrap()
+                .unwrap();
+            assert_eq!(asked, [4095, 8191]);
+            assert_eq!(
+                (r.steps, r.u.len(), r.q.len()),
+                (steps, steps * 7, (steps + 1) * 7)
+            );
+            let mut asked = Vec::new();
+            let stopped = plan
+                .reference_with(dt, Some(steps), &mut |k| {
+                    asked.push(k);
+                    k < 8000
+                })
+                .unwrap();
+            assert!(stopped.is_none());
+            assert_eq!(asked, [4095, 8191]);
+        }
+        // the run: the slew plus 0.5 s of settling, in whole steps
+        let (dt, settle) = (4e-3, 0.5);
+        let setup = plan.tracking_setup(dt, &kp, &kd, settle).unwrap();
+        let covering = ((plan.duration() + settle) / dt).ceil() as usize;
+        assert_eq!(setup.steps, covering);
+        let r = &setup.reference;
+        assert_eq!((r.dt, r.steps), (dt, covering));
+        let table = |values: &Vec<f64>, width| Schedule::Table {
+            values: values.clone(),
+            width,
+        };
+        assert_eq!(
+            setup.pd,
+            MotorPD::new(
+                kp.clone(),
+                kd.clone(),
+                table(&r.theta_ref, 7),
+                table(&r.theta_dot_ref, 7),
+                table(&r.u, 7),
+            )
+            .unwrap()
+        );
+        assert_eq!(setup.wrenches.ee, Schedule::Zero);
+        match base {
+            BaseMode::Held => assert_eq!(setup.wrenches.base, table(&r.base_wrench, 6)),
+            BaseMode::Free => assert_eq!(setup.wrenches.base, Schedule::Zero),
+        }
+        // with 20 s of settling the tables pass 4096 steps: asked, and stopped
+        let stopped = plan
+            .tracking_setup_with(dt, &kp, &kd, 20.0, &mut |_| false)
+            .unwrap();
+        assert!(stopped.is_none());
+    }
+}
+
+/// A motion whose inverse dynamics overflow (`τ` grows as `q̇²`: `(1e160)²` is past `f64`) is an
+/// error that names it, not a table of infinities; the same motion slowed down is fine.
+#[test]
+fn inverse_dynamics_that_overflow_are_an_error() {
+    let arm = space_arm();
+    let m = motion(7, 9);
+    for (scale, overflows) in [(1e160, true), (1e3, false)] {
+        let qd: Vec<f64> = m[1].iter().map(|v| v * scale).collect();
+        let fast = LinkMotion {
+            qd: &qd,
+            ..link_motion(&m)
+        };
+        for base in [BaseMode::Held, BaseMode::Free] {
+            let out = arm.inverse_dynamics(&fast, base, Some(&[0.0; 7]));
+            match out {
+                Err(e) if overflows => assert!(
+                    e.to_string()
+                        .starts_with("motion: too large for floating point"),
+                    "{e}"
+                ),
+                Ok(out) if !overflows => assert!(out.u.iter().all(|u| u.is_finite())),
+                other => panic!("{scale:e} {base:?}: {other:?}"),
+            }
+        }
+    }
+}
+
+/// With undamped joints the deflection is a function of the instant, `δ = τ/k` (and its rates
+/// `τ̇/k`, `τ̈/k`): the plan at any instant is `FlexibleArm::inverse_dynamics` of its link motion
+/// there, computed independently from `q … q⁗` (no deflection passed).
+#[test]
+fn an_undamped_plan_is_the_pointwise_inverse_dynamics() {
+    let mut joints = FlexibleJoints::space_arm();
+    joints.damping = vec![0.0; 7];
+    let arm = FlexibleArm::new(Robot::space_arm(), joints).unwrap();
+    for base in [BaseMode::Held, BaseMode::Free] {
+        let plan = plan_slew(&arm, &GOAL, None, &space_limits(base), base, &[]).unwrap();
+        for fraction in [0.13, 0.5, 0.77] {
+            let t = fraction * plan.duration();
+            let now = plan.evaluate(t).unwrap();
+            let motion = [
+                now.q.clone(),
+                now.qd.clone(),
+                now.qdd.clone(),
+                at_derivative(&plan, t, 3),
+                at_derivative(&plan, t, 4),
+            ];
+            let point = arm
+                .inverse_dynamics(&link_motion(&motion), base, None)
+                .unwrap();
+            for (name, got, want) in [
+                ("theta", &now.theta, &point.theta),
+                ("theta_dot", &now.theta_dot, &point.theta_dot),
+                ("theta_ddot", &now.theta_ddot, &point.theta_ddot),
+                ("u", &now.u, &point.u),
+                ("tau", &now.tau, &point.tau),
+            ] {
+                assert!(
+                    relative(got, want) < 1e-10,
+                    "{base:?} t={t} {name}: {got:?} vs {want:?}"
+                );
+            }
+            // δ = τ/k, and the deflection is visible (θ ≠ q, θ̇ ≠ q̇, θ̈ ≠ q̈)
+            let largest = |a: &[f64], b: &[f64]| {
+                a.iter()
+                    .zip(b)
+                    .fold(0.0_f64, |m, (x, y)| m.max((x - y).abs()))
+            };
+            for i in 0..7 {
+                let k = arm.joints().stiffness[i];
+                assert!((now.deflection[i] - now.tau[i] / k).abs() < 1e-15);
+            }
+            assert!(largest(&now.theta, &now.q) > 5e-4);
+            assert!(largest(&now.theta_dot, &now.qd) > 5e-4);
+            assert!(largest(&now.theta_ddot, &now.qdd) > 5e-4);
+        }
     }
 }
