@@ -828,3 +828,30 @@ fn stability_limit_of_a_drifting_base_is_infinite() {
     // zero, to the rounding of the eigenvalue solver on entries of size |v| = 0.54
     assert!(limit.fastest_mode.norm() < 1e-12, "{limit:?}");
 }
+
+#[test]
+fn joint_by_joint_estimate_takes_each_joints_own_effective_inertia() {
+    // Two joints, undamped, open loop: joint i alone is the two-mass oscillator
+    // Ω_i² = k_i (a_i + 1/j_i) with a_i = (𝓜⁻¹)_{6+i,6+i} at the state's q (here 0, from the
+    // dense CRBA inverse); the estimate is the smallest 2√2/Ω_i, and its fastest mode the largest
+    // Ω_i. Joint 2 (index 1) is made the fastest so that its own inertia is the one that counts.
+    use orbitflex::flex::stability::joint_by_joint_limit;
+    let robot = random_chain(2, 6);
+    let mut data = orbitflex::Data::new(&robot);
+    let inverse = orbitflex::algorithms::crba(&robot, &mut data, &[0.0, 0.0])
+        .unwrap()
+        .clone()
+        .try_inverse()
+        .unwrap();
+    let (k, j) = ([100.0, 5000.0], [0.5, 0.2]);
+    let joints = FlexibleJoints::new(k.to_vec(), j.to_vec(), vec![0.0; 2], vec![0.0; 2]).unwrap();
+    let arm = FlexibleArm::new(robot, joints).unwrap();
+    let omega: Vec<f64> = (0..2)
+        .map(|i| (k[i] * (inverse[(6 + i, 6 + i)] + 1.0 / j[i])).sqrt())
+        .collect();
+    assert!(omega[1] > omega[0]);
+    let (estimate, fastest) =
+        joint_by_joint_limit(&arm, &arm.rest_state(), &Schedule::Zero.feedback()).unwrap();
+    assert_bisected(estimate, 2.0 * std::f64::consts::SQRT_2 / omega[1]);
+    assert_close(fastest.norm(), omega[1], 1e-9);
+}
