@@ -1320,3 +1320,133 @@ fn an_undamped_plan_is_the_pointwise_inverse_dynamics() {
         }
     }
 }
+
+/// The ratio of every limited quantity to its bound at each sample of segment `k` of `plan`
+/// (channels: motor torque and joint speed per joint, base moment and force), with the samples'
+/// `s`.
+fn sample_ratios(plan: &Plan, k: usize) -> (Vec<f64>, Vec<Vec<f64>>) {
+    let n = plan.arm().dof();
+    let limits = plan.limits();
+    let samples = plan.samples();
+    let durations = plan.segment_durations();
+    let t0: f64 = durations[..k].iter().sum();
+    let (mut s, mut channels) = (Vec::new(), vec![Vec::new(); 2 * n + 2]);
+    for (row, t) in samples.t.iter().enumerate() {
+        if *t < t0 - 1e-9 || *t > t0 + durations[k] + 1e-9 {
+            continue;
+        }
+        s.push((t - t0) / durations[k]);
+        for i in 0..n {
+            channels[i].push(samples.u[row * n + i].abs() / limits.motor_torque[i]);
+            channels[n + i].push(samples.qd[row * n + i].abs() / limits.joint_speed[i]);
+        }
+        let f = &samples.base_wrench[row * 6..row * 6 + 6];
+        let norm = |v: &[f64]| v.iter().map(|x| x * x).sum::<f64>().sqrt();
+        channels[2 * n].push(limits.base_torque.map_or(0.0, |l| norm(&f[..3]) / l));
+        channels[2 * n + 1].push(limits.base_force.map_or(0.0, |l| norm(&f[3..]) / l));
+    }
+    (s, channels)
+}
+
+/// Peak refinement (module docs of `slew`): the samples beyond the uniform 512 per segment sit
+/// at the vertices of peaks within 2% of their limits. So every sample off the uniform grid is
+/// where some quantity is within about 2% of its limit, and every local peak of a quantity above
+/// 98% of its limit is sampled at its top (the parabola through it and its neighbours peaks
+/// there, not up to half an interval away as on the bare grid).
+#[test]
+fn refined_samples_sit_on_the_tops_of_the_near_limit_peaks() {
+    let arm = space_arm();
+    let waypoint = vec![0.3, -0.2, 0.1, 0.5, -0.3, 0.2, 0.4];
+    // held with both base limits (the moment binds), held with a base force limit that binds,
+    // free (a motor torque binds)
+    let motor = space_limits(BaseMode::Free).motor_torque;
+    let force_bound = Limits::new(motor.clone(), vec![0.5], Some(5.0), None).unwrap();
+    for (base, limits) in [
+        (BaseMode::Held, space_limits(BaseMode::Held)),
+        (BaseMode::Held, force_bound),
+        (BaseMode::Free, space_limits(BaseMode::Free)),
+    ] {
+        let plan = plan_slew(
+            &arm,
+            &GOAL,
+            None,
+            &limits,
+            base,
+            std::slice::from_ref(&waypoint),
+        )
+        .unwrap();
+        for k in 0..2 {
+            let (s, channels) = sample_ratios(&plan, k);
+            for (j, sj) in s.iter().enumerate() {
+                let on_grid = (sj * 512.0 - (sj * 512.0).round()).abs() < 1e-9;
+                let worst = channels.iter().map(|c| c[j]).fold(0.0_f64, f64::max);
+                assert!(
+                    on_grid || worst > 0.975,
+                    "{base:?} segment {k}: a sample at s = {sj} where the largest ratio is {worst}"
+                );
+            }
+            let mut peaks = Vec::new();
+            for (c, ratios) in channels.iter().enumerate() {
+                for j in 1..s.len() - 1 {
+                    let (a, b, d) = (ratios[j - 1], ratios[j], ratios[j + 1]);
+                    if b >= 0.98 && b > a && b > d {
+                        // the vertex of the parabola through the three samples
+                        let (x0, x1, x2) = (s[j - 1], s[j], s[j + 1]);
+                        let (d01, d12) = ((b - a) / (x1 - x0), (d - b) / (x2 - x1));
+                        let curvature = (d12 - d01) / (x2 - x0);
+                        let vertex = 0.5 * (x0 + x1) - d01 / (2.0 * curvature);
+                        // refined: 1e-9 or closer; on the bare grid up to 1e-3
+                        assert!(
+                            (vertex - x1).abs() < 1e-6,
+                            "{base:?} segment {k} channel {c}: peak sampled at s = {x1}, its top \
+                             is at {vertex}"
+                        );
+                        peaks.push(c);
+                    }
+                }
+            }
+            // the binding limit's peak is among them (so the check says something)
+            assert!(!peaks.is_empty(), "{base:?} segment {k}");
+        }
+    }
+}
+
+/// The duration search: when the speed bound alone allows every other limit, the duration is
+/// its closed form `T = |Δ|max σ'(½) / q̇_max` to round-off (no bisection); otherwise the binding
+/// limit is active to the bisection's relative 1e-10 in `w = 1/T` (its ratio, which scales as
+/// at most `w⁴`, within `4e-10` below 1), in every segment.
+#[test]
+fn durations_are_exact_for_the_speed_bound_and_bisected_to_1e_10_otherwise() {
+    let arm = space_arm();
+    // σ'(½) = 315/128; joint 3 moves farthest (1 rad)
+    let slow = Limits::new(vec![1e4], vec![0.05], None, None).unwrap();
+    for base in [BaseMode::Held, BaseMode::Free] {
+        let plan = plan_slew(&arm, &GOAL, None, &slow, base, &[]).unwrap();
+        let expected = 1.0 * (315.0 / 128.0) / 0.05;
+        assert!(
+            (plan.duration() / expected - 1.0).abs() < 1e-14,
+            "{} vs {expected}",
+            plan.duration()
+        );
+    }
+    let waypoint = vec![0.3, -0.2, 0.1, 0.5, -0.3, 0.2, 0.4];
+    for base in [BaseMode::Held, BaseMode::Free] {
+        let plan = plan_slew(
+            &arm,
+            &GOAL,
+            None,
+            &space_limits(base),
+            base,
+            std::slice::from_ref(&waypoint),
+        )
+        .unwrap();
+        for b in plan.bindings() {
+            let ratio = b.value / b.limit;
+            assert!(
+                ratio <= 1.0 && ratio > 1.0 - 4e-10,
+                "{b:?}: 1 - {}",
+                1.0 - ratio
+            );
+        }
+    }
+}
