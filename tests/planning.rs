@@ -1279,6 +1279,11 @@ fn an_undamped_plan_is_the_pointwise_inverse_dynamics() {
     let arm = FlexibleArm::new(Robot::space_arm(), joints).unwrap();
     for base in [BaseMode::Held, BaseMode::Free] {
         let plan = plan_slew(&arm, &GOAL, None, &space_limits(base), base, &[]).unwrap();
+        // after the end the links rest (τ = 0), so an undamped spring is relaxed at once
+        let after = plan.evaluate(plan.duration() + 0.7).unwrap();
+        assert_eq!(after.theta, GOAL);
+        assert_eq!(after.deflection, [0.0; 7]);
+        assert!(after.theta_dot.iter().chain(&after.u).all(|v| *v == 0.0));
         for fraction in [0.13, 0.5, 0.77] {
             let t = fraction * plan.duration();
             let now = plan.evaluate(t).unwrap();
@@ -1448,5 +1453,101 @@ fn durations_are_exact_for_the_speed_bound_and_bisected_to_1e_10_otherwise() {
                 1.0 - ratio
             );
         }
+    }
+}
+
+/// Per-step tables whose steps end at an infinite time are refused (not tables of NaN).
+#[test]
+fn references_that_end_at_an_infinite_time_are_refused() {
+    let plan = plan_slew(
+        &space_arm(),
+        &GOAL,
+        None,
+        &space_limits(BaseMode::Held),
+        BaseMode::Held,
+        &[],
+    )
+    .unwrap();
+    // 1e308 s is a valid step, but three of them overflow
+    let err = plan.reference(1e308, Some(3)).unwrap_err();
+    assert_eq!(
+        err.to_string(),
+        "dt: 3 steps of 1e308 s do not end at a finite time"
+    );
+}
+
+/// The planned base pose of a free base follows the base twist the plan gives: `ṙ = R v` and
+/// `quat' = ½ quat ⊗ ω` (body-frame twist, `quat` as `(x, y, z, w)`). Checked step by step on
+/// the reference's poses: the rotation from one pose to the next is `ω dt` and the displacement
+/// `R v dt`, with the twist at the step's middle (midpoint rule, `O(dt²)`), and every attitude is
+/// a unit quaternion. The tables' last pose is where the sample table's integration in `s` ends.
+#[test]
+fn the_planned_base_pose_follows_the_planned_twist() {
+    let product = |a: &[f64], b: &[f64]| -> [f64; 4] {
+        let (av, bv) = ([a[0], a[1], a[2]], [b[0], b[1], b[2]]);
+        let cross = [
+            av[1] * bv[2] - av[2] * bv[1],
+            av[2] * bv[0] - av[0] * bv[2],
+            av[0] * bv[1] - av[1] * bv[0],
+        ];
+        let dot = av[0] * bv[0] + av[1] * bv[1] + av[2] * bv[2];
+        let v: [f64; 3] = std::array::from_fn(|i| a[3] * bv[i] + b[3] * av[i] + cross[i]);
+        [v[0], v[1], v[2], a[3] * b[3] - dot]
+    };
+    let conjugate = |q: &[f64]| [-q[0], -q[1], -q[2], q[3]];
+    let plan = plan_slew(
+        &space_arm(),
+        &GOAL,
+        None,
+        &space_limits(BaseMode::Free),
+        BaseMode::Free,
+        &[],
+    )
+    .unwrap();
+    let steps = 2000;
+    let dt = plan.duration() / steps as f64;
+    let r = plan.reference(dt, Some(steps)).unwrap();
+    let (mut largest_w, mut largest_v) = (0.0_f64, 0.0_f64);
+    let (mut error_w, mut error_v) = (0.0_f64, 0.0_f64);
+    for k in (0..steps).step_by(50) {
+        let (a, b) = (
+            &r.base_pose[7 * k..7 * k + 7],
+            &r.base_pose[7 * k + 7..7 * k + 14],
+        );
+        for q in [&a[3..], &b[3..]] {
+            let norm = q.iter().map(|x| x * x).sum::<f64>().sqrt();
+            assert!((norm - 1.0).abs() < 1e-12, "step {k}: |quat| = {norm}");
+        }
+        let twist = plan.evaluate((k as f64 + 0.5) * dt).unwrap().base_twist;
+        let relative = product(&conjugate(&a[3..]), &b[3..]);
+        for i in 0..3 {
+            let rate = 2.0 * relative[i] / dt;
+            error_w = error_w.max((rate - twist[i]).abs());
+            largest_w = largest_w.max(twist[i].abs());
+        }
+        // R v at the middle: v rotated by the attitude halfway
+        let half: Vec<f64> = (0..4).map(|i| 0.5 * (a[3 + i] + b[3 + i])).collect();
+        let norm = half.iter().map(|x| x * x).sum::<f64>().sqrt();
+        let half: Vec<f64> = half.iter().map(|x| x / norm).collect();
+        let v = [twist[3], twist[4], twist[5], 0.0];
+        let rotated = product(&product(&half, &v), &conjugate(&half));
+        for i in 0..3 {
+            let rate = (b[i] - a[i]) / dt;
+            error_v = error_v.max((rate - rotated[i]).abs());
+            largest_v = largest_v.max(rotated[i].abs());
+        }
+    }
+    assert!(
+        largest_w > 1e-3 && largest_v > 1e-3,
+        "{largest_w} {largest_v}"
+    );
+    assert!(error_w < 1e-5 * largest_w, "{error_w} of {largest_w}");
+    assert!(error_v < 1e-5 * largest_v, "{error_v} of {largest_v}");
+    // the sample table's pose, integrated in s over the samples, ends where this one does
+    let samples = plan.samples();
+    let last = samples.t.len() - 1;
+    let (mine, theirs) = (&samples.base_pose[7 * last..], &r.base_pose[7 * steps..]);
+    for i in 0..7 {
+        assert!((mine[i] - theirs[i]).abs() < 1e-9, "{mine:?} vs {theirs:?}");
     }
 }
