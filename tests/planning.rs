@@ -1551,3 +1551,31 @@ fn the_planned_base_pose_follows_the_planned_twist() {
         assert!((mine[i] - theirs[i]).abs() < 1e-9, "{mine:?} vs {theirs:?}");
     }
 }
+
+/// A plan shorter than a second: its per-step tables after the end still hold the goal at rest
+/// (the rest point is taken after the end, whatever the plan's length).
+#[test]
+fn a_short_plans_tables_hold_the_goal_after_it() {
+    let goal: Vec<f64> = GOAL.iter().map(|g| 1e-4 * g).collect();
+    let plan = plan_slew(
+        &space_arm(),
+        &goal,
+        None,
+        &space_limits(BaseMode::Held),
+        BaseMode::Held,
+        &[],
+    )
+    .unwrap();
+    assert!(plan.duration() < 0.5, "{}", plan.duration());
+    let dt = 0.01;
+    let steps = (plan.duration() / dt).ceil() as usize + 10;
+    let r = plan.reference(dt, Some(steps)).unwrap();
+    for k in steps - 5..=steps {
+        let after = plan.evaluate(k as f64 * dt).unwrap();
+        assert_eq!(r.q[k * 7..(k + 1) * 7], goal[..], "row {k}");
+        assert_eq!(after.q, goal);
+        if k < steps {
+            assert_eq!(r.theta_ref[k * 7..(k + 1) * 7], after.theta[..], "row {k}");
+        }
+    }
+}
