@@ -424,16 +424,21 @@ fn plan_slew(c: &mut Criterion) {
     use orbitflex::planning::{self, BaseMode, Limits, LinkMotion};
     let arm = FlexibleArm::new(Robot::space_arm(), FlexibleJoints::space_arm()).unwrap();
     let goal = [0.8, -0.6, 0.5, 1.0, -0.7, 0.6, 0.9];
-    let limits = Limits::new(
-        vec![60.0, 60.0, 60.0, 30.0, 15.0, 15.0, 15.0],
-        vec![0.5],
-        Some(80.0),
-        Some(60.0),
-    )
-    .unwrap();
+    // the base limits bound the wrench that holds a held base; a free base takes none
+    let limits = |base: BaseMode| {
+        let held = base == BaseMode::Held;
+        Limits::new(
+            vec![60.0, 60.0, 60.0, 30.0, 15.0, 15.0, 15.0],
+            vec![0.5],
+            held.then_some(80.0),
+            held.then_some(60.0),
+        )
+        .unwrap()
+    };
     let mut group = c.benchmark_group("plan_slew");
     group.sample_size(10);
     for base in [BaseMode::Held, BaseMode::Free] {
+        let limits = limits(base);
         group.bench_function(base.name(), |b| {
             b.iter(|| {
                 planning::plan_slew(&arm, black_box(&goal), None, &limits, base, &[])
