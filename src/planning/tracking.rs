@@ -186,58 +186,54 @@ impl Plan {
     /// The measures of a tracking run on `reference` (every state of `trajectory` that the
     /// reference covers; a failed run's finite part too).
     pub fn measure(&self, trajectory: Trajectory, reference: Reference) -> Tracking {
-        measure(self, trajectory, reference)
-    }
-}
-
-fn measure(plan: &Plan, trajectory: Trajectory, reference: Reference) -> Tracking {
-    let n = plan.arm().dof();
-    let layout = plan.arm().layout();
-    let slew_end = plan.duration();
-    let goal = plan.stops().last().expect("a plan has a goal");
-    let mut out = Tracking {
-        peak_motor_torque: vec![0.0; n],
-        tracking_error: 0.0,
-        residual_deflection: 0.0,
-        residual_link_error: 0.0,
-        base_position_error: 0.0,
-        base_attitude_error: 0.0,
-        slew_end,
-        trajectory: Trajectory::empty(layout),
-        reference: reference.clone(),
-    };
-    for row in trajectory.u.chunks_exact(n) {
-        for (peak, u) in out.peak_motor_torque.iter_mut().zip(row) {
-            *peak = peak.max(u.abs());
-        }
-    }
-    // every state, the final one included
-    for k in 0..=reference.steps.min(trajectory.len().saturating_sub(1)) {
-        let x = trajectory.state(k);
-        let (q, theta) = (&x[layout.q()], &x[layout.theta()]);
-        let planned = &reference.q[k * n..(k + 1) * n];
-        for i in 0..n {
-            out.tracking_error = out.tracking_error.max((q[i] - planned[i]).abs());
-        }
-        let pose = &x[layout.base_pose()];
-        let plan_pose = &reference.base_pose[7 * k..7 * k + 7];
-        let position = (0..3)
-            .map(|c| (pose[c] - plan_pose[c]).powi(2))
-            .sum::<f64>()
-            .sqrt();
-        out.base_position_error = out.base_position_error.max(position);
-        let inverse = [-plan_pose[3], -plan_pose[4], -plan_pose[5], plan_pose[6]];
-        let relative = quaternion_product(&inverse, &pose[3..]);
-        out.base_attitude_error = out
-            .base_attitude_error
-            .max(quaternion_log(&relative).norm());
-        if trajectory.t[k] >= slew_end {
-            for i in 0..n {
-                out.residual_deflection = out.residual_deflection.max((theta[i] - q[i]).abs());
-                out.residual_link_error = out.residual_link_error.max((q[i] - goal[i]).abs());
+        let n = self.arm().dof();
+        let layout = self.arm().layout();
+        let slew_end = self.duration();
+        let goal = self.stops().last().expect("a plan has a goal");
+        let mut out = Tracking {
+            peak_motor_torque: vec![0.0; n],
+            tracking_error: 0.0,
+            residual_deflection: 0.0,
+            residual_link_error: 0.0,
+            base_position_error: 0.0,
+            base_attitude_error: 0.0,
+            slew_end,
+            trajectory: Trajectory::empty(layout),
+            reference: reference.clone(),
+        };
+        for row in trajectory.u.chunks_exact(n) {
+            for (peak, u) in out.peak_motor_torque.iter_mut().zip(row) {
+                *peak = peak.max(u.abs());
             }
         }
+        // every state, the final one included
+        for k in 0..=reference.steps.min(trajectory.len().saturating_sub(1)) {
+            let x = trajectory.state(k);
+            let (q, theta) = (&x[layout.q()], &x[layout.theta()]);
+            let planned = &reference.q[k * n..(k + 1) * n];
+            for i in 0..n {
+                out.tracking_error = out.tracking_error.max((q[i] - planned[i]).abs());
+            }
+            let pose = &x[layout.base_pose()];
+            let plan_pose = &reference.base_pose[7 * k..7 * k + 7];
+            let position = (0..3)
+                .map(|c| (pose[c] - plan_pose[c]).powi(2))
+                .sum::<f64>()
+                .sqrt();
+            out.base_position_error = out.base_position_error.max(position);
+            let inverse = [-plan_pose[3], -plan_pose[4], -plan_pose[5], plan_pose[6]];
+            let relative = quaternion_product(&inverse, &pose[3..]);
+            out.base_attitude_error = out
+                .base_attitude_error
+                .max(quaternion_log(&relative).norm());
+            if trajectory.t[k] >= slew_end {
+                for i in 0..n {
+                    out.residual_deflection = out.residual_deflection.max((theta[i] - q[i]).abs());
+                    out.residual_link_error = out.residual_link_error.max((q[i] - goal[i]).abs());
+                }
+            }
+        }
+        out.trajectory = trajectory;
+        out
     }
-    out.trajectory = trajectory;
-    out
 }

@@ -325,7 +325,7 @@ fn covering_steps(seconds: f64, dt: f64) -> PyResult<usize> {
         return Err(ModelError::new_err(format!(
             "dt: {} s makes {steps:.3e} steps of {} s; lengthen dt",
             number(dt),
-            rounded(seconds)
+            rounded(seconds, 6)
         )));
     }
     Ok(steps as usize)
@@ -343,11 +343,11 @@ fn keep_going(pending: &mut Option<PyErr>) -> bool {
     })
 }
 
-/// A computed duration for a message: six decimals in the usual range, else three significant
-/// digits in exponent form.
-fn rounded(seconds: f64) -> String {
+/// A computed time for a message or repr: `decimals` decimals in the usual range, else three
+/// significant digits in exponent form.
+fn rounded(seconds: f64, decimals: usize) -> String {
     if (1e-3..1e6).contains(&seconds) {
-        format!("{seconds:.6}")
+        format!("{seconds:.decimals$}")
     } else {
         format!("{seconds:.3e}")
     }
@@ -660,7 +660,7 @@ impl PyPlan {
                 "{blame}: dt = {} s over the plan's {} s plus settle = {} s makes {steps:.3e} \
                  steps; lengthen dt or shorten settle",
                 number(dt),
-                rounded(self.plan.duration()),
+                rounded(self.plan.duration(), 6),
                 number(settle)
             )));
         }
@@ -795,7 +795,7 @@ impl PyPlan {
             .map_or(String::new(), |j| format!("[{}]", self.joint_names()[j]));
         format!(
             "Plan(duration={} s, base='{}', rigid={}, binding={}{} at t={} s, segments={})",
-            rounded(self.plan.duration()),
+            rounded(self.plan.duration(), 6),
             self.base(),
             if self.plan.is_rigid() {
                 "True"
@@ -804,11 +804,7 @@ impl PyPlan {
             },
             b.constraint.name(),
             joint,
-            if (1e-3..1e6).contains(&b.time) {
-                format!("{:.4}", b.time)
-            } else {
-                format!("{:.4e}", b.time)
-            },
+            rounded(b.time, 4),
             self.plan.segment_durations().len()
         )
     }
