@@ -9,6 +9,65 @@
 
 use nalgebra::{Complex, DMatrix};
 
+/// `out = scale · A w` for `A` stored column by column (`rows` per column, `w.len()` columns)
+/// in `a`: the inner product of the derivative chains, whose matrices are too small for a
+/// packing GEMM to pay.
+///
+/// On x86-64 processors with AVX2 (detected at run time) the same code runs compiled for
+/// 256-bit registers. It multiplies and adds separately (no fused multiply-add) in the same
+/// order, so both versions give the same bits.
+pub(crate) fn scaled_product(scale: f64, a: &[f64], rows: usize, w: &[f64], out: &mut [f64]) {
+    assert_eq!(
+        a.len(),
+        rows * w.len(),
+        "scaled_product: A has rows × w.len() entries"
+    );
+    assert_eq!(
+        out.len(),
+        rows,
+        "scaled_product: out has one entry per row of A"
+    );
+    #[cfg(target_arch = "x86_64")]
+    if std::is_x86_feature_detected!("avx2") {
+        // SAFETY: the processor has AVX2, checked just above.
+        unsafe { scaled_product_avx2(scale, a, rows, w, out) };
+        return;
+    }
+    scaled_product_kernel(scale, a, rows, w, out);
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn scaled_product_avx2(scale: f64, a: &[f64], rows: usize, w: &[f64], out: &mut [f64]) {
+    scaled_product_kernel(scale, a, rows, w, out);
+}
+
+/// Eight rows at a time are summed in registers over the columns, so each output is written
+/// once; then the remaining rows.
+#[inline(always)]
+fn scaled_product_kernel(scale: f64, a: &[f64], rows: usize, w: &[f64], out: &mut [f64]) {
+    const BLOCK: usize = 8;
+    let blocks = rows / BLOCK * BLOCK;
+    for r in (0..blocks).step_by(BLOCK) {
+        let mut sum = [0.0; BLOCK];
+        for (&weight, column) in w.iter().zip(a.chunks_exact(rows)) {
+            for (s, x) in sum.iter_mut().zip(&column[r..r + BLOCK]) {
+                *s += weight * x;
+            }
+        }
+        for (o, s) in out[r..r + BLOCK].iter_mut().zip(sum) {
+            *o = scale * s;
+        }
+    }
+    for r in blocks..rows {
+        let mut sum = 0.0;
+        for (&weight, column) in w.iter().zip(a.chunks_exact(rows)) {
+            sum += weight * column[r];
+        }
+        out[r] = scale * sum;
+    }
+}
+
 /// Iterations allowed per deflation, as LAPACK allows: 30 per row of the matrix (at least 300).
 fn max_iterations(n: usize) -> usize {
     30 * n.max(10)

@@ -90,6 +90,12 @@ pub(crate) fn derivative_jacobians(
 /// The Jacobians of one RK4 step of `dt` from `x` with `inputs` held, in tangent coordinates at
 /// `x` (columns) and at the new state `x⁺` (rows), including the quaternion's renormalisation.
 /// Returns them with `x⁺`.
+///
+/// The sensitivities are kept row by row over all `c = m + n + 12` parameters (the raw state,
+/// `u`, `f_B`, `f`), so one row of a product is a combination of contiguous rows. With the stage
+/// points `x_s = x + h_s k_{s−1}`, `dk₁ = K₁ [𝟙 | 0] + D₁` and
+/// `dk_s = K_s ([𝟙 | 0] + h_s dk_{s−1}) + D_s` (`D_s` the direct input terms), so only three
+/// products are needed, and in each only the rigid-dynamics rows of `K_s` are dense.
 pub(crate) fn step_jacobians(
     arm: &FlexibleArm,
     ws: &mut ArmWorkspace,
@@ -99,53 +105,72 @@ pub(crate) fn step_jacobians(
 ) -> Result<(Jacobians, Vec<f64>)> {
     let layout = arm.layout();
     let (m, n) = (layout.len(), layout.n);
+    let c = m + n + 12;
     let mut stage = Jacobians::zeros(m, m, n);
-    // d(stage point)/d(x, inputs), then d(k_s)/d(x, inputs) = K_s · that (+ the direct input
-    // terms); the step's raw Jacobian accumulates I + dt/6 Σ w_s dk_s.
-    let mut point = Jacobians {
-        x: DMatrix::identity(m, m),
-        u: DMatrix::zeros(m, n),
-        base_wrench: DMatrix::zeros(m, 6),
-        ee_wrench: DMatrix::zeros(m, 6),
-    };
-    let mut total = Jacobians {
-        x: DMatrix::identity(m, m),
-        u: DMatrix::zeros(m, n),
-        base_wrench: DMatrix::zeros(m, 6),
-        ee_wrench: DMatrix::zeros(m, 6),
-    };
+    // row-major m × c: this stage's dk_s, the previous one, and J = 𝟙 + dt/6 Σ w_s dk_s
+    let mut dk = vec![0.0; m * c];
+    let mut previous = vec![0.0; m * c];
+    let mut total = vec![0.0; m * c];
+    for r in 0..m {
+        total[r * c + r] = 1.0;
+    }
+    let mut k_rows = vec![0.0; m * c];
     let mut xs = x.to_vec();
     let mut k = vec![0.0; m];
     let mut sum = vec![0.0; m];
+    // the dense rows: the base twist and q̈, over the columns from q on
+    let pose = Coordinates::Raw.pose();
+    let dense = pose + 2 * n..pose + 3 * n + 6;
+    let mut h = 0.0;
     for (s, (weight, next)) in [(1.0, 0.5), (2.0, 0.5), (2.0, 1.0), (1.0, 0.0)]
         .into_iter()
         .enumerate()
     {
         arm.derivative_unchecked(&mut ws.data, &mut ws.tau, &xs, inputs, &mut k)?;
         jacobians_into(arm, ws, &xs, inputs, Coordinates::Raw, &mut stage)?;
-        // K_s is mostly zeros (rates feed angles, the motors are diagonal): multiply by rows
-        let rows = SparseRows::of(&stage.x);
-        let dk = Jacobians {
-            x: rows.times(&point.x),
-            u: rows.times(&point.u) + &stage.u,
-            base_wrench: rows.times(&point.base_wrench) + &stage.base_wrench,
-            ee_wrench: rows.times(&point.ee_wrench) + &stage.ee_wrench,
-        };
+        // K_s and D_s row by row: [K_x | K_u | K_B | K_E], m × c
+        for (block, offset) in [
+            (&stage.x, 0),
+            (&stage.u, m),
+            (&stage.base_wrench, m + n),
+            (&stage.ee_wrench, m + n + 6),
+        ] {
+            for (col, column) in block.as_slice().chunks_exact(m).enumerate() {
+                for (r, value) in column.iter().enumerate() {
+                    k_rows[r * c + offset + col] = *value;
+                }
+            }
+        }
+        std::mem::swap(&mut dk, &mut previous);
+        for (r, (row, k_row)) in dk
+            .chunks_exact_mut(c)
+            .zip(k_rows.chunks_exact(c))
+            .enumerate()
+        {
+            if s > 0 && dense.contains(&r) {
+                debug_assert!(k_row[..pose].iter().all(|&w| w == 0.0));
+                // the rows of dk_{s−1} from q on, as the columns of a c × (m − pose) matrix
+                crate::linalg::scaled_product(h, &previous[pose * c..], c, &k_row[pose..m], row);
+            } else {
+                row.fill(0.0);
+                if s > 0 {
+                    for (&w, from) in k_row[..m].iter().zip(previous.chunks_exact(c)) {
+                        if w != 0.0 {
+                            row.iter_mut().zip(from).for_each(|(o, a)| *o += h * w * a);
+                        }
+                    }
+                }
+            }
+            row.iter_mut().zip(k_row).for_each(|(o, k)| *o += k);
+        }
         let w = dt / 6.0 * weight;
-        total.x += &dk.x * w;
-        total.u += &dk.u * w;
-        total.base_wrench += &dk.base_wrench * w;
-        total.ee_wrench += &dk.ee_wrench * w;
+        total.iter_mut().zip(&dk).for_each(|(t, d)| *t += w * d);
         sum.iter_mut().zip(&k).for_each(|(a, b)| *a += weight * b);
         if s < 3 {
-            let h = next * dt;
+            h = next * dt;
             for (p, (x0, kk)) in xs.iter_mut().zip(x.iter().zip(&k)) {
                 *p = x0 + h * kk;
             }
-            point.x = DMatrix::identity(m, m) + &dk.x * h;
-            point.u = &dk.u * h;
-            point.base_wrench = &dk.base_wrench * h;
-            point.ee_wrench = &dk.ee_wrench * h;
         }
     }
     let mut next: Vec<f64> = x
@@ -154,95 +179,65 @@ pub(crate) fn step_jacobians(
         .map(|(x0, s)| x0 + dt / 6.0 * s)
         .collect();
     normalise_quaternion(&mut next[layout.quaternion()]);
-    let into = SparseRows::of(&raw_to_tangent(arm, &next));
-    let from = SparseRows::of(&tangent_to_raw(arm, x).transpose());
-    Ok((
-        Jacobians {
-            x: from.times(&into.times(&total.x).transpose()).transpose(),
-            u: into.times(&total.u),
-            base_wrench: into.times(&total.base_wrench),
-            ee_wrench: into.times(&total.ee_wrench),
-        },
-        next,
-    ))
+    Ok((to_tangent(arm, x, &next, &total), next))
 }
 
-/// The non-zero entries of a matrix, row by row, for products with a mostly-zero left factor.
-struct SparseRows {
-    rows: Vec<Vec<(usize, f64)>>,
-}
-
-impl SparseRows {
-    fn of(m: &DMatrix<f64>) -> Self {
-        let rows = (0..m.nrows())
-            .map(|r| {
-                (0..m.ncols())
-                    .filter(|&c| m[(r, c)] != 0.0)
-                    .map(|c| (c, m[(r, c)]))
-                    .collect()
-            })
-            .collect();
-        Self { rows }
-    }
-
-    /// `self · a`.
-    fn times(&self, a: &DMatrix<f64>) -> DMatrix<f64> {
-        let mut out = DMatrix::zeros(self.rows.len(), a.ncols());
-        for j in 0..a.ncols() {
-            let column = a.column(j);
-            for (r, entries) in self.rows.iter().enumerate() {
-                out[(r, j)] = entries.iter().map(|&(c, v)| v * column[c]).sum();
-            }
-        }
-        out
-    }
-}
-
-/// `E(x)`: a tangent at `x` as a raw perturbation; identity except the pose's rotation, where
-/// `δquat = ½ quat ⊗ (δφ, 0)`.
-fn tangent_to_raw(arm: &FlexibleArm, x: &[f64]) -> DMatrix<f64> {
+/// `A = P(x⁺) J E(x)` for the state columns and `P(x⁺) J` for the inputs, from the raw step
+/// Jacobian `J` (row-major, `m × c`). `E(x)` turns a tangent at `x` into a raw perturbation
+/// (identity except `δquat = ½ quat ⊗ (δφ, 0)`), `P(x⁺)` a raw perturbation at `x⁺` back into a
+/// tangent (identity except `δφ = 2 vec(quat⁺* ⊗ δquat)`).
+fn to_tangent(arm: &FlexibleArm, x: &[f64], next: &[f64], total: &[f64]) -> Jacobians {
     let layout = arm.layout();
-    let mut e = DMatrix::zeros(layout.len(), layout.tangent_len());
-    for i in 0..3 {
-        e[(i, i)] = 1.0;
-    }
-    let quat = &x[layout.quaternion()];
-    for axis in 0..3 {
+    let (m, n, t) = (layout.len(), layout.n, layout.tangent_len());
+    let c = m + n + 12;
+    let quaternion = layout.quaternion();
+    // E's rotation block (4 × 3) and P's (3 × 4)
+    let from = &x[quaternion.clone()];
+    let e: [[f64; 4]; 3] = std::array::from_fn(|axis| {
         let mut unit = [0.0; 4];
         unit[axis] = 1.0;
-        let column = quaternion_product(quat, &unit);
-        for r in 0..4 {
-            e[(3 + r, 3 + axis)] = 0.5 * column[r];
-        }
-    }
-    for j in 0..layout.tangent_len() - 6 {
-        e[(7 + j, 6 + j)] = 1.0;
-    }
-    e
-}
-
-/// `P(x)`: a raw perturbation at `x` (unit quaternion) as a tangent; identity except
-/// `δφ = 2 vec(quat* ⊗ δquat)`.
-fn raw_to_tangent(arm: &FlexibleArm, x: &[f64]) -> DMatrix<f64> {
-    let layout = arm.layout();
-    let mut p = DMatrix::zeros(layout.tangent_len(), layout.len());
-    for i in 0..3 {
-        p[(i, i)] = 1.0;
-    }
-    let q = &x[layout.quaternion()];
-    let conjugate = [-q[0], -q[1], -q[2], q[3]];
-    for r in 0..4 {
+        quaternion_product(from, &unit).map(|v| 0.5 * v)
+    });
+    let to = &next[quaternion];
+    let conjugate = [-to[0], -to[1], -to[2], to[3]];
+    let p: [[f64; 3]; 4] = std::array::from_fn(|r| {
         let mut unit = [0.0; 4];
         unit[r] = 1.0;
         let product = quaternion_product(&conjugate, &unit);
-        for axis in 0..3 {
-            p[(3 + axis, 3 + r)] = 2.0 * product[axis];
+        [2.0 * product[0], 2.0 * product[1], 2.0 * product[2]]
+    });
+    let mut out = Jacobians::zeros(t, t, n);
+    let mut row = vec![0.0; c];
+    for tr in 0..t {
+        match tr {
+            0..=2 => row.copy_from_slice(&total[tr * c..(tr + 1) * c]),
+            3..=5 => {
+                row.fill(0.0);
+                for (r, p_r) in p.iter().enumerate() {
+                    let raw = &total[(3 + r) * c..(4 + r) * c];
+                    row.iter_mut()
+                        .zip(raw)
+                        .for_each(|(o, a)| *o += p_r[tr - 3] * a);
+                }
+            }
+            _ => row.copy_from_slice(&total[(tr + 1) * c..(tr + 2) * c]),
+        }
+        for tc in 0..t {
+            out.x[(tr, tc)] = match tc {
+                0..=2 => row[tc],
+                3..=5 => (0..4).map(|r| row[3 + r] * e[tc - 3][r]).sum(),
+                _ => row[tc + 1],
+            };
+        }
+        for j in 0..n {
+            out.u[(tr, j)] = row[m + j];
+        }
+        for j in 0..6 {
+            out.base_wrench[(tr, j)] = row[m + n + j];
+            out.ee_wrench[(tr, j)] = row[m + n + 6 + j];
         }
     }
-    for j in 0..layout.tangent_len() - 6 {
-        p[(6 + j, 7 + j)] = 1.0;
-    }
-    p
+    out
 }
 
 /// The state derivative's Jacobians at `x` in `coordinates` into `out` (rows and state columns
@@ -263,8 +258,8 @@ fn jacobians_into(
     algorithms::aba_derivatives(arm.robot(), &mut ws.data, &rigid, &ws.tau, &inputs.loads)?;
     let d = &ws.data.derivatives;
     let p = arm.joints();
-    out.x.fill(0.0);
-    out.u.fill(0.0);
+    out.x.as_mut_slice().fill(0.0);
+    out.u.as_mut_slice().fill(0.0);
     let pose = coordinates.pose();
     // offsets of the dynamic blocks, the same in rows and columns
     let (q, theta, twist, qd, theta_dot) = (
