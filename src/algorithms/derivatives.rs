@@ -98,7 +98,8 @@ struct Scratch {
     rate_force: Vec<Force>,
     /// Which `k` last claimed body `i` for its subtree.
     stamp: Vec<usize>,
-    /// `𝓜⁻¹`; the ABA's `U_i` in base components and `1/D_i`; one column's `u_i` and `a_i`.
+    /// `𝓜⁻¹`; the ABA's `U_i` in base components and `1/D_i`; `u_i` and `a_i` of every column
+    /// (body-major).
     inverse: DMatrix<f64>,
     u_base: Vec<Force>,
     inverse_d: Vec<f64>,
@@ -139,8 +140,8 @@ impl Derivatives {
                 inverse: DMatrix::zeros(rows, rows),
                 u_base: vec![Force::zero(); bodies],
                 inverse_d: vec![0.0; bodies],
-                column_u: vec![0.0; bodies],
-                column_acc: vec![Motion::zero(); bodies],
+                column_u: vec![0.0; bodies * rows],
+                column_acc: vec![Motion::zero(); bodies * rows],
                 qdd: vec![0.0; n],
             },
         }
@@ -368,8 +369,8 @@ fn id_derivatives(
         s.c[k] = c;
     }
     // joint columns: the subtree rows (i ⪰ k), the ancestors' rows and the base rows
-    d.id_q.fill(0.0);
-    d.id_v.fill(0.0);
+    d.id_q.as_mut_slice().fill(0.0);
+    d.id_v.as_mut_slice().fill(0.0);
     s.stamp.fill(0);
     for k in 1..=n {
         let (u, c, axis) = (s.u[k], s.c[k], s.axis[k]);
@@ -453,17 +454,22 @@ fn inverse_mass_matrix(robot: &Robot, data: &Data, s: &mut Scratch) -> Result<()
             message: "not positive definite (the model's mass matrix is singular here)".into(),
         })?
         .inverse();
-    for column in 0..6 + n {
-        s.column_u.fill(0.0);
+    let m = 6 + n;
+    // backwards, each joint column along its path; u_i of every column, body-major
+    s.column_u.clear();
+    s.column_u.resize((n + 1) * m, 0.0);
+    s.column_acc.clear();
+    s.column_acc.resize((n + 1) * m, Motion::zero());
+    for column in 0..m {
         let mut p = Force::zero();
         if column >= 6 {
             let k = column - 5;
-            s.column_u[k] = 1.0;
+            s.column_u[k * m + column] = 1.0;
             p = s.u_base[k] * s.inverse_d[k];
             let mut i = parents[k];
             while i >= 1 {
                 let u = -s.axis[i].dot(&p);
-                s.column_u[i] = u;
+                s.column_u[i * m + column] = u;
                 p += s.u_base[i] * (u * s.inverse_d[i]);
                 i = parents[i];
             }
@@ -473,14 +479,19 @@ fn inverse_mass_matrix(robot: &Robot, data: &Data, s: &mut Scratch) -> Result<()
             rhs[column] += 1.0;
         }
         let base_acc = Motion::from_vector(&(base * rhs));
-        s.column_acc[0] = base_acc;
+        s.column_acc[column] = base_acc;
         for (r, value) in base_acc.to_array().into_iter().enumerate() {
             s.inverse[(r, column)] = value;
         }
-        for i in 1..=n {
-            let parent_acc = s.column_acc[parents[i]];
-            let qdd = (s.column_u[i] - parent_acc.dot(&s.u_base[i])) * s.inverse_d[i];
-            s.column_acc[i] = parent_acc + s.axis[i] * qdd;
+    }
+    // forwards, body by body over all columns (independent chains for the processor)
+    for i in 1..=n {
+        let lambda = parents[i];
+        let (u_base, inverse_d, axis) = (s.u_base[i], s.inverse_d[i], s.axis[i]);
+        for column in 0..m {
+            let parent_acc = s.column_acc[lambda * m + column];
+            let qdd = (s.column_u[i * m + column] - parent_acc.dot(&u_base)) * inverse_d;
+            s.column_acc[i * m + column] = parent_acc + axis * qdd;
             s.inverse[(5 + i, column)] = qdd;
         }
     }
