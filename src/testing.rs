@@ -110,6 +110,18 @@ pub fn random_chain(n: usize, seed: u64) -> Robot {
         .expect("random chains are valid")
 }
 
+/// A random branched tree of 7 joints (seeded): the bodies of [`random_chain`] re-hung as
+/// `parents = [·, 0, 1, 1, 3, 2, 2, 6]`, so body 1 carries two branches and the base a single
+/// trunk, with the EE frame on body 4 (path 4 → 3 → 1 → base; bodies 2, 5, 6, 7 are off it).
+/// For checking that the recursions follow `parents` rather than assuming a chain.
+pub fn random_tree(seed: u64) -> Robot {
+    let mut robot = random_chain(7, seed);
+    robot.parents = vec![0, 0, 1, 1, 3, 2, 2, 6];
+    robot.ee_body = 4;
+    robot.name = format!("random_tree_{seed}");
+    robot
+}
+
 /// A random state `(q, base_twist, qd)` for `robot`: angles in ±π, rates in ±1.
 pub fn random_state(robot: &Robot, seed: u64) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
     let mut rng = Rng::new(seed ^ 0xABCD);

@@ -4,7 +4,7 @@
 
 use nalgebra::DMatrix;
 use orbitflex::algorithms::{self, Data};
-use orbitflex::testing::{random_chain, random_state, Rng};
+use orbitflex::testing::{random_chain, random_state, random_tree, Rng};
 use orbitflex::{Loads, RigidState, Robot};
 
 /// Largest entrywise difference relative to the largest entry of `want` (at least 1).
@@ -137,6 +137,44 @@ fn derivatives_equal_central_differences_on_random_chains() {
                 &format!("n={n} seed={seed}"),
             );
         }
+    }
+}
+
+/// On a branched tree the subtree and ancestor bookkeeping matters: joints on other branches
+/// leave each other's torques unchanged (zeros in `∂ID/∂q`, `∂ID/∂q̇`), and the EE wrench
+/// reaches only the joints on its path.
+#[test]
+fn derivatives_equal_central_differences_on_a_branched_tree() {
+    for seed in 0..3 {
+        let c = case(random_tree(seed), seed);
+        check(&c, &format!("tree seed={seed}"));
+        let mut data = Data::new(&c.robot);
+        let state = RigidState::new(&c.q, &c.v, &c.qd);
+        let d = algorithms::rnea_derivatives(
+            &c.robot,
+            &mut data,
+            &state,
+            &c.acc[..6],
+            &c.acc[6..],
+            &c.f,
+        )
+        .unwrap();
+        // joint 5 (body 5, under 2) and joint 4 (body 4, under 3) are on different branches
+        assert_eq!(d.id_q[(6 + 4, 3)], 0.0);
+        assert_eq!(d.id_q[(6 + 3, 4)], 0.0);
+        assert!(d.id_q[(6 + 1, 4)] != 0.0, "joint 2 carries joint 5");
+        for off_path in [1, 4, 5, 6] {
+            assert!(d.id_ee_wrench.row(6 + off_path).iter().all(|&x| x == 0.0));
+        }
+    }
+}
+
+/// Above 28 joints `∂FD/∂x = −𝓜⁻¹ ∂ID/∂x` runs the factorisation on the columns instead of the
+/// dense product.
+#[test]
+fn derivatives_equal_central_differences_on_long_chains() {
+    for (n, seed) in [(25, 1), (40, 2)] {
+        check(&case(random_chain(n, seed), seed), &format!("n={n}"));
     }
 }
 

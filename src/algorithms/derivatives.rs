@@ -46,7 +46,7 @@ use super::data::{check_data, Data};
 use crate::args::{check_vector, Loads, RigidState};
 use crate::error::Result;
 use crate::model::Robot;
-use crate::spatial::{skew, Force, Inertia, Mat3, Motion, Transform, Vec3};
+use crate::spatial::{skew, Force, Inertia, Mat3, Mat6, Motion, Transform, Vec3};
 use nalgebra::DMatrix;
 
 /// The derivatives of [`rnea_derivatives`] and [`aba_derivatives`], and their scratch memory.
@@ -103,8 +103,17 @@ struct Scratch {
     inverse: DMatrix<f64>,
     u_base: Vec<Force>,
     inverse_d: Vec<f64>,
-    column_u: Vec<f64>,
+    base_inverse: Mat6,
+    /// Per body and direction (body-major): the solve's `p_i`, `a_i`; the directional
+    /// derivative's path sums (`c`, `u`) and subtree sums.
+    column_p: Vec<Force>,
     column_acc: Vec<Motion>,
+    path_c: Vec<Motion>,
+    path_u: Vec<Motion>,
+    subtree: Vec<Force>,
+    /// Right-hand sides, one row per generalized coordinate, one column per direction.
+    rhs: Vec<f64>,
+    tile: Tile,
     qdd: Vec<f64>,
 }
 
@@ -140,8 +149,14 @@ impl Derivatives {
                 inverse: DMatrix::zeros(rows, rows),
                 u_base: vec![Force::zero(); bodies],
                 inverse_d: vec![0.0; bodies],
-                column_u: vec![0.0; bodies * rows],
-                column_acc: vec![Motion::zero(); bodies * rows],
+                base_inverse: Mat6::zeros(),
+                column_p: vec![Force::zero(); bodies * (3 * n + 18)],
+                column_acc: vec![Motion::zero(); bodies * (3 * n + 18)],
+                path_c: Vec::new(),
+                path_u: Vec::new(),
+                subtree: Vec::new(),
+                rhs: vec![0.0; rows * (3 * n + 18)],
+                tile: Tile::default(),
                 qdd: vec![0.0; n],
             },
         }
@@ -258,17 +273,63 @@ pub fn aba_derivatives<'a>(
     id_derivatives(robot, data, &mut d, state, &acc, &qdd, &loads.ee_wrench);
     d.scratch.qdd = qdd;
     ee_force_map(robot, data, &mut d, state.q)?;
-    inverse_mass_matrix(robot, data, &mut d.scratch)?;
-    // ∂FD/∂f_B, ∂FD/∂τ are columns of 𝓜⁻¹; ∂FD/∂x = −𝓜⁻¹ ∂ID/∂x for the others
-    let inverse = &d.scratch.inverse;
-    d.fd_base_wrench.copy_from(&inverse.columns(0, 6));
-    d.fd_tau.copy_from(&inverse.columns(6, n));
-    minus_product(inverse, &d.id_q, &mut d.fd_q);
-    minus_product(inverse, &d.id_v, &mut d.fd_v);
-    minus_product(inverse, &d.id_ee_wrench, &mut d.fd_ee_wrench);
+    factorisation(robot, data, &mut d.scratch)?;
+    // 𝓜⁻¹ on the unit columns; ∂FD/∂f_B, ∂FD/∂τ are its columns
+    let m = 6 + n;
+    let mut rhs = std::mem::take(&mut d.scratch.rhs);
+    rhs.clear();
+    rhs.resize(m * m, 0.0);
+    for r in 0..m {
+        rhs[r * m + r] = 1.0;
+    }
+    apply_inverse(robot, &mut d.scratch, &mut rhs, m);
+    for (r, row) in rhs.chunks_exact(m).enumerate() {
+        for (c, value) in row.iter().enumerate() {
+            d.scratch.inverse[(r, c)] = *value;
+        }
+    }
+    d.fd_base_wrench.copy_from(&d.scratch.inverse.columns(0, 6));
+    d.fd_tau.copy_from(&d.scratch.inverse.columns(6, n));
+    // ∂FD/∂x = −𝓜⁻¹ ∂ID/∂x for x = q, ν, f: dense products while they are cheaper, then the
+    // factorisation on the columns (O(n) each, so O(n²) in all)
+    if n <= DENSE_PRODUCTS_UP_TO {
+        let inverse = &d.scratch.inverse;
+        minus_product(inverse, &d.id_q, &mut d.fd_q);
+        minus_product(inverse, &d.id_v, &mut d.fd_v);
+        minus_product(inverse, &d.id_ee_wrench, &mut d.fd_ee_wrench);
+    } else {
+        let columns = 2 * n + 12;
+        rhs.clear();
+        rhs.resize(m * columns, 0.0);
+        for (offset, block) in [(0, &d.id_q), (n, &d.id_v), (2 * n + 6, &d.id_ee_wrench)] {
+            for (c, column) in block.as_slice().chunks_exact(m).enumerate() {
+                for (r, value) in column.iter().enumerate() {
+                    rhs[r * columns + offset + c] = -value;
+                }
+            }
+        }
+        apply_inverse(robot, &mut d.scratch, &mut rhs, columns);
+        for (r, row) in rhs.chunks_exact(columns).enumerate() {
+            for k in 0..n {
+                d.fd_q[(r, k)] = row[k];
+            }
+            for j in 0..m {
+                d.fd_v[(r, j)] = row[n + j];
+            }
+            for j in 0..6 {
+                d.fd_ee_wrench[(r, j)] = row[2 * n + 6 + j];
+            }
+        }
+    }
+    d.scratch.rhs = rhs;
     data.derivatives = d;
     Ok(&data.derivatives)
 }
+
+/// Up to this many joints, `∂FD/∂x = −𝓜⁻¹ ∂ID/∂x` is a dense product with the formed `𝓜⁻¹`
+/// (O(n³), small constant); above, the factorisation runs on the columns (O(n²)). Measured
+/// crossover (BENCHMARKS.md, "Derivatives").
+pub(crate) const DENSE_PRODUCTS_UP_TO: usize = 28;
 
 /// The derivative buffers, sized for `n` joints (allocated on first use), moved out of `data`
 /// for the duration of a call.
@@ -432,21 +493,15 @@ fn minus_product(a: &DMatrix<f64>, b: &DMatrix<f64>, out: &mut DMatrix<f64>) {
     }
 }
 
-/// `𝓜⁻¹` into `s.inverse`, from the articulated-body factorisation the forward dynamics left in
-/// `data` (`U_i`, `D_i`, `I^A_B`; valid at any velocity), applied to the 6+n unit columns. In
-/// base-frame components (`U_i` moved there once, `S_i` from the derivative pass) the passes need
-/// no transforms: backwards `u_i = r_i − S_iᵀ p_i`, `p_λ += p_i + U_i u_i/D_i`; the base solves
-/// `I^A_B a_B = r_B − p_B`; forwards `q̈_i = (u_i − U_iᵀ a_λ)/D_i`, `a_i = a_λ + S_i q̈_i`. The
-/// unit column of joint `k` has `p = 0` off the path from `k` to the base, so its backward pass
-/// walks that path only: O(n) per column, O(n²) in all.
-fn inverse_mass_matrix(robot: &Robot, data: &Data, s: &mut Scratch) -> Result<()> {
-    let n = robot.dof();
-    let parents = robot.parents();
-    for i in 1..=n {
+/// Readies the forward dynamics' articulated-body factorisation in `data` (`U_i`, `D_i`,
+/// `I^A_B`; valid at any velocity) for [`apply_inverse`]: `U_i` in base-frame components, `1/D_i`
+/// and `(I^A_B)⁻¹`.
+fn factorisation(robot: &Robot, data: &Data, s: &mut Scratch) -> Result<()> {
+    for i in 1..=robot.dof() {
         s.u_base[i] = s.to_body[i].apply_force_transpose(&data.u_col[i]);
         s.inverse_d[i] = 1.0 / data.d[i];
     }
-    let base = data.ia[0]
+    s.base_inverse = data.ia[0]
         .matrix()
         .cholesky()
         .ok_or_else(|| crate::Error::InvalidArgument {
@@ -454,46 +509,174 @@ fn inverse_mass_matrix(robot: &Robot, data: &Data, s: &mut Scratch) -> Result<()
             message: "not positive definite (the model's mass matrix is singular here)".into(),
         })?
         .inverse();
-    let m = 6 + n;
-    // backwards, each joint column along its path; u_i of every column, body-major
-    s.column_u.clear();
-    s.column_u.resize((n + 1) * m, 0.0);
-    s.column_acc.clear();
-    s.column_acc.resize((n + 1) * m, Motion::zero());
-    for column in 0..m {
-        let mut p = Force::zero();
-        if column >= 6 {
-            let k = column - 5;
-            s.column_u[k * m + column] = 1.0;
-            p = s.u_base[k] * s.inverse_d[k];
-            let mut i = parents[k];
-            while i >= 1 {
-                let u = -s.axis[i].dot(&p);
-                s.column_u[i * m + column] = u;
-                p += s.u_base[i] * (u * s.inverse_d[i]);
-                i = parents[i];
-            }
-        }
-        let mut rhs = -p.to_vector();
-        if column < 6 {
-            rhs[column] += 1.0;
-        }
-        let base_acc = Motion::from_vector(&(base * rhs));
-        s.column_acc[column] = base_acc;
-        for (r, value) in base_acc.to_array().into_iter().enumerate() {
-            s.inverse[(r, column)] = value;
-        }
-    }
-    // forwards, body by body over all columns (independent chains for the processor)
-    for i in 1..=n {
-        let lambda = parents[i];
-        let (u_base, inverse_d, axis) = (s.u_base[i], s.inverse_d[i], s.axis[i]);
-        for column in 0..m {
-            let parent_acc = s.column_acc[lambda * m + column];
-            let qdd = (s.column_u[i * m + column] - parent_acc.dot(&u_base)) * inverse_d;
-            s.column_acc[i * m + column] = parent_acc + axis * qdd;
-            s.inverse[(5 + i, column)] = qdd;
-        }
-    }
     Ok(())
+}
+
+/// `R ← 𝓜⁻¹ R` for `columns` right-hand sides at once, `R` stored one generalized coordinate
+/// per row (`r[row * columns + j]`), by the factorisation [`factorisation`] readied. In
+/// base-frame components the passes need no transforms: backwards `u_i = r_i − S_iᵀ p_i`,
+/// `p_λ += p_i + U_i u_i/D_i`; the base solves `I^A_B a_B = r_B − p_B`; forwards
+/// `q̈_i = (u_i − U_iᵀ a_λ)/D_i`, `a_i = a_λ + S_i q̈_i`. O(n) per column; each pass runs body by
+/// body over all the columns, which are independent.
+fn apply_inverse(robot: &Robot, s: &mut Scratch, r: &mut [f64], columns: usize) {
+    let n = robot.dof();
+    let parents = robot.parents();
+    s.column_p.clear();
+    s.column_p.resize((n + 1) * columns, Force::zero());
+    s.column_acc.resize((n + 1) * columns, Motion::zero());
+    for i in (1..=n).rev() {
+        let (lambda, axis, u_base, inverse_d) =
+            (parents[i], s.axis[i], s.u_base[i], s.inverse_d[i]);
+        let row = &mut r[(5 + i) * columns..(6 + i) * columns];
+        for (j, value) in row.iter_mut().enumerate() {
+            let p = s.column_p[i * columns + j];
+            let u = *value - axis.dot(&p);
+            *value = u;
+            s.column_p[lambda * columns + j] += p + u_base * (u * inverse_d);
+        }
+    }
+    for j in 0..columns {
+        let rhs: [f64; 6] = std::array::from_fn(|k| r[k * columns + j]);
+        let base = s.base_inverse * (Force::from_slice(&rhs) - s.column_p[j]).to_vector();
+        for (k, value) in base.iter().enumerate() {
+            r[k * columns + j] = *value;
+        }
+        s.column_acc[j] = Motion::from_vector(&base);
+    }
+    for i in 1..=n {
+        let (lambda, axis, u_base, inverse_d) =
+            (parents[i], s.axis[i], s.u_base[i], s.inverse_d[i]);
+        let row = &mut r[(5 + i) * columns..(6 + i) * columns];
+        for (j, value) in row.iter_mut().enumerate() {
+            let parent_acc = s.column_acc[lambda * columns + j];
+            let qdd = (*value - parent_acc.dot(&u_base)) * inverse_d;
+            s.column_acc[i * columns + j] = parent_acc + axis * qdd;
+            *value = qdd;
+        }
+    }
+}
+
+/// After [`aba_derivatives`] at a state (same `data`): the forward dynamics' directional
+/// derivatives `∂FD/∂q δq + ∂FD/∂ν δν + ∂FD/∂τ δτ` for `columns` directions at once, without the
+/// dense matrices: the inverse dynamics' directional derivative (O(n) per direction, from the
+/// per-body terms; module docs) then `𝓜⁻¹` by the factorisation (O(n)). All arrays hold one
+/// coordinate per row and one direction per column: `dq` n rows, `dnu` 6+n, `dtau` n, `out` 6+n.
+pub(crate) fn fd_directional(
+    robot: &Robot,
+    data: &mut Data,
+    dq: &[f64],
+    dnu: &[f64],
+    dtau: &[f64],
+    columns: usize,
+    out: &mut [f64],
+) {
+    let n = robot.dof();
+    debug_assert_eq!(out.len(), (6 + n) * columns);
+    let s = &mut data.derivatives.scratch;
+    // a few dozen directions at a time, so the per-body buffers stay in cache
+    let mut tile = std::mem::take(&mut s.tile);
+    for start in (0..columns).step_by(DIRECTIONS_PER_TILE) {
+        let width = DIRECTIONS_PER_TILE.min(columns - start);
+        let gather = |from: &[f64], rows: usize, into: &mut Vec<f64>| {
+            into.clear();
+            for r in 0..rows {
+                into.extend_from_slice(&from[r * columns + start..r * columns + start + width]);
+            }
+        };
+        gather(dq, n, &mut tile.dq);
+        gather(dnu, 6 + n, &mut tile.dnu);
+        tile.out.clear();
+        tile.out.resize((6 + n) * width, 0.0);
+        id_directional(robot, s, &tile.dq, &tile.dnu, width, &mut tile.out);
+        gather(dtau, n, &mut tile.dq);
+        for (o, t) in tile.out[6 * width..].iter_mut().zip(&tile.dq) {
+            *o = t - *o;
+        }
+        tile.out[..6 * width].iter_mut().for_each(|o| *o = -*o);
+        apply_inverse(robot, s, &mut tile.out, width);
+        for r in 0..6 + n {
+            out[r * columns + start..r * columns + start + width]
+                .copy_from_slice(&tile.out[r * width..(r + 1) * width]);
+        }
+    }
+    s.tile = tile;
+}
+
+/// Directions handled together by [`fd_directional`].
+const DIRECTIONS_PER_TILE: usize = 32;
+
+/// [`fd_directional`]'s gathered directions and results for one tile.
+#[derive(Debug, Clone, Default)]
+struct Tile {
+    dq: Vec<f64>,
+    dnu: Vec<f64>,
+    out: Vec<f64>,
+}
+
+/// `∂ID/∂q δq + ∂ID/∂ν δν` for `columns` directions (layout of [`fd_directional`]). Row `i` is
+/// `α_i · C_i + β_i · U_i + S_i · G_i` with the path sums `C_i = c(δV) + Σ_{k ⪯ i} (c_k δq_k +
+/// 2 u_k δq̇_k)`, `U_i = δV + Σ_{k ⪯ i} (u_k δq_k + S_k δq̇_k)` and the strict-subtree sum
+/// `G_i = Σ_{k ≻ i} (δF^angle_k δq_k + δF^rate_k δq̇_k)`; the base row is the whole sum `G_B`
+/// plus the base twist's own term.
+fn id_directional(
+    robot: &Robot,
+    s: &mut Scratch,
+    dq: &[f64],
+    dnu: &[f64],
+    columns: usize,
+    out: &mut [f64],
+) {
+    let n = robot.dof();
+    let parents = robot.parents();
+    let size = (n + 1) * columns;
+    for buffer in [&mut s.path_c, &mut s.path_u] {
+        buffer.resize(size, Motion::zero());
+    }
+    s.subtree.clear();
+    s.subtree.resize(size, Force::zero());
+    let v0 = s.v[0];
+    for j in 0..columns {
+        let twist: [f64; 6] = std::array::from_fn(|k| dnu[k * columns + j]);
+        let dv = Motion::from_slice(&twist);
+        s.path_c[j] = Motion::new(
+            v0.angular.cross(&dv.angular),
+            2.0 * v0.linear.cross(&dv.angular),
+        );
+        s.path_u[j] = dv;
+    }
+    for i in 1..=n {
+        let (lambda, c, u, axis) = (parents[i], s.c[i], s.u[i], s.axis[i]);
+        let (angles, rates) = (
+            &dq[(i - 1) * columns..i * columns],
+            &dnu[(5 + i) * columns..(6 + i) * columns],
+        );
+        for (j, (&angle, &rate)) in angles.iter().zip(rates).enumerate() {
+            s.path_c[i * columns + j] =
+                s.path_c[lambda * columns + j] + c * angle + u * (2.0 * rate);
+            s.path_u[i * columns + j] = s.path_u[lambda * columns + j] + u * angle + axis * rate;
+        }
+    }
+    for i in (1..=n).rev() {
+        let (lambda, alpha, beta, axis) = (parents[i], s.alpha[i], s.beta[i], s.axis[i]);
+        let (angle_force, rate_force) = (s.angle_force[i], s.rate_force[i]);
+        let (angles, rates) = (
+            &dq[(i - 1) * columns..i * columns],
+            &dnu[(5 + i) * columns..(6 + i) * columns],
+        );
+        let row = &mut out[(5 + i) * columns..(6 + i) * columns];
+        for (j, ((value, &angle), &rate)) in row.iter_mut().zip(angles).zip(rates).enumerate() {
+            let at = i * columns + j;
+            let below = s.subtree[at];
+            *value = s.path_c[at].dot(&alpha) + beta.dot(&s.path_u[at].angular) + axis.dot(&below);
+            s.subtree[lambda * columns + j] += below + angle_force * angle + rate_force * rate;
+        }
+    }
+    let (inertia, t, momentum) = (s.inertia[0], s.t[0], s.momentum[0]);
+    for j in 0..columns {
+        let base =
+            s.subtree[j] + inertia.apply(&s.path_c[j]) + coriolis(&t, &momentum, &s.path_u[j]);
+        for (k, value) in base.to_array().into_iter().enumerate() {
+            out[k * columns + j] = value;
+        }
+    }
 }

@@ -95,13 +95,33 @@ pub(crate) fn derivative_jacobians(
 /// `u`, `f_B`, `f`), so one row of a product is a combination of contiguous rows. With the stage
 /// points `x_s = x + h_s k_{s−1}`, `dk₁ = K₁ [𝟙 | 0] + D₁` and
 /// `dk_s = K_s ([𝟙 | 0] + h_s dk_{s−1}) + D_s` (`D_s` the direct input terms), so only three
-/// products are needed, and in each only the rigid-dynamics rows of `K_s` are dense.
+/// products are needed, and in each only the rigid-dynamics rows of `K_s` are dense. Up to
+/// [`DENSE_STAGES_UP_TO`] joints those rows multiply as a dense matrix (O(n³), small constant);
+/// above, they are applied to each column as the forward dynamics' directional derivative
+/// (O(n) per column: [`algorithms::fd_directional`]), so the step's Jacobians cost O(n²).
 pub(crate) fn step_jacobians(
     arm: &FlexibleArm,
     ws: &mut ArmWorkspace,
     x: &[f64],
     dt: f64,
     inputs: &Inputs,
+) -> Result<(Jacobians, Vec<f64>)> {
+    let dense = arm.dof() <= DENSE_STAGES_UP_TO;
+    step_jacobians_with(arm, ws, x, dt, inputs, dense)
+}
+
+/// Up to this many joints the stage products of [`step_jacobians`] are dense; above, they are
+/// directional derivatives. Measured crossover (BENCHMARKS.md, "Derivatives").
+pub(crate) const DENSE_STAGES_UP_TO: usize = 40;
+
+/// [`step_jacobians`] with the stage products chosen: dense (`true`) or directional.
+pub(crate) fn step_jacobians_with(
+    arm: &FlexibleArm,
+    ws: &mut ArmWorkspace,
+    x: &[f64],
+    dt: f64,
+    inputs: &Inputs,
+    dense_products: bool,
 ) -> Result<(Jacobians, Vec<f64>)> {
     let layout = arm.layout();
     let (m, n) = (layout.len(), layout.n);
@@ -115,6 +135,7 @@ pub(crate) fn step_jacobians(
         total[r * c + r] = 1.0;
     }
     let mut k_rows = vec![0.0; m * c];
+    let (mut directional, mut spring) = (Vec::new(), Vec::new());
     let mut xs = x.to_vec();
     let mut k = vec![0.0; m];
     let mut sum = vec![0.0; m];
@@ -135,19 +156,32 @@ pub(crate) fn step_jacobians(
             (&stage.base_wrench, m + n),
             (&stage.ee_wrench, m + n + 6),
         ] {
-            for (col, column) in block.as_slice().chunks_exact(m).enumerate() {
-                for (r, value) in column.iter().enumerate() {
-                    k_rows[r * c + offset + col] = *value;
+            // eight columns at a time, so the writes of a row share a cache line
+            for (tile, columns) in block.as_slice().chunks(8 * m).enumerate() {
+                let start = offset + 8 * tile;
+                let width = columns.len() / m;
+                for r in 0..m {
+                    let row = &mut k_rows[r * c + start..r * c + start + width];
+                    for (col, value) in row.iter_mut().enumerate() {
+                        *value = columns[col * m + r];
+                    }
                 }
             }
         }
         std::mem::swap(&mut dk, &mut previous);
+        if s > 0 && !dense_products {
+            directional_rows(arm, ws, &xs, &previous, c, &mut directional, &mut spring);
+        }
         for (r, (row, k_row)) in dk
             .chunks_exact_mut(c)
             .zip(k_rows.chunks_exact(c))
             .enumerate()
         {
-            if s > 0 && dense.contains(&r) {
+            if s > 0 && dense.contains(&r) && !dense_products {
+                let y = &directional[(r - dense.start) * c..(r - dense.start + 1) * c];
+                row.iter_mut().zip(y).for_each(|(o, y)| *o = h * y);
+            } else if s > 0 && dense.contains(&r) {
+                // (the rigid dynamics do not depend on the base pose: zero gravity)
                 debug_assert!(k_row[..pose].iter().all(|&w| w == 0.0));
                 // the rows of dk_{s−1} from q on, as the columns of a c × (m − pose) matrix
                 crate::linalg::scaled_product(h, &previous[pose * c..], c, &k_row[pose..m], row);
@@ -182,6 +216,77 @@ pub(crate) fn step_jacobians(
     Ok((to_tangent(arm, x, &next, &total), next))
 }
 
+/// The dense rows of `K_s · dk_{s−1}` (the base twist's rate and `q̈`, `6 + n` rows of `c`) as
+/// directional derivatives, one per column of `dk_{s−1}` (`previous`, row-major): the forward
+/// dynamics along `(δq, δν)` with the spring torque's change `k (δθ − δq) + d (δθ̇ − δq̇)`, then
+/// `v̇_B`'s own terms `v_B × δω_B − ω_B × δv_B`. Needs the stage's [`algorithms::aba_derivatives`]
+/// in `ws.data` (as [`jacobians_into`] leaves it).
+fn directional_rows(
+    arm: &FlexibleArm,
+    ws: &mut ArmWorkspace,
+    xs: &[f64],
+    previous: &[f64],
+    c: usize,
+    out: &mut Vec<f64>,
+    spring: &mut Vec<f64>,
+) {
+    let layout = arm.layout();
+    let n = layout.n;
+    let pose = Coordinates::Raw.pose();
+    let (q, theta, twist, qd, theta_dot) = (
+        pose,
+        pose + n,
+        pose + 2 * n,
+        pose + 2 * n + 6,
+        pose + 3 * n + 6,
+    );
+    let row = |r: usize| &previous[r * c..(r + 1) * c];
+    let p = arm.joints();
+    spring.clear();
+    spring.resize(n * c, 0.0);
+    for i in 0..n {
+        let (k, d) = (p.stiffness[i], p.damping[i]);
+        let rows = row(q + i)
+            .iter()
+            .zip(row(theta + i))
+            .zip(row(qd + i).iter().zip(row(theta_dot + i)));
+        for (o, ((dq, dtheta), (dqd, dtheta_dot))) in
+            spring[i * c..(i + 1) * c].iter_mut().zip(rows)
+        {
+            *o = k * (dtheta - dq) + d * (dtheta_dot - dqd);
+        }
+    }
+    out.clear();
+    out.resize((6 + n) * c, 0.0);
+    algorithms::fd_directional(
+        arm.robot(),
+        &mut ws.data,
+        &previous[q * c..(q + n) * c],
+        &previous[twist * c..(theta_dot) * c],
+        spring,
+        c,
+        out,
+    );
+    let s = layout.split(xs);
+    let (omega, v) = (s.omega(), s.velocity());
+    for j in 0..c {
+        let d_omega = Vec3::new(
+            previous[twist * c + j],
+            previous[(twist + 1) * c + j],
+            previous[(twist + 2) * c + j],
+        );
+        let d_v = Vec3::new(
+            previous[(twist + 3) * c + j],
+            previous[(twist + 4) * c + j],
+            previous[(twist + 5) * c + j],
+        );
+        let extra = v.cross(&d_omega) - omega.cross(&d_v);
+        for r in 0..3 {
+            out[(3 + r) * c + j] += extra[r];
+        }
+    }
+}
+
 /// `A = P(x⁺) J E(x)` for the state columns and `P(x⁺) J` for the inputs, from the raw step
 /// Jacobian `J` (row-major, `m × c`). `E(x)` turns a tangent at `x` into a raw perturbation
 /// (identity except `δquat = ½ quat ⊗ (δφ, 0)`), `P(x⁺)` a raw perturbation at `x⁺` back into a
@@ -206,9 +311,11 @@ fn to_tangent(arm: &FlexibleArm, x: &[f64], next: &[f64], total: &[f64]) -> Jaco
         let product = quaternion_product(&conjugate, &unit);
         [2.0 * product[0], 2.0 * product[1], 2.0 * product[2]]
     });
-    let mut out = Jacobians::zeros(t, t, n);
+    // the result row by row (row-major, t × (t + n + 12)), then into the column-major outputs
+    let width = t + n + 12;
+    let mut rows = vec![0.0; t * width];
     let mut row = vec![0.0; c];
-    for tr in 0..t {
+    for (tr, out_row) in rows.chunks_exact_mut(width).enumerate() {
         match tr {
             0..=2 => row.copy_from_slice(&total[tr * c..(tr + 1) * c]),
             3..=5 => {
@@ -222,22 +329,40 @@ fn to_tangent(arm: &FlexibleArm, x: &[f64], next: &[f64], total: &[f64]) -> Jaco
             }
             _ => row.copy_from_slice(&total[(tr + 1) * c..(tr + 2) * c]),
         }
-        for tc in 0..t {
-            out.x[(tr, tc)] = match tc {
+        for (tc, value) in out_row[..t].iter_mut().enumerate() {
+            *value = match tc {
                 0..=2 => row[tc],
                 3..=5 => (0..4).map(|r| row[3 + r] * e[tc - 3][r]).sum(),
                 _ => row[tc + 1],
             };
         }
-        for j in 0..n {
-            out.u[(tr, j)] = row[m + j];
-        }
-        for j in 0..6 {
-            out.base_wrench[(tr, j)] = row[m + n + j];
-            out.ee_wrench[(tr, j)] = row[m + n + 6 + j];
-        }
+        out_row[t..].copy_from_slice(&row[m..]);
+    }
+    let mut out = Jacobians::zeros(t, t, n);
+    for (block, offset) in [
+        (&mut out.x, 0),
+        (&mut out.u, t),
+        (&mut out.base_wrench, t + n),
+        (&mut out.ee_wrench, t + n + 6),
+    ] {
+        transpose_rows(&rows, width, offset, block);
     }
     out
+}
+
+/// `out[(i, j)] = rows[i * width + offset + j]` for a column-major `out`, eight rows at a time
+/// so that the writes of a column share a cache line.
+fn transpose_rows(rows: &[f64], width: usize, offset: usize, out: &mut DMatrix<f64>) {
+    let (height, columns) = out.shape();
+    let out = out.as_mut_slice();
+    for start in (0..height).step_by(8) {
+        let end = (start + 8).min(height);
+        for j in 0..columns {
+            for i in start..end {
+                out[j * height + i] = rows[i * width + offset + j];
+            }
+        }
+    }
 }
 
 /// The state derivative's Jacobians at `x` in `coordinates` into `out` (rows and state columns
@@ -380,6 +505,75 @@ fn raw_pose_rows(quat: &[f64], omega: &Vec3, v: &Vec3, out: &mut DMatrix<f64>, t
         let column = quaternion_product(quat, &e);
         for r in 0..4 {
             out[(3 + r, twist + axis)] = 0.5 * column[r];
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::testing::{random_chain, random_tree, Rng};
+    use crate::{FlexibleJoints, Loads, Robot, StateSpec};
+
+    /// The directional stage products equal the dense ones to round-off, on a chain and on a
+    /// branched tree, with every input and damping term non-zero.
+    #[test]
+    fn directional_stage_products_equal_dense_ones() {
+        for (robot, seed) in [(random_chain(7, 3), 3), (random_tree(4), 4)] {
+            let robot: Robot = robot;
+            let n = robot.dof();
+            let mut rng = Rng::new(seed);
+            let joints = FlexibleJoints::new(
+                rng.vector(n, 200.0, 800.0),
+                rng.vector(n, 0.05, 0.2),
+                rng.vector(n, 0.1, 1.0),
+                rng.vector(n, 0.1, 0.5),
+            )
+            .unwrap();
+            let arm = FlexibleArm::new(robot, joints).unwrap();
+            let q = rng.vector(n, -1.0, 1.0);
+            let (theta, qd, td) = (
+                rng.vector(n, -1.0, 1.0),
+                rng.vector(n, -0.5, 0.5),
+                rng.vector(n, -0.5, 0.5),
+            );
+            let (twist, pose) = (
+                rng.vector(6, -0.3, 0.3),
+                [0.1, 0.2, 0.3, 0.2, -0.4, 0.3, 0.8],
+            );
+            let mut x = arm
+                .state(&StateSpec {
+                    q: Some(&q),
+                    theta: Some(&theta),
+                    qd: Some(&qd),
+                    theta_dot: Some(&td),
+                    base_pose: Some(&pose),
+                    base_twist: Some(&twist),
+                })
+                .unwrap();
+            normalise_quaternion(&mut x[arm.layout().quaternion()]);
+            let (u, fb, f) = (
+                rng.vector(n, -3.0, 3.0),
+                rng.vector(6, -3.0, 3.0),
+                rng.vector(6, -3.0, 3.0),
+            );
+            let inputs = Inputs {
+                u: &u,
+                loads: Loads::from_slices(Some(&fb), Some(&f)).unwrap(),
+            };
+            let mut ws = arm.workspace();
+            let (dense, _) = step_jacobians_with(&arm, &mut ws, &x, 2e-3, &inputs, true).unwrap();
+            let (directional, _) =
+                step_jacobians_with(&arm, &mut ws, &x, 2e-3, &inputs, false).unwrap();
+            for (a, b) in [
+                (&dense.x, &directional.x),
+                (&dense.u, &directional.u),
+                (&dense.base_wrench, &directional.base_wrench),
+                (&dense.ee_wrench, &directional.ee_wrench),
+            ] {
+                let scale = a.amax().max(1.0);
+                assert!((a - b).amax() < 1e-13 * scale, "{}", (a - b).amax() / scale);
+            }
         }
     }
 }
