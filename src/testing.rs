@@ -110,14 +110,24 @@ pub fn random_chain(n: usize, seed: u64) -> Robot {
         .expect("random chains are valid")
 }
 
-/// A random branched tree of 7 joints (seeded): the bodies of [`random_chain`] re-hung as
-/// `parents = [·, 0, 1, 1, 3, 2, 2, 6]`, so body 1 carries two branches and the base a single
-/// trunk, with the EE frame on body 4 (path 4 → 3 → 1 → base; bodies 2, 5, 6, 7 are off it).
-/// For checking that the recursions follow `parents` rather than assuming a chain.
-pub fn random_tree(seed: u64) -> Robot {
-    let mut robot = random_chain(7, seed);
-    robot.parents = vec![0, 0, 1, 1, 3, 2, 2, 6];
-    robot.ee_body = 4;
+/// The branched tree of [`random_tree`]: body 1 carries two branches on a single trunk, the
+/// EE frame on body 4 (path 4 → 3 → 1 → base; bodies 2, 5, 6, 7 are off it).
+pub const TREE_ONE_TRUNK: (&[usize], usize) = (&[0, 0, 1, 1, 3, 2, 2, 6], 4);
+
+/// Three arms on the base (bodies 1, 2 and 9), the first forked at body 1, the EE frame on body 8
+/// (path 8 → 7 → 1 → base).
+pub const TREE_THREE_ARMS: (&[usize], usize) = (&[0, 0, 0, 1, 2, 2, 4, 1, 7, 0], 8);
+
+/// A random branched tree (seeded): the bodies of [`random_chain`] re-hung from `parents`
+/// (`parents[i] < i`, entry 0 unused) with the EE frame on body `ee_body`, for checking that the
+/// recursions follow `parents` rather than assuming a chain. `shape` is one of
+/// [`TREE_ONE_TRUNK`], [`TREE_THREE_ARMS`] or any `(parents, ee_body)` of that form.
+pub fn random_tree(shape: (&[usize], usize), seed: u64) -> Robot {
+    let (parents, ee_body) = shape;
+    assert!(parents.iter().enumerate().skip(1).all(|(i, &p)| p < i) && ee_body < parents.len());
+    let mut robot = random_chain(parents.len() - 1, seed);
+    robot.parents = parents.to_vec();
+    robot.ee_body = ee_body;
     robot.name = format!("random_tree_{seed}");
     robot
 }

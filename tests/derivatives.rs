@@ -4,7 +4,9 @@
 
 use nalgebra::DMatrix;
 use orbitflex::algorithms::{self, Data};
-use orbitflex::testing::{random_chain, random_state, random_tree, Rng};
+use orbitflex::testing::{
+    random_chain, random_state, random_tree, Rng, TREE_ONE_TRUNK, TREE_THREE_ARMS,
+};
 use orbitflex::{Loads, RigidState, Robot};
 
 /// Largest entrywise difference relative to the largest entry of `want` (at least 1).
@@ -144,10 +146,10 @@ fn derivatives_equal_central_differences_on_random_chains() {
 /// leave each other's torques unchanged (zeros in `∂ID/∂q`, `∂ID/∂q̇`), and the EE wrench
 /// reaches only the joints on its path.
 #[test]
-fn derivatives_equal_central_differences_on_a_branched_tree() {
+fn derivatives_equal_central_differences_on_branched_trees() {
     for seed in 0..3 {
-        let c = case(random_tree(seed), seed);
-        check(&c, &format!("tree seed={seed}"));
+        let c = case(random_tree(TREE_ONE_TRUNK, seed), seed);
+        check(&c, &format!("one trunk, seed={seed}"));
         let mut data = Data::new(&c.robot);
         let state = RigidState::new(&c.q, &c.v, &c.qd);
         let d = algorithms::rnea_derivatives(
@@ -166,6 +168,8 @@ fn derivatives_equal_central_differences_on_a_branched_tree() {
         for off_path in [1, 4, 5, 6] {
             assert!(d.id_ee_wrench.row(6 + off_path).iter().all(|&x| x == 0.0));
         }
+        let c = case(random_tree(TREE_THREE_ARMS, seed), seed);
+        check(&c, &format!("three arms, seed={seed}"));
     }
 }
 

@@ -10,7 +10,7 @@
 //! `τ_i = S_iᵀ F_i` and `f_B = F_B`.
 //!
 //! Turning joint `k` by `δq_k` turns its whole subtree about `S_k`. Split off that rigid turn
-//! (which leaves every `τ_i` of the subtree unchanged and turns `F_k` into `S_k ×* F_k`); what is
+//! (which leaves every `τ_i` of the subtree unchanged and adds `S_k ×* F_k` to `δF_k`); what is
 //! left is a uniform velocity change `u_k = v_k ×ₘ S_k` and an acceleration change
 //! `c_k + u_k ×ₘ v_j`, `c_k = a_k ×ₘ S_k + v_k ×ₘ u_k`, on every body `j` of the subtree. Summed over
 //! a subtree, a velocity change `u` and an acceleration change `c + u ×ₘ v_j` change the force by
@@ -34,10 +34,18 @@
 //!
 //! **Forward dynamics.** `ID(q, ν, FD(q, ν, u)) = u` for every input, so
 //! `∂FD/∂(q, ν) = −𝓜⁻¹ ∂ID/∂(q, ν)` at `a = FD`, `∂FD/∂τ = 𝓜⁻¹ [0; 𝟙]`,
-//! `∂FD/∂f_B = 𝓜⁻¹ [𝟙; 0]` and `∂FD/∂f = −𝓜⁻¹ [Φ_{n+1,B}ᵀ; Jᵀ]`. `𝓜⁻¹` comes from the
-//! articulated-body factorisation that the forward dynamics has just built (`U`, `D`, `I^A_B`,
-//! valid at any velocity), applied to the 6+n unit columns (a backward and a forward pass, O(n)
-//! per column), and the products are dense (6+n)-row matrix products: no mass matrix is formed.
+//! `∂FD/∂f_B = 𝓜⁻¹ [𝟙; 0]` and `∂FD/∂f = −𝓜⁻¹ [Φ_{n+1,B}ᵀ; Jᵀ]`. The articulated-body
+//! factorisation that the forward dynamics has just built (`U`, `D`, `I^A_B`, valid at any
+//! velocity) applies `𝓜⁻¹` to a column in O(n) (no mass matrix is formed): to the 6+n unit
+//! columns for `𝓜⁻¹` itself, whose columns are `∂FD/∂τ` and `∂FD/∂f_B`; then, up to
+//! [`DENSE_PRODUCTS_UP_TO`] joints, `−𝓜⁻¹ ∂ID/∂x` is a dense product (O(n³) with a small
+//! constant, cheaper there), and above it the factorisation runs on the columns of `∂ID/∂x`,
+//! so the whole is O(n²).
+//!
+//! **Directional derivatives.** [`fd_directional`] applies `∂FD/∂(q, ν, τ)` to many directions
+//! without the matrices: the path and subtree sums of the formulas above give the inverse
+//! dynamics' change in O(n) per direction, and the factorisation the `𝓜⁻¹`. The step Jacobians
+//! of long arms use it.
 
 // Loops run over body indices `i`, the equations' indices; iterator chains would hide them.
 #![allow(clippy::needless_range_loop)]
@@ -222,7 +230,9 @@ fn coriolis(t: &Mat3, momentum: &Force, y: &Motion) -> Force {
 /// [`crate::algorithms::rnea`]), into `data.derivatives` (`id_q`, `id_v`, `id_ee_wrench`).
 /// `∂[f_B; τ]/∂[α_B; q̈]` is the mass matrix ([`crate::algorithms::crba`]).
 ///
-/// The first call allocates the O(n²) outputs; later calls reuse them.
+/// Of the per-body buffers of `data`, only `x` (the joint transforms at `q`) is refreshed; the
+/// velocities and forces of [`crate::algorithms::rnea`] are not computed. The first call
+/// allocates the O(n²) outputs; later calls reuse them.
 pub fn rnea_derivatives<'a>(
     robot: &Robot,
     data: &'a mut Data,
@@ -501,14 +511,14 @@ fn factorisation(robot: &Robot, data: &Data, s: &mut Scratch) -> Result<()> {
         s.u_base[i] = s.to_body[i].apply_force_transpose(&data.u_col[i]);
         s.inverse_d[i] = 1.0 / data.d[i];
     }
+    // the forward dynamics' own base solve, so that it fails exactly when that one did (and it
+    // has just succeeded)
     s.base_inverse = data.ia[0]
-        .matrix()
-        .cholesky()
+        .inverse()
         .ok_or_else(|| crate::Error::InvalidArgument {
             what: "articulated base inertia".into(),
             message: "not positive definite (the model's mass matrix is singular here)".into(),
-        })?
-        .inverse();
+        })?;
     Ok(())
 }
 

@@ -512,14 +512,18 @@ fn raw_pose_rows(quat: &[f64], omega: &Vec3, v: &Vec3, out: &mut DMatrix<f64>, t
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::testing::{random_chain, random_tree, Rng};
+    use crate::testing::{random_chain, random_tree, Rng, TREE_ONE_TRUNK, TREE_THREE_ARMS};
     use crate::{FlexibleJoints, Loads, Robot, StateSpec};
 
     /// The directional stage products equal the dense ones to round-off, on a chain and on a
     /// branched tree, with every input and damping term non-zero.
     #[test]
     fn directional_stage_products_equal_dense_ones() {
-        for (robot, seed) in [(random_chain(7, 3), 3), (random_tree(4), 4)] {
+        for (robot, seed) in [
+            (random_chain(7, 3), 3),
+            (random_tree(TREE_ONE_TRUNK, 4), 4),
+            (random_tree(TREE_THREE_ARMS, 5), 5),
+        ] {
             let robot: Robot = robot;
             let n = robot.dof();
             let mut rng = Rng::new(seed);

@@ -131,6 +131,25 @@ fn cholesky_solve(l: &[f64; 6], b: &Vec3) -> Vec3 {
     Vec3::new(x0, x1, x2)
 }
 
+/// The factors of `I^A = [[A, B], [Bᵀ, C]]` for solves: the Cholesky factors of `C` and of the
+/// Schur complement `A − B C⁻¹ Bᵀ`, `B`, and `W = C⁻¹ Bᵀ`.
+#[derive(Debug, Clone, Copy)]
+struct BlockFactor {
+    linear: [f64; 6],
+    schur: [f64; 6],
+    coupling: Mat3,
+    w: Mat3,
+}
+
+impl BlockFactor {
+    /// `α_ω = S⁻¹ (f_n − B C⁻¹ f_F)`, `α_v = C⁻¹ f_F − W α_ω`.
+    fn solve(&self, f: &Force) -> Motion {
+        let y = cholesky_solve(&self.linear, &f.linear);
+        let angular = cholesky_solve(&self.schur, &(f.angular - self.coupling * y));
+        Motion::new(angular, y - self.w * angular)
+    }
+}
+
 impl Add for Symmetric3 {
     type Output = Self;
     #[inline]
@@ -235,6 +254,24 @@ impl ArticulatedInertia {
     /// `S = A − B W`, then `α_ω = S⁻¹ (f_n − B C⁻¹ f_F)` and `α_v = C⁻¹ f_F − W α_ω`; both 3×3
     /// systems are solved by Cholesky.
     pub fn solve(&self, f: &Force) -> Option<Motion> {
+        Some(self.factor()?.solve(f))
+    }
+
+    /// `(I^A)⁻¹`, by the factorisation of [`solve`](Self::solve) (done once) on the six unit
+    /// forces, or `None` when `I^A` is not positive definite (exactly when `solve` fails).
+    pub fn inverse(&self) -> Option<Mat6> {
+        let factor = self.factor()?;
+        let mut inverse = Mat6::zeros();
+        for j in 0..6 {
+            let mut unit = [0.0; 6];
+            unit[j] = 1.0;
+            inverse.set_column(j, &factor.solve(&Force::from_slice(&unit)).to_vector());
+        }
+        Some(inverse)
+    }
+
+    /// The block factorisation of [`solve`](Self::solve).
+    fn factor(&self) -> Option<BlockFactor> {
         let c = self.linear.cholesky()?;
         let b = &self.coupling;
         // W = C⁻¹ Bᵀ, column by column: column k solves C w = (row k of B)ᵀ.
@@ -250,10 +287,12 @@ impl ArticulatedInertia {
             yz: self.angular.yz - (b1 * w2)[0],
             zz: self.angular.zz - (b2 * w2)[0],
         };
-        let y = cholesky_solve(&c, &f.linear);
-        let angular = cholesky_solve(&schur.cholesky()?, &(f.angular - b * y));
-        let w = Mat3::from_columns(&[w0, w1, w2]);
-        Some(Motion::new(angular, y - w * angular))
+        Some(BlockFactor {
+            linear: c,
+            schur: schur.cholesky()?,
+            coupling: *b,
+            w: Mat3::from_columns(&[w0, w1, w2]),
+        })
     }
 
     /// `I^A [h; 0] = [A h; Bᵀ h]`: the ABA's `U = I^A H` for a revolute axis `h`.

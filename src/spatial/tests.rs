@@ -181,6 +181,8 @@ fn articulated_inertia_operations_equal_their_matrices() {
 
         let solved = ia.solve(&f).expect("positive definite");
         close6(&(dense * solved.to_vector()), &f.to_vector());
+        let inverse = ia.inverse().expect("positive definite");
+        close66(&(dense * inverse), &Mat6::identity());
 
         let rigid = inertia(&mut rng);
         close66(&ArticulatedInertia::from(&rigid).matrix(), &rigid.matrix());
@@ -208,6 +210,7 @@ fn articulated_solve_rejects_what_is_not_positive_definite() {
     nan.coupling[(1, 2)] = f64::NAN;
     for ia in [linear_bad, angular_bad, nan, ArticulatedInertia::zero()] {
         assert!(ia.solve(&f).is_none(), "{ia:?}");
+        assert!(ia.inverse().is_none(), "{ia:?}");
     }
 }
 
