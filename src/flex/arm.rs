@@ -266,8 +266,22 @@ impl FlexibleArm {
         let rigid = RigidState::new(s.q, s.base_twist, s.qd);
         self.method
             .forward_dynamics_unchecked(&self.robot, data, &rigid, tau, &inputs.loads)?;
-        let acc = data.ddq.as_slice();
+        self.assemble_derivative(x, inputs, tau, data.ddq.as_slice(), xdot);
+        Ok(())
+    }
 
+    /// The state derivative at `x` from the spring torques `tau` and the rigid accelerations
+    /// `acc = [α_B; q̈]` already computed there.
+    pub(crate) fn assemble_derivative(
+        &self,
+        x: &[f64],
+        inputs: &Inputs,
+        tau: &[f64],
+        acc: &[f64],
+        xdot: &mut [f64],
+    ) {
+        let layout = self.layout();
+        let s = layout.split(x);
         let (omega, v) = (s.omega(), s.velocity());
         let r_dot = quaternion_to_rotation(s.quaternion) * v;
         xdot[layout.position()].copy_from_slice(r_dot.as_slice());
@@ -284,7 +298,6 @@ impl FlexibleArm {
             *motor =
                 (inputs.u[i] - tau[i] - p.motor_damping[i] * s.theta_dot[i]) / p.motor_inertia[i];
         }
-        Ok(())
     }
 
     /// One classic RK4 step of length `dt` in place, inputs held over the step; the quaternion is

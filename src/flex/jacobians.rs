@@ -147,8 +147,9 @@ pub(crate) fn step_jacobians_with(
         .into_iter()
         .enumerate()
     {
-        arm.derivative_unchecked(&mut ws.data, &mut ws.tau, &xs, inputs, &mut k)?;
+        // (the stage's forward dynamics is the one the derivatives have just run)
         jacobians_into(arm, ws, &xs, inputs, Coordinates::Raw, &mut stage)?;
+        arm.assemble_derivative(&xs, inputs, &ws.tau, ws.data.ddq.as_slice(), &mut k);
         // K_s and D_s row by row: [K_x | K_u | K_B | K_E], m × c
         for (block, offset) in [
             (&stage.x, 0),
@@ -157,9 +158,10 @@ pub(crate) fn step_jacobians_with(
             (&stage.ee_wrench, m + n + 6),
         ] {
             // eight columns at a time, so the writes of a row share a cache line
+            let total_columns = block.ncols();
             for (tile, columns) in block.as_slice().chunks(8 * m).enumerate() {
                 let start = offset + 8 * tile;
-                let width = columns.len() / m;
+                let width = (total_columns - 8 * tile).min(8);
                 for r in 0..m {
                     let row = &mut k_rows[r * c + start..r * c + start + width];
                     for (col, value) in row.iter_mut().enumerate() {
