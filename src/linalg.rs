@@ -1,5 +1,6 @@
 //! Eigenvalues of a real, non-symmetric matrix: balancing, Hessenberg reduction and the
-//! Francis double-shift QR iteration with exceptional shifts.
+//! Francis double-shift QR iteration with exceptional shifts. Also the matrix–vector kernel of
+//! the derivative chains (`scaled_product`).
 //!
 //! nalgebra's `complex_eigenvalues` runs the same QR iteration without exceptional shifts and
 //! without an iteration limit: on the step matrices of a free-floating arm, whose eigenvalues
