@@ -132,6 +132,19 @@ pub fn random_tree(shape: (&[usize], usize), seed: u64) -> Robot {
     robot
 }
 
+/// Random flexible-joint parameters for `n` joints (seeded): stiffness 200–800 N·m/rad, damping
+/// 0.05–0.2 N·m·s/rad, motor inertia 0.1–1 kg·m², motor damping 0.1–0.5 N·m·s/rad.
+pub fn random_joints(n: usize, seed: u64) -> crate::FlexibleJoints {
+    let mut rng = Rng::new(seed);
+    crate::FlexibleJoints::new(
+        rng.vector(n, 200.0, 800.0),
+        rng.vector(n, 0.05, 0.2),
+        rng.vector(n, 0.1, 1.0),
+        rng.vector(n, 0.1, 0.5),
+    )
+    .expect("positive parameters")
+}
+
 /// A random state `(q, base_twist, qd)` for `robot`: angles in ±π, rates in ±1.
 pub fn random_state(robot: &Robot, seed: u64) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
     let mut rng = Rng::new(seed ^ 0xABCD);

@@ -2,8 +2,8 @@
 //! on the tangent space, and the tangent space's own identities.
 
 use nalgebra::DMatrix;
-use orbitflex::testing::{random_chain, random_tree, Rng, TREE_THREE_ARMS};
-use orbitflex::{FlexibleArm, FlexibleJoints, Inputs, Loads, Robot, StateSpec};
+use orbitflex::testing::{random_chain, random_joints, random_tree, Rng, TREE_THREE_ARMS};
+use orbitflex::{FlexibleArm, Inputs, Loads, Robot, StateSpec};
 
 fn rel(got: &DMatrix<f64>, want: &DMatrix<f64>) -> f64 {
     (got - want).amax() / want.amax().max(1.0)
@@ -11,15 +11,7 @@ fn rel(got: &DMatrix<f64>, want: &DMatrix<f64>) -> f64 {
 
 fn arm(robot: Robot, seed: u64) -> FlexibleArm {
     let n = robot.dof();
-    let mut rng = Rng::new(seed);
-    let joints = FlexibleJoints::new(
-        rng.vector(n, 200.0, 800.0),
-        rng.vector(n, 0.05, 0.2),
-        rng.vector(n, 0.1, 1.0),
-        rng.vector(n, 0.1, 0.5),
-    )
-    .unwrap();
-    FlexibleArm::new(robot, joints).unwrap()
+    FlexibleArm::new(robot, random_joints(n, seed)).unwrap()
 }
 
 fn state(arm: &FlexibleArm, seed: u64) -> Vec<f64> {

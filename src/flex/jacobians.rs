@@ -70,6 +70,28 @@ impl Coordinates {
             Coordinates::Raw => 7,
         }
     }
+
+    /// Where the dynamic blocks start, for `n` joints.
+    fn blocks(self, n: usize) -> Blocks {
+        let pose = self.pose();
+        Blocks {
+            q: pose,
+            theta: pose + n,
+            twist: pose + 2 * n,
+            qd: pose + 2 * n + 6,
+            theta_dot: pose + 3 * n + 6,
+        }
+    }
+}
+
+/// The first index of each dynamic block of a state (or tangent): `q`, `θ`, the base twist,
+/// `q̇`, `θ̇`.
+struct Blocks {
+    q: usize,
+    theta: usize,
+    twist: usize,
+    qd: usize,
+    theta_dot: usize,
 }
 
 /// The continuous-time Jacobians `F`, `G`, `G_B`, `G_E` of the state derivative at `x` with
@@ -234,14 +256,13 @@ fn directional_rows(
 ) {
     let layout = arm.layout();
     let n = layout.n;
-    let pose = Coordinates::Raw.pose();
-    let (q, theta, twist, qd, theta_dot) = (
-        pose,
-        pose + n,
-        pose + 2 * n,
-        pose + 2 * n + 6,
-        pose + 3 * n + 6,
-    );
+    let Blocks {
+        q,
+        theta,
+        twist,
+        qd,
+        theta_dot,
+    } = Coordinates::Raw.blocks(n);
     let row = |r: usize| &previous[r * c..(r + 1) * c];
     let p = arm.joints();
     spring.clear();
@@ -387,15 +408,14 @@ fn jacobians_into(
     let p = arm.joints();
     out.x.as_mut_slice().fill(0.0);
     out.u.as_mut_slice().fill(0.0);
-    let pose = coordinates.pose();
     // offsets of the dynamic blocks, the same in rows and columns
-    let (q, theta, twist, qd, theta_dot) = (
-        pose,
-        pose + n,
-        pose + 2 * n,
-        pose + 2 * n + 6,
-        pose + 3 * n + 6,
-    );
+    let Blocks {
+        q,
+        theta,
+        twist,
+        qd,
+        theta_dot,
+    } = coordinates.blocks(n);
     let (omega, v) = (s.omega(), s.velocity());
     let rotation = quaternion_to_rotation(s.quaternion);
     let block = |m: &mut DMatrix<f64>, r: usize, c: usize, value: &Mat3| {
@@ -514,8 +534,10 @@ fn raw_pose_rows(quat: &[f64], omega: &Vec3, v: &Vec3, out: &mut DMatrix<f64>, t
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::testing::{random_chain, random_tree, Rng, TREE_ONE_TRUNK, TREE_THREE_ARMS};
-    use crate::{FlexibleJoints, Loads, Robot, StateSpec};
+    use crate::testing::{
+        random_chain, random_joints, random_tree, Rng, TREE_ONE_TRUNK, TREE_THREE_ARMS,
+    };
+    use crate::{Loads, Robot, StateSpec};
 
     /// The directional stage products equal the dense ones to round-off, on a chain and on a
     /// branched tree, with every input and damping term non-zero.
@@ -528,15 +550,8 @@ mod tests {
         ] {
             let robot: Robot = robot;
             let n = robot.dof();
-            let mut rng = Rng::new(seed);
-            let joints = FlexibleJoints::new(
-                rng.vector(n, 200.0, 800.0),
-                rng.vector(n, 0.05, 0.2),
-                rng.vector(n, 0.1, 1.0),
-                rng.vector(n, 0.1, 0.5),
-            )
-            .unwrap();
-            let arm = FlexibleArm::new(robot, joints).unwrap();
+            let mut rng = Rng::new(seed + 100);
+            let arm = FlexibleArm::new(robot, random_joints(n, seed)).unwrap();
             let q = rng.vector(n, -1.0, 1.0);
             let (theta, qd, td) = (
                 rng.vector(n, -1.0, 1.0),
