@@ -1,7 +1,7 @@
 //! [`FlexibleArm`]: a floating-base arm with Spong flexible joints, its state derivative and the
 //! quantities an engineer checks a run against (energy, momentum, EE pose).
 
-use super::jacobians::{self, Jacobians};
+use super::jacobians::{self, Jacobians, StepScratch};
 use super::joints::FlexibleJoints;
 use super::stability::{self, StabilityLimit};
 use super::state::{normalise_quaternion, quaternion_rate, StateLayout};
@@ -86,6 +86,8 @@ pub struct ArmWorkspace {
     pub(crate) data: Data,
     pub(crate) tau: Vec<f64>,
     pub(crate) rk4: Rk4,
+    /// The step Jacobians' buffers, sized by their first call.
+    pub(crate) jacobians: StepScratch,
 }
 
 impl ArmWorkspace {
@@ -95,6 +97,7 @@ impl ArmWorkspace {
             data: Data::new(&arm.robot),
             tau: vec![0.0; arm.robot.dof()],
             rk4: Rk4::new(arm.layout().len()),
+            jacobians: StepScratch::default(),
         }
     }
 

@@ -148,16 +148,93 @@ pub(crate) fn step_jacobians_with(
     let layout = arm.layout();
     let (m, n) = (layout.len(), layout.n);
     let c = m + n + 12;
-    let mut stage = Jacobians::zeros(m, m, n);
+    // the buffers live in the workspace: fresh megabytes per call would cost page faults
+    let mut scratch = std::mem::take(&mut ws.jacobians);
+    if scratch.stage.x.nrows() != m {
+        scratch.stage = Jacobians::zeros(m, m, n);
+    }
+    let StepScratch {
+        stage,
+        dk,
+        previous,
+        total,
+        k_rows,
+        directional,
+        spring,
+    } = &mut scratch;
     // row-major m × c: this stage's dk_s, the previous one, and J = 𝟙 + dt/6 Σ w_s dk_s
-    let mut dk = vec![0.0; m * c];
-    let mut previous = vec![0.0; m * c];
-    let mut total = vec![0.0; m * c];
+    for buffer in [&mut *dk, &mut *previous, &mut *k_rows] {
+        buffer.resize(m * c, 0.0);
+    }
+    total.clear();
+    total.resize(m * c, 0.0);
     for r in 0..m {
         total[r * c + r] = 1.0;
     }
-    let mut k_rows = vec![0.0; m * c];
-    let (mut directional, mut spring) = (Vec::new(), Vec::new());
+    let result = stage_chain(
+        arm,
+        ws,
+        x,
+        dt,
+        inputs,
+        dense_products,
+        (stage, dk, previous, total, k_rows, directional, spring),
+    );
+    ws.jacobians = scratch;
+    result
+}
+
+/// The buffers of [`step_jacobians`], kept in the [`ArmWorkspace`] between calls.
+#[derive(Debug, Clone)]
+pub(crate) struct StepScratch {
+    stage: Jacobians,
+    dk: Vec<f64>,
+    previous: Vec<f64>,
+    total: Vec<f64>,
+    k_rows: Vec<f64>,
+    directional: Vec<f64>,
+    spring: Vec<f64>,
+}
+
+impl Default for StepScratch {
+    fn default() -> Self {
+        Self {
+            stage: Jacobians::zeros(0, 0, 0),
+            dk: Vec::new(),
+            previous: Vec::new(),
+            total: Vec::new(),
+            k_rows: Vec::new(),
+            directional: Vec::new(),
+            spring: Vec::new(),
+        }
+    }
+}
+
+/// The stage buffers of [`stage_chain`].
+type StageBuffers<'a> = (
+    &'a mut Jacobians,
+    &'a mut Vec<f64>,
+    &'a mut Vec<f64>,
+    &'a mut Vec<f64>,
+    &'a mut Vec<f64>,
+    &'a mut Vec<f64>,
+    &'a mut Vec<f64>,
+);
+
+/// The four stages and the map to tangent coordinates of [`step_jacobians_with`].
+fn stage_chain(
+    arm: &FlexibleArm,
+    ws: &mut ArmWorkspace,
+    x: &[f64],
+    dt: f64,
+    inputs: &Inputs,
+    dense_products: bool,
+    buffers: StageBuffers<'_>,
+) -> Result<(Jacobians, Vec<f64>)> {
+    let (stage, dk, previous, total, k_rows, directional, spring) = buffers;
+    let layout = arm.layout();
+    let (m, n) = (layout.len(), layout.n);
+    let c = m + n + 12;
     let mut xs = x.to_vec();
     let mut k = vec![0.0; m];
     let mut sum = vec![0.0; m];
@@ -170,7 +247,7 @@ pub(crate) fn step_jacobians_with(
         .enumerate()
     {
         // (the stage's forward dynamics is the one the derivatives have just run)
-        jacobians_into(arm, ws, &xs, inputs, Coordinates::Raw, &mut stage)?;
+        jacobians_into(arm, ws, &xs, inputs, Coordinates::Raw, stage)?;
         arm.assemble_derivative(&xs, inputs, &ws.tau, ws.data.ddq.as_slice(), &mut k);
         // K_s and D_s row by row: [K_x | K_u | K_B | K_E], m × c
         for (block, offset) in [
@@ -192,9 +269,9 @@ pub(crate) fn step_jacobians_with(
                 }
             }
         }
-        std::mem::swap(&mut dk, &mut previous);
+        std::mem::swap(dk, previous);
         if s > 0 && !dense_products {
-            directional_rows(arm, ws, &xs, &previous, c, &mut directional, &mut spring);
+            directional_rows(arm, ws, &xs, previous, c, directional, spring);
         }
         for (r, (row, k_row)) in dk
             .chunks_exact_mut(c)
@@ -222,7 +299,10 @@ pub(crate) fn step_jacobians_with(
             row.iter_mut().zip(k_row).for_each(|(o, k)| *o += k);
         }
         let w = dt / 6.0 * weight;
-        total.iter_mut().zip(&dk).for_each(|(t, d)| *t += w * d);
+        total
+            .iter_mut()
+            .zip(dk.iter())
+            .for_each(|(t, d)| *t += w * d);
         sum.iter_mut().zip(&k).for_each(|(a, b)| *a += weight * b);
         if s < 3 {
             h = next * dt;
@@ -237,7 +317,7 @@ pub(crate) fn step_jacobians_with(
         .map(|(x0, s)| x0 + dt / 6.0 * s)
         .collect();
     normalise_quaternion(&mut next[layout.quaternion()]);
-    Ok((to_tangent(arm, x, &next, &total), next))
+    Ok((to_tangent(arm, x, &next, total, k_rows), next))
 }
 
 /// The dense rows of `K_s · dk_{s−1}` (the base twist's rate and `q̈`, `6 + n` rows of `c`) as
@@ -311,10 +391,16 @@ fn directional_rows(
 }
 
 /// `A = P(x⁺) J E(x)` for the state columns and `P(x⁺) J` for the inputs, from the raw step
-/// Jacobian `J` (row-major, `m × c`). `E(x)` turns a tangent at `x` into a raw perturbation
+/// Jacobian `J` (row-major, `m × c`); `rows` is scratch. `E(x)` turns a tangent at `x` into a raw perturbation
 /// (identity except `δquat = ½ quat ⊗ (δφ, 0)`), `P(x⁺)` a raw perturbation at `x⁺` back into a
 /// tangent (identity except `δφ = 2 vec(quat⁺* ⊗ δquat)`).
-fn to_tangent(arm: &FlexibleArm, x: &[f64], next: &[f64], total: &[f64]) -> Jacobians {
+fn to_tangent(
+    arm: &FlexibleArm,
+    x: &[f64],
+    next: &[f64],
+    total: &[f64],
+    rows: &mut Vec<f64>,
+) -> Jacobians {
     let layout = arm.layout();
     let (m, n, t) = (layout.len(), layout.n, layout.tangent_len());
     let c = m + n + 12;
@@ -336,7 +422,8 @@ fn to_tangent(arm: &FlexibleArm, x: &[f64], next: &[f64], total: &[f64]) -> Jaco
     });
     // the result row by row (row-major, t × (t + n + 12)), then into the column-major outputs
     let width = t + n + 12;
-    let mut rows = vec![0.0; t * width];
+    rows.clear();
+    rows.resize(t * width, 0.0);
     let mut row = vec![0.0; c];
     for (tr, out_row) in rows.chunks_exact_mut(width).enumerate() {
         match tr {
@@ -368,7 +455,7 @@ fn to_tangent(arm: &FlexibleArm, x: &[f64], next: &[f64], total: &[f64]) -> Jaco
         (&mut out.base_wrench, t + n),
         (&mut out.ee_wrench, t + n + 6),
     ] {
-        transpose_rows(&rows, width, offset, block);
+        transpose_rows(rows, width, offset, block);
     }
     out
 }

@@ -149,7 +149,7 @@ pub(crate) fn step_unchecked(
     dt: f64,
     inputs: &Inputs,
 ) -> Result<()> {
-    let ArmWorkspace { data, tau, rk4 } = ws;
+    let ArmWorkspace { data, tau, rk4, .. } = ws;
     let mut system = HeldInputs {
         arm,
         data,
