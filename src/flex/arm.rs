@@ -80,7 +80,8 @@ pub struct StateSpec<'a> {
 }
 
 /// Scratch memory for one [`FlexibleArm`]: the rigid-body [`Data`], the spring torques and the
-/// RK4 stages. Made by [`FlexibleArm::workspace`]; one per thread.
+/// RK4 stages, and, from the first [`FlexibleArm::step_jacobians`] on, that call's O(n²)
+/// buffers (reused by the next calls). Made by [`FlexibleArm::workspace`]; one per thread.
 #[derive(Debug, Clone)]
 pub struct ArmWorkspace {
     pub(crate) data: Data,
