@@ -276,6 +276,7 @@ impl FlexibleArm {
 
     /// The state derivative at `x` from the spring torques `tau` and the rigid accelerations
     /// `acc = [α_B; q̈]` already computed there.
+    #[inline]
     pub(crate) fn assemble_derivative(
         &self,
         x: &[f64],

@@ -143,6 +143,7 @@ struct BlockFactor {
 
 impl BlockFactor {
     /// `α_ω = S⁻¹ (f_n − B C⁻¹ f_F)`, `α_v = C⁻¹ f_F − W α_ω`.
+    #[inline(always)]
     fn solve(&self, f: &Force) -> Motion {
         let y = cholesky_solve(&self.linear, &f.linear);
         let angular = cholesky_solve(&self.schur, &(f.angular - self.coupling * y));
@@ -271,6 +272,7 @@ impl ArticulatedInertia {
     }
 
     /// The block factorisation of [`solve`](Self::solve).
+    #[inline(always)]
     fn factor(&self) -> Option<BlockFactor> {
         let c = self.linear.cholesky()?;
         let b = &self.coupling;
