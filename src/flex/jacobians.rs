@@ -159,6 +159,7 @@ pub(crate) fn step_jacobians_with(
         previous,
         total,
         k_rows,
+        sparse,
         directional,
         spring,
     } = &mut scratch;
@@ -178,7 +179,16 @@ pub(crate) fn step_jacobians_with(
         dt,
         inputs,
         dense_products,
-        (stage, dk, previous, total, k_rows, directional, spring),
+        (
+            stage,
+            dk,
+            previous,
+            total,
+            k_rows,
+            sparse,
+            directional,
+            spring,
+        ),
     );
     ws.jacobians = scratch;
     result
@@ -192,6 +202,7 @@ pub(crate) struct StepScratch {
     previous: Vec<f64>,
     total: Vec<f64>,
     k_rows: Vec<f64>,
+    sparse: Vec<(usize, usize, f64)>,
     directional: Vec<f64>,
     spring: Vec<f64>,
 }
@@ -204,6 +215,7 @@ impl Default for StepScratch {
             previous: Vec::new(),
             total: Vec::new(),
             k_rows: Vec::new(),
+            sparse: Vec::new(),
             directional: Vec::new(),
             spring: Vec::new(),
         }
@@ -217,6 +229,7 @@ type StageBuffers<'a> = (
     &'a mut Vec<f64>,
     &'a mut Vec<f64>,
     &'a mut Vec<f64>,
+    &'a mut Vec<(usize, usize, f64)>,
     &'a mut Vec<f64>,
     &'a mut Vec<f64>,
 );
@@ -231,7 +244,7 @@ fn stage_chain(
     dense_products: bool,
     buffers: StageBuffers<'_>,
 ) -> Result<(Jacobians, Vec<f64>)> {
-    let (stage, dk, previous, total, k_rows, directional, spring) = buffers;
+    let (stage, dk, previous, total, k_rows, sparse, directional, spring) = buffers;
     let layout = arm.layout();
     let (m, n) = (layout.len(), layout.n);
     let c = m + n + 12;
@@ -249,22 +262,29 @@ fn stage_chain(
         // (the stage's forward dynamics is the one the derivatives have just run)
         jacobians_into(arm, ws, &xs, inputs, Coordinates::Raw, stage)?;
         arm.assemble_derivative(&xs, inputs, &ws.tau, ws.data.ddq.as_slice(), &mut k);
-        // K_s and D_s row by row: [K_x | K_u | K_B | K_E], m × c
+        // K_s and D_s, [K_x | K_u | K_B | K_E] (m × c): the dense rows copied into row order
+        // (`k_rows`, 6 + n rows), the few non-zeros of the others listed
+        sparse.clear();
         for (block, offset) in [
             (&stage.x, 0),
             (&stage.u, m),
             (&stage.base_wrench, m + n),
             (&stage.ee_wrench, m + n + 6),
         ] {
-            // eight columns at a time, so the writes of a row share a cache line
-            let total_columns = block.ncols();
-            for (tile, columns) in block.as_slice().chunks(8 * m).enumerate() {
-                let start = offset + 8 * tile;
-                let width = (total_columns - 8 * tile).min(8);
-                for r in 0..m {
-                    let row = &mut k_rows[r * c + start..r * c + start + width];
-                    for (col, value) in row.iter_mut().enumerate() {
-                        *value = columns[col * m + r];
+            for (col, column) in block.as_slice().chunks_exact(m).enumerate() {
+                let (head, rest) = column.split_at(dense.start);
+                let (middle, tail) = rest.split_at(dense.len());
+                for (i, &value) in middle.iter().enumerate() {
+                    k_rows[i * c + offset + col] = value;
+                }
+                let others = head.iter().enumerate().chain(
+                    tail.iter()
+                        .enumerate()
+                        .map(|(i, value)| (dense.end + i, value)),
+                );
+                for (r, &value) in others {
+                    if value != 0.0 {
+                        sparse.push((r, offset + col, value));
                     }
                 }
             }
@@ -273,30 +293,30 @@ fn stage_chain(
         if s > 0 && !dense_products {
             directional_rows(arm, ws, &xs, previous, c, directional, spring);
         }
-        for (r, (row, k_row)) in dk
-            .chunks_exact_mut(c)
-            .zip(k_rows.chunks_exact(c))
-            .enumerate()
-        {
-            if s > 0 && dense.contains(&r) && !dense_products {
-                let y = &directional[(r - dense.start) * c..(r - dense.start + 1) * c];
+        let dense_rows = dk[dense.start * c..dense.end * c].chunks_exact_mut(c);
+        for (i, (row, k_row)) in dense_rows.zip(k_rows.chunks_exact(c)).enumerate() {
+            if s > 0 && !dense_products {
+                let y = &directional[i * c..(i + 1) * c];
                 row.iter_mut().zip(y).for_each(|(o, y)| *o = h * y);
-            } else if s > 0 && dense.contains(&r) {
+            } else if s > 0 {
                 // (the rigid dynamics do not depend on the base pose: zero gravity)
                 debug_assert!(k_row[..pose].iter().all(|&w| w == 0.0));
                 // the rows of dk_{s−1} from q on, as the columns of a c × (m − pose) matrix
                 crate::linalg::scaled_product(h, &previous[pose * c..], c, &k_row[pose..m], row);
             } else {
                 row.fill(0.0);
-                if s > 0 {
-                    for (&w, from) in k_row[..m].iter().zip(previous.chunks_exact(c)) {
-                        if w != 0.0 {
-                            row.iter_mut().zip(from).for_each(|(o, a)| *o += h * w * a);
-                        }
-                    }
-                }
             }
             row.iter_mut().zip(k_row).for_each(|(o, k)| *o += k);
+        }
+        dk[..dense.start * c].fill(0.0);
+        dk[dense.end * c..].fill(0.0);
+        for &(r, col, w) in sparse.iter() {
+            let row = &mut dk[r * c..(r + 1) * c];
+            if s > 0 && col < m {
+                let from = &previous[col * c..(col + 1) * c];
+                row.iter_mut().zip(from).for_each(|(o, a)| *o += h * w * a);
+            }
+            row[col] += w;
         }
         let w = dt / 6.0 * weight;
         total
