@@ -14,8 +14,8 @@
 //!
 //! **One step.** RK4 runs on the raw state (the quaternion's four numbers, renormalised at the
 //! end), so its Jacobian is the chain rule through the four stages in raw coordinates,
-//! `J = I + dt/6 (K₁ + 2K₂ + 2K₃ + K₄)` with `K_s = ∂k_s/∂x` from each stage's raw Jacobian,
-//! then mapped to tangent coordinates at both ends: `A = P(x⁺) J E(x)`, where `E` turns a tangent
+//! `J = I + dt/6 (dk₁ + 2dk₂ + 2dk₃ + dk₄)` with `dk_s = ∂k_s/∂x`, each from its stage's raw
+//! Jacobian `K_s` (see [`step_jacobians`] for how the products are organised), then mapped to tangent coordinates at both ends: `A = P(x⁺) J E(x)`, where `E` turns a tangent
 //! at `x` into a raw perturbation (`δquat = ½ quat ⊗ (δφ, 0)`) and `P` turns one at `x⁺` back
 //! (`δφ = 2 vec(quat⁺* ⊗ δquat)`, which also discards the radial part the renormalisation
 //! removes). The inputs are held over the step, so their Jacobians chain the same way.
