@@ -15,7 +15,7 @@
 //! **One step.** RK4 runs on the raw state (the quaternion's four numbers, renormalised at the
 //! end), so its Jacobian is the chain rule through the four stages in raw coordinates,
 //! `J = I + dt/6 (dk₁ + 2dk₂ + 2dk₃ + dk₄)` with `dk_s = ∂k_s/∂x`, each from its stage's raw
-//! Jacobian `K_s` (see [`step_jacobians`] for how the products are organised), then mapped to tangent coordinates at both ends: `A = P(x⁺) J E(x)`, where `E` turns a tangent
+//! Jacobian `K_s` (the stage products are organised as `step_jacobians` describes), then mapped to tangent coordinates at both ends: `A = P(x⁺) J E(x)`, where `E` turns a tangent
 //! at `x` into a raw perturbation (`δquat = ½ quat ⊗ (δφ, 0)`) and `P` turns one at `x⁺` back
 //! (`δφ = 2 vec(quat⁺* ⊗ δquat)`, which also discards the radial part the renormalisation
 //! removes). The inputs are held over the step, so their Jacobians chain the same way.
