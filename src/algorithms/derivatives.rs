@@ -530,6 +530,7 @@ fn factorisation(robot: &Robot, data: &Data, s: &mut Scratch) -> Result<()> {
 /// body over all the columns, which are independent.
 fn apply_inverse(robot: &Robot, s: &mut Scratch, r: &mut [f64], columns: usize) {
     let n = robot.dof();
+    debug_assert_eq!(r.len(), (6 + n) * columns);
     let parents = robot.parents();
     s.column_p.clear();
     s.column_p.resize((n + 1) * columns, Force::zero());
@@ -637,6 +638,7 @@ fn id_directional(
     out: &mut [f64],
 ) {
     let n = robot.dof();
+    debug_assert_eq!(out.len(), (6 + n) * columns);
     let parents = robot.parents();
     let size = (n + 1) * columns;
     for buffer in [&mut s.path_c, &mut s.path_u] {
