@@ -1,4 +1,4 @@
-//! The hot paths allocate nothing per call (STYLE.md): counted with a global allocator.
+//! The hot paths allocate nothing per call: counted with a global allocator.
 
 use orbitflex::algorithms::{self, Data};
 use orbitflex::testing::{random_chain, random_state};
