@@ -392,3 +392,20 @@ fn input_checks_say_what_is_wrong() {
         "x0: expected length 17, given length 5",
     );
 }
+
+/// A fuzzer's model: a base of 4e-320 kg (a subnormal mass) loaded, and its forward dynamics
+/// overflowed to infinity. Positive masses below `MIN_MASS` are refused with a clear message.
+#[test]
+fn a_subnormal_mass_is_refused_where_the_model_loads() {
+    let xml = r#"<?xml version="1.0"?>
+<robot name="fuzz">
+<link name="l0"><inertial><origin xyz="-7.5625 2.75 2.75" rpy="0 0 0"/><mass value="4e-320"/><inertia ixx="11297e33" iyy="11297e33" izz="4e-320" ixy="33e0" ixz="0" iyz="0"/></inertial></link>
+</robot>"#;
+    let error = orbitflex::Robot::from_urdf_string(xml, &orbitflex::UrdfOptions::default())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        error.contains("l0") && error.contains("smaller than the 1e-30 kg supported"),
+        "{error}"
+    );
+}

@@ -119,6 +119,10 @@ impl RobotBuilder {
 /// the dynamics could overflow.
 pub const MAX_MASS: f64 = 1e30;
 
+/// The smallest positive mass accepted (kg); a massless link has mass 0. Below it, `1/m` and the
+/// products of the dynamics could overflow.
+pub const MIN_MASS: f64 = 1e-30;
+
 /// The largest distance accepted (m): joint origins, centres of mass, the EE frame.
 pub const MAX_LENGTH: f64 = 1e10;
 
@@ -173,13 +177,20 @@ fn check_transform(t: &Transform) -> std::result::Result<(), String> {
 /// Checks that `mass` and the inertia about the COM are physical: mass ≥ 0, a symmetric inertia
 /// whose principal moments are ≥ 0 and satisfy the triangle inequality `I₁ + I₂ ≥ I₃`.
 /// A point mass (zero inertia) and a massless, inertia-free link are accepted. Masses, distances
-/// and inertias beyond [`MAX_MASS`], [`MAX_LENGTH`] and [`MAX_INERTIA`] are refused.
+/// and inertias beyond [`MAX_MASS`], [`MAX_LENGTH`] and [`MAX_INERTIA`] are refused, and so are
+/// positive masses below [`MIN_MASS`].
 pub fn check_inertia(mass: f64, com: &Vec3, about_com: &Mat3) -> std::result::Result<(), String> {
     if !mass.is_finite() || !com.iter().chain(about_com.iter()).all(|v| v.is_finite()) {
         return Err("mass, centre of mass or inertia is not finite".into());
     }
     if mass < 0.0 {
         return Err(format!("negative mass {mass} kg; expected mass >= 0"));
+    }
+    if mass > 0.0 && mass < MIN_MASS {
+        return Err(format!(
+            "mass {mass:e} kg is smaller than the {MIN_MASS:e} kg supported (below it the \
+             dynamics overflow); use 0 for a massless link"
+        ));
     }
     if mass > MAX_MASS {
         return Err(format!(

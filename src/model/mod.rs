@@ -8,7 +8,7 @@ mod builder;
 mod robot;
 mod urdf;
 
-pub use builder::{check_inertia, RobotBuilder, MAX_INERTIA, MAX_LENGTH, MAX_MASS};
+pub use builder::{check_inertia, RobotBuilder, MAX_INERTIA, MAX_LENGTH, MAX_MASS, MIN_MASS};
 pub use robot::{JointModel, Robot};
 pub use urdf::UrdfOptions;
 
