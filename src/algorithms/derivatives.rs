@@ -215,6 +215,16 @@ impl Composite {
     }
 }
 
+/// The `c` of a base-twist change `δV` (module docs): with the classical `α_B` held, the spatial
+/// accelerations change by `δa_B + v_B ×ₘ δV = [ω_B × δω; 2 v_B × δω]`.
+#[inline]
+fn base_acceleration_change(v0: &Motion, dv: &Motion) -> Motion {
+    Motion::new(
+        v0.angular.cross(&dv.angular),
+        2.0 * v0.linear.cross(&dv.angular),
+    )
+}
+
 /// `B y + y ×* H` for a subtree with `B = [[T, [b]×], [−[b]×, 0]]` and momentum `H` (`b` its
 /// linear part): `[T y_ang + y_ang × H_ang; 2 y_ang × b]`.
 #[inline]
@@ -477,10 +487,7 @@ fn id_derivatives(
         let mut unit = [0.0; 6];
         unit[j] = 1.0;
         let u = Motion::from_slice(&unit);
-        let c = Motion::new(
-            v0.angular.cross(&u.angular),
-            2.0 * v0.linear.cross(&u.angular),
-        );
+        let c = base_acceleration_change(&v0, &u);
         for i in 1..=n {
             d.id_v[(5 + i, j)] = c.dot(&s.alpha[i]) + s.beta[i].dot(&u.angular);
         }
@@ -650,10 +657,7 @@ fn id_directional(
     for j in 0..columns {
         let twist: [f64; 6] = std::array::from_fn(|k| dnu[k * columns + j]);
         let dv = Motion::from_slice(&twist);
-        s.path_c[j] = Motion::new(
-            v0.angular.cross(&dv.angular),
-            2.0 * v0.linear.cross(&dv.angular),
-        );
+        s.path_c[j] = base_acceleration_change(&v0, &dv);
         s.path_u[j] = dv;
     }
     for i in 1..=n {

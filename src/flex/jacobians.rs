@@ -147,49 +147,12 @@ pub(crate) fn step_jacobians_with(
 ) -> Result<(Jacobians, Vec<f64>)> {
     let layout = arm.layout();
     let (m, n) = (layout.len(), layout.n);
-    let c = m + n + 12;
     // the buffers live in the workspace: fresh megabytes per call would cost page faults
     let mut scratch = std::mem::take(&mut ws.jacobians);
     if scratch.stage.x.nrows() != m {
         scratch.stage = Jacobians::zeros(m, m, n);
     }
-    let StepScratch {
-        stage,
-        dk,
-        previous,
-        total,
-        k_rows,
-        sparse,
-        directional,
-        spring,
-    } = &mut scratch;
-    // row-major m × c: this stage's dk_s, the previous one, and J = 𝟙 + dt/6 Σ w_s dk_s
-    for buffer in [&mut *dk, &mut *previous, &mut *k_rows] {
-        buffer.resize(m * c, 0.0);
-    }
-    total.clear();
-    total.resize(m * c, 0.0);
-    for r in 0..m {
-        total[r * c + r] = 1.0;
-    }
-    let result = stage_chain(
-        arm,
-        ws,
-        x,
-        dt,
-        inputs,
-        dense_products,
-        (
-            stage,
-            dk,
-            previous,
-            total,
-            k_rows,
-            sparse,
-            directional,
-            spring,
-        ),
-    );
+    let result = stage_chain(arm, ws, x, dt, inputs, dense_products, &mut scratch);
     ws.jacobians = scratch;
     result
 }
@@ -222,18 +185,6 @@ impl Default for StepScratch {
     }
 }
 
-/// The stage buffers of [`stage_chain`].
-type StageBuffers<'a> = (
-    &'a mut Jacobians,
-    &'a mut Vec<f64>,
-    &'a mut Vec<f64>,
-    &'a mut Vec<f64>,
-    &'a mut Vec<f64>,
-    &'a mut Vec<(usize, usize, f64)>,
-    &'a mut Vec<f64>,
-    &'a mut Vec<f64>,
-);
-
 /// The four stages and the map to tangent coordinates of [`step_jacobians_with`].
 fn stage_chain(
     arm: &FlexibleArm,
@@ -242,18 +193,37 @@ fn stage_chain(
     dt: f64,
     inputs: &Inputs,
     dense_products: bool,
-    buffers: StageBuffers<'_>,
+    scratch: &mut StepScratch,
 ) -> Result<(Jacobians, Vec<f64>)> {
-    let (stage, dk, previous, total, k_rows, sparse, directional, spring) = buffers;
     let layout = arm.layout();
     let (m, n) = (layout.len(), layout.n);
     let c = m + n + 12;
+    let StepScratch {
+        stage,
+        dk,
+        previous,
+        total,
+        k_rows,
+        sparse,
+        directional,
+        spring,
+    } = scratch;
+    // row-major m × c: this stage's dk_s, the previous one, and J = 𝟙 + dt/6 Σ w_s dk_s
+    for buffer in [&mut *dk, &mut *previous, &mut *k_rows] {
+        buffer.resize(m * c, 0.0);
+    }
+    total.clear();
+    total.resize(m * c, 0.0);
+    for r in 0..m {
+        total[r * c + r] = 1.0;
+    }
     let mut xs = x.to_vec();
     let mut k = vec![0.0; m];
     let mut sum = vec![0.0; m];
     // the dense rows: the base twist and q̈, over the columns from q on
     let pose = Coordinates::Raw.pose();
-    let dense = pose + 2 * n..pose + 3 * n + 6;
+    let blocks = Coordinates::Raw.blocks(n);
+    let dense = blocks.twist..blocks.theta_dot;
     let mut h = 0.0;
     for (s, (weight, next)) in [(1.0, 0.5), (2.0, 0.5), (2.0, 1.0), (1.0, 0.0)]
         .into_iter()
