@@ -18,6 +18,7 @@ pub mod linalg;
 pub mod model;
 pub mod operators;
 pub mod planning;
+mod simd;
 pub mod spatial;
 #[doc(hidden)]
 pub mod testing;

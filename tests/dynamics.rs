@@ -3,6 +3,7 @@
 
 use nalgebra::{DMatrix, DVector};
 use orbitflex::algorithms::{self, Data};
+use orbitflex::spatial::Motion;
 use orbitflex::testing::{random_chain, random_state, Rng};
 use orbitflex::{Loads, Method, Operators, RigidState, Robot};
 use proptest::prelude::*;
@@ -232,7 +233,10 @@ fn ee_twist_from_jacobian_matches_velocity_recursion() {
                 (&data.jacobian * DVector::from_column_slice(&qd)).as_slice(),
             );
         algorithms::velocities(&robot, &mut data, &RigidState::new(&q, &v, &qd)).unwrap();
-        let ee = robot.ee_transform().apply_motion(&data.v[robot.dof()]);
+        // data.v is in joint frames: Q_nᵀ takes it back to the link frame of the public model
+        let (body, turn) = (data.v[robot.dof()], robot.joint_frame_rotation(robot.dof()));
+        let link = Motion::new(turn.tr_mul(&body.angular), turn.tr_mul(&body.linear));
+        let ee = robot.ee_transform().apply_motion(&link);
         assert!((twist - ee.to_vector()).norm() < 1e-12 * (1.0 + twist.norm()));
     }
 }

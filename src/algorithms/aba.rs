@@ -26,7 +26,8 @@ pub fn aba<'a>(
     Ok(&data.ddq)
 }
 
-/// The three ABA passes without argument checks; no allocation.
+/// The three ABA passes without argument checks; no allocation. In joint frames, where
+/// `H_i = [e_z; 0]` (`crate::model` joint frames).
 ///
 /// 1. Forwards: velocities (A.4), Coriolis terms (A.7), and each body's starting `I^A = M_i`
 ///    (A.9) and `p^A = b_i` (A.10); the EE body also carries `Φ_{n+1,e}ᵀ f` (A.3, A.8).
@@ -35,7 +36,11 @@ pub fn aba<'a>(
 /// 3. The base solves `I^A_B α_B = f_B − p^A_B`; then forwards
 ///    `α' = Φ α_λ + a_i`, `q̈_i = (u − Uᵀ α')/D`, `α_i = α' + H q̈_i` (A.6).
 // `i` is the body index of the equations; iterator chains would hide it.
-#[allow(clippy::needless_range_loop)]
+///
+/// On x86-64 processors with AVX2 (detected at run time) the same code runs compiled for AVX2:
+/// three-operand instructions and 256-bit registers, but no fused multiply-add, so both versions
+/// give the same bits (`crate::simd`).
+#[inline]
 pub(crate) fn aba_unchecked(
     robot: &Robot,
     data: &mut Data,
@@ -43,9 +48,20 @@ pub(crate) fn aba_unchecked(
     tau: &[f64],
     loads: &Loads,
 ) -> Result<()> {
+    crate::simd::dispatch!(aba_kernel(robot, data, state, tau, loads))
+}
+
+#[allow(clippy::needless_range_loop)]
+#[inline(always)]
+pub(crate) fn aba_kernel(
+    robot: &Robot,
+    data: &mut Data,
+    state: &RigidState,
+    tau: &[f64],
+    loads: &Loads,
+) -> Result<()> {
     let n = robot.dof();
-    let joints = robot.joints();
-    let inertias = robot.inertias();
+    let inertias = robot.frame_inertias();
     let parents = robot.parents();
 
     data.v[0] = Motion::from_slice(state.base_twist);
@@ -57,21 +73,26 @@ pub(crate) fn aba_unchecked(
         data.ia[i] = ArticulatedInertia::from(&inertias[i]);
         data.pa[i] = body_bias(robot, data, i);
     }
-    data.pa[robot.ee_body()] += robot.ee_transform().apply_force_transpose(&loads.ee_wrench);
+    data.pa[robot.ee_body()] += robot
+        .frame_ee_transform()
+        .apply_force_transpose(&loads.ee_wrench);
 
     for i in (1..=n).rev() {
         let (ia, pa, c) = (data.ia[i], data.pa[i], data.c[i]);
-        let h = &joints[i - 1].axis;
-        // U = I^A H, D = Hᵀ U, u = τ − Hᵀ p^A
-        let u_col = ia.apply_angular(h);
-        let d = h.dot(&u_col.angular);
+        // U = I^A H, D = Hᵀ U, u = τ − Hᵀ p^A with H = [e_z; 0]: a column and two entries
+        let u_col = ia.column_z();
+        let d = u_col.angular.z;
         check_pivot(robot, i, d, &ia)?;
-        let u = tau[i - 1] - h.dot(&pa.angular);
+        let u = tau[i - 1] - pa.angular.z;
         // I^a = I^A − U Uᵀ/D and p^a = p^A + I^a a + U u/D = p^A + I^A a + U (u − Uᵀ a)/D
         let reduced = ia.minus_outer(&u_col, 1.0 / d);
         let pa_child = pa + ia.apply(&c) + u_col * ((u - c.dot(&u_col)) / d);
         let x = &data.x[i];
-        data.ia[parents[i]] += reduced.transformed_to_parent(x);
+        data.ia[parents[i]] += if robot.is_tilted(i) {
+            reduced.tilted_to_parent(x)
+        } else {
+            reduced.transformed_to_parent(x)
+        };
         data.pa[parents[i]] += x.apply_force_transpose(&pa_child);
         data.u_col[i] = u_col;
         data.d[i] = d;
@@ -90,7 +111,7 @@ pub(crate) fn aba_unchecked(
         // (A.6) α_i = Φ α_λ + a_i + H q̈_i, with q̈_i = (u − Uᵀ (Φ α_λ + a_i))/D
         let mut acc = data.x[i].apply_motion(&data.acc[parents[i]]) + data.c[i];
         let qdd = (data.u[i] - acc.dot(&data.u_col[i])) / data.d[i];
-        acc.angular += joints[i - 1].axis * qdd;
+        acc.angular.z += qdd;
         data.acc[i] = acc;
         data.ddq[5 + i] = qdd;
     }

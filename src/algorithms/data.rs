@@ -7,7 +7,11 @@ use nalgebra::{DMatrix, DVector};
 
 /// Per-body scratch buffers for one [`Robot`], allocated by [`Data::new`].
 ///
-/// Index 0 is the base and `i` is link `i`. Each buffer has one meaning. Reuse one `Data` for many
+/// Index 0 is the base and `i` is link `i`. Each buffer has one meaning. Per-body quantities are
+/// in each body's **joint frame**: the link frame turned by the constant
+/// [`Robot::joint_frame_rotation`] so that the joint axis is `e_z` (the base frame is unchanged);
+/// `Q_iᵀ` takes their 3-vectors back to link-frame components. Results in joint space or in the
+/// base frame (`tau`, `ddq`, `mass_matrix`, `jacobian`, `ee_base`) do not depend on this. Reuse one `Data` for many
 /// calls: after the first call of each algorithm nothing is allocated. The memory is O(n); the
 /// one dense buffer, the (6+n)² mass matrix, is allocated by the first [`crate::algorithms::crba`]
 /// call, not by `Data::new`.
@@ -15,7 +19,7 @@ use nalgebra::{DMatrix, DVector};
 pub struct Data {
     /// `Φ_{i,λ(i)}(q)` (A.5), from the parent `λ(i)` to body `i`; entry 0 is unused.
     pub x: Vec<Transform>,
-    /// Body velocities `V_i` (A.4), body frames.
+    /// Body velocities `V_i` (A.4), joint frames.
     pub v: Vec<Motion>,
     /// Coriolis terms `a_i` (A.7); entry 0 is zero (`a_B = 0`).
     pub c: Vec<Motion>,

@@ -401,7 +401,7 @@ fn id_derivatives(
 ) {
     let n = robot.dof();
     let parents = robot.parents();
-    let inertias = robot.inertias();
+    let inertias = robot.frame_inertias();
     let s = &mut d.scratch;
     let v0 = Motion::from_slice(state.base_twist);
     s.to_body[0] = Transform::identity();
@@ -410,11 +410,11 @@ fn id_derivatives(
     s.a[0] = *base_acc - Motion::new(Vec3::zeros(), v0.angular.cross(&v0.linear));
     body_terms(s, 0, &inertias[0]);
     for i in 1..=n {
-        let (joint, lambda) = (&robot.joints()[i - 1], parents[i]);
-        let x = joint.transform(state.q[i - 1]);
+        let lambda = parents[i];
+        let x = robot.joint_transform(i, state.q[i - 1]);
         data.x[i] = x;
         let to_body = x.compose(&s.to_body[lambda]);
-        let axis = to_body.apply_motion_inverse(&Motion::new(joint.axis, Vec3::zeros()));
+        let axis = to_body.apply_motion_inverse(&Motion::new(Vec3::z(), Vec3::zeros()));
         let rate = axis * state.qd[i - 1];
         let v = s.v[lambda] + rate;
         s.a[i] = s.a[lambda] + axis * qdd[i - 1] + v.cross_motion(&rate);
@@ -424,7 +424,7 @@ fn id_derivatives(
         body_terms(s, i, &inertias[i].transformed_to_parent(&to_body));
     }
     let ee = robot.ee_body();
-    let at_body = robot.ee_transform().apply_force_transpose(ee_wrench);
+    let at_body = robot.frame_ee_transform().apply_force_transpose(ee_wrench);
     s.force[ee] += s.to_body[ee].apply_force_transpose(&at_body);
     for i in (1..=n).rev() {
         let lambda = parents[i];

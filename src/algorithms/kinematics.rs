@@ -23,20 +23,22 @@ pub(crate) fn velocities_unchecked(robot: &Robot, data: &mut Data, state: &Rigid
     }
 }
 
-/// (A.4) and (A.7) for body `i`, from its parent's velocity (already in `data.v`):
-/// `V_i = Φ V_λ + H_i q̇_i = [R ω_λ + h q̇_i; R (v_λ + ω_λ × p)]` and
-/// `a_i = [(R ω_λ) × ω_i; R (ω_λ × (ω_λ × p))]`, sharing `R ω_λ` and `ω_λ × p`.
+/// (A.4) and (A.7) for body `i` in joint frames (`H_i = [e_z; 0]`), from its parent's velocity
+/// (already in `data.v`): `V_i = Φ V_λ + H_i q̇_i = [R ω_λ + e_z q̇_i; R (v_λ + ω_λ × p)]` and
+/// `a_i = [(R ω_λ) × ω_i; R (ω_λ × (ω_λ × p))]`, sharing `R ω_λ` and `ω_λ × p`; the angular part
+/// of `a_i` is `q̇_i (R ω_λ) × e_z`.
 #[inline(always)]
 pub(crate) fn body_velocity(robot: &Robot, data: &mut Data, i: usize, state: &RigidState) {
-    let joint = &robot.joints()[i - 1];
-    let x = joint.transform(state.q[i - 1]);
+    let x = robot.joint_transform(i, state.q[i - 1]);
+    let qd = state.qd[i - 1];
     let parent = data.v[robot.parents()[i]];
     let w_rotated = x.rotation * parent.angular;
     let w_cross_p = parent.angular.cross(&x.translation);
-    let omega = w_rotated + joint.axis * state.qd[i - 1];
+    let mut omega = w_rotated;
+    omega.z += qd;
     data.v[i] = Motion::new(omega, x.rotation * (parent.linear + w_cross_p));
     data.c[i] = Motion::new(
-        w_rotated.cross(&omega),
+        Vec3::new(qd * w_rotated.y, -qd * w_rotated.x, 0.0),
         x.rotation * parent.angular.cross(&w_cross_p),
     );
     data.x[i] = x;
@@ -48,14 +50,13 @@ pub(crate) fn body_velocity(robot: &Robot, data: &mut Data, i: usize, state: &Ri
 pub fn ee_jacobian(robot: &Robot, data: &mut Data, q: &[f64]) -> Result<()> {
     check_data(robot, data)?;
     check_vector("q", q, robot.dof())?;
-    let mut to_ee = *robot.ee_transform();
+    let mut to_ee = *robot.frame_ee_transform();
     for k in robot.path_to_base(robot.ee_body()) {
-        let joint = &robot.joints()[k - 1];
-        let column = to_ee.apply_motion(&Motion::new(joint.axis, Vec3::zeros()));
+        let column = to_ee.apply_motion(&Motion::new(Vec3::z(), Vec3::zeros()));
         data.jacobian
             .column_mut(k - 1)
             .copy_from_slice(&column.to_array());
-        to_ee = to_ee.compose(&joint.transform(q[k - 1]));
+        to_ee = to_ee.compose(&robot.joint_transform(k, q[k - 1]));
     }
     data.ee_base = to_ee.matrix();
     Ok(())
@@ -64,9 +65,9 @@ pub fn ee_jacobian(robot: &Robot, data: &mut Data, q: &[f64]) -> Result<()> {
 /// `Φ_{n+1,B}(q)`: the EE frame seen from the base frame, composed along the path from the EE
 /// body to the base. Allocation-free.
 pub(crate) fn ee_from_base(robot: &Robot, q: &[f64]) -> Transform {
-    let mut to_ee = *robot.ee_transform();
+    let mut to_ee = *robot.frame_ee_transform();
     for k in robot.path_to_base(robot.ee_body()) {
-        to_ee = to_ee.compose(&robot.joints()[k - 1].transform(q[k - 1]));
+        to_ee = to_ee.compose(&robot.joint_transform(k, q[k - 1]));
     }
     to_ee
 }
@@ -101,19 +102,21 @@ pub fn body_poses(robot: &Robot, base_pose: &[f64], q: &[f64]) -> Result<Vec<[f6
     let mut origins = Vec::with_capacity(n + 1);
     rotations.push(crate::spatial::quaternion_to_rotation(&base_pose[3..7]));
     origins.push(Vec3::new(base_pose[0], base_pose[1], base_pose[2]));
-    for (i, joint) in robot.joints().iter().enumerate() {
-        let x = joint.transform(q[i]);
-        let parent = robot.parents()[i + 1];
+    for i in 1..=n {
+        let x = robot.joint_transform(i, q[i - 1]);
+        let parent = robot.parents()[i];
         let (e, o) = (rotations[parent], origins[parent]);
         origins.push(o + e * x.translation);
         rotations.push(e * x.rotation.transpose());
     }
-    let ee = robot.ee_transform();
+    let ee = robot.frame_ee_transform();
     let (e, o) = (rotations[robot.ee_body()], origins[robot.ee_body()]);
+    // joint-frame axes E'_i = E_i Q_iᵀ back to the link frame's E_i = E'_i Q_i
     let mut poses: Vec<[f64; 7]> = origins
         .iter()
         .zip(&rotations)
-        .map(|(o, e)| pose(o, e))
+        .enumerate()
+        .map(|(i, (o, e))| pose(o, &(e * robot.joint_frame_rotation(i))))
         .collect();
     poses.push(pose(
         &(o + e * ee.translation),
@@ -132,7 +135,7 @@ pub fn momentum(robot: &Robot, data: &mut Data, state: &RigidState) -> Result<Fo
 
 #[inline]
 pub(crate) fn momentum_from_velocities(robot: &Robot, data: &mut Data) -> Force {
-    for (i, inertia) in robot.inertias().iter().enumerate() {
+    for (i, inertia) in robot.frame_inertias().iter().enumerate() {
         data.h[i] = inertia.apply(&data.v[i]);
     }
     for i in (1..=robot.dof()).rev() {
@@ -151,7 +154,7 @@ pub fn kinetic_energy(robot: &Robot, data: &mut Data, state: &RigidState) -> Res
 #[inline]
 pub(crate) fn kinetic_energy_from_velocities(robot: &Robot, data: &Data) -> f64 {
     robot
-        .inertias()
+        .frame_inertias()
         .iter()
         .zip(&data.v)
         .map(|(inertia, v)| 0.5 * v.dot(&inertia.apply(v)))
@@ -159,7 +162,7 @@ pub(crate) fn kinetic_energy_from_velocities(robot: &Robot, data: &Data) -> f64 
 }
 
 /// `b_i` (A.10) for body `i` at the velocities in `data`.
-#[inline]
+#[inline(always)]
 pub(crate) fn body_bias(robot: &Robot, data: &Data, i: usize) -> Force {
-    bias_force(&robot.inertias()[i], &data.v[i].angular)
+    bias_force(&robot.frame_inertias()[i], &data.v[i].angular)
 }

@@ -24,12 +24,12 @@
 //! # Ok::<(), orbitflex::Error>(())
 //! ```
 
-mod aba;
-mod crba;
+pub(crate) mod aba;
+pub(crate) mod crba;
 mod data;
 mod derivatives;
 mod kinematics;
-mod rnea;
+pub(crate) mod rnea;
 
 pub use aba::aba;
 pub use crba::crba;

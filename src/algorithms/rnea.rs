@@ -49,10 +49,13 @@ pub fn bias_forces<'a>(
 
 /// RNEA without argument checks; `qdd = None` means `q̈ = 0`.
 ///
-/// Forwards, per body: (A.4), (A.7), then (A.6) `α_i = Φ α_λ + a_i + H_i q̈_i` and the body's own
+/// In joint frames (`H_i = [e_z; 0]`, so `H_iᵀ f = f_z` of the moment). Forwards, per body: (A.4), (A.7), then (A.6) `α_i = Φ α_λ + a_i + H_i q̈_i` and the body's own
 /// `M_i α_i + b_i` (A.8). The EE body also carries `Φ_{n+1,e}ᵀ f` (A.3). Backwards, each body's
 /// force is complete once its children have added theirs: `τ_i = H_iᵀ f_i` (A.2), and the parent
 /// receives `Φᵀ f_i` (A.8, A.12). `f_B = f_0`.
+///
+/// Runs as AVX2 code where the processor has it, with the same bits (`crate::simd`).
+#[inline]
 pub(crate) fn rnea_unchecked(
     robot: &Robot,
     data: &mut Data,
@@ -61,8 +64,20 @@ pub(crate) fn rnea_unchecked(
     qdd: Option<&[f64]>,
     ee_wrench: &Force,
 ) {
+    crate::simd::dispatch!(rnea_kernel(robot, data, state, base_acc, qdd, ee_wrench))
+}
+
+#[inline(always)]
+pub(crate) fn rnea_kernel(
+    robot: &Robot,
+    data: &mut Data,
+    state: &RigidState,
+    base_acc: Motion,
+    qdd: Option<&[f64]>,
+    ee_wrench: &Force,
+) {
     let n = robot.dof();
-    let inertias = robot.inertias();
+    let inertias = robot.frame_inertias();
     let parents = robot.parents();
     data.v[0] = Motion::from_slice(state.base_twist);
     data.c[0] = Motion::zero();
@@ -73,15 +88,15 @@ pub(crate) fn rnea_unchecked(
         // (A.6) α_i = Φ_{i,λ} α_λ + H_i q̈_i + a_i
         let mut acc = data.x[i].apply_motion(&data.acc[parents[i]]) + data.c[i];
         if let Some(qdd) = qdd {
-            acc.angular += robot.joints()[i - 1].axis * qdd[i - 1];
+            acc.angular.z += qdd[i - 1];
         }
         data.acc[i] = acc;
         data.f[i] = inertias[i].apply(&acc) + body_bias(robot, data, i);
     }
-    data.f[robot.ee_body()] += robot.ee_transform().apply_force_transpose(ee_wrench);
+    data.f[robot.ee_body()] += robot.frame_ee_transform().apply_force_transpose(ee_wrench);
     for i in (1..=n).rev() {
         let f = data.f[i];
-        data.tau[5 + i] = robot.joints()[i - 1].axis.dot(&f.angular);
+        data.tau[5 + i] = f.angular.z;
         let moved = data.x[i].apply_force_transpose(&f);
         data.f[parents[i]] += moved;
     }

@@ -36,6 +36,7 @@ impl RobotBuilder {
                 ee_body: 0,
                 ee_link: base_name.to_string(),
                 ee_transform: Transform::identity(),
+                frames: Default::default(),
             },
         }
     }
@@ -110,6 +111,7 @@ impl RobotBuilder {
                 },
             )?;
         }
+        self.robot.frames = super::JointFrames::new(&self.robot);
         check_mass_matrix(&self.robot)?;
         Ok(self.robot)
     }

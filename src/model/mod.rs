@@ -5,10 +5,12 @@
 //! (`crate::Data`), so a `Robot` can be shared between threads.
 
 mod builder;
+mod frames;
 mod robot;
 mod urdf;
 
 pub use builder::{check_inertia, RobotBuilder, MAX_INERTIA, MAX_LENGTH, MAX_MASS, MIN_MASS};
+pub(crate) use frames::JointFrames;
 pub use robot::{JointModel, Robot};
 pub use urdf::UrdfOptions;
 

@@ -46,6 +46,8 @@ pub struct Robot {
     pub(crate) ee_body: usize,
     pub(crate) ee_link: String,
     pub(crate) ee_transform: Transform,
+    /// The same model in joint frames (`super::frames`), derived by [`crate::RobotBuilder::build`].
+    pub(crate) frames: super::JointFrames,
 }
 
 impl Robot {

@@ -100,6 +100,43 @@ impl Symmetric3 {
 }
 
 impl Symmetric3 {
+    /// `R S Rᵀ` for the turn `R = [[c, −s, 0], [s, c, 0], [0, 0, 1]]` about `e_z` (`c² + s² = 1`):
+    /// the `xy` block by the double angle, `t = h cos 2θ − S_xy sin 2θ` with `m`, `h` the half
+    /// sum and half difference of `S_xx`, `S_yy`.
+    #[inline(always)]
+    pub fn turned_about_z(&self, c: f64, s: f64) -> Self {
+        let (c2, s2) = (c * c - s * s, 2.0 * c * s);
+        let (m, h) = (0.5 * (self.xx + self.yy), 0.5 * (self.xx - self.yy));
+        let t = h * c2 - self.xy * s2;
+        Self {
+            xx: m + t,
+            xy: h * s2 + self.xy * c2,
+            xz: c * self.xz - s * self.yz,
+            yy: m - t,
+            yz: s * self.xz + c * self.yz,
+            zz: self.zz,
+        }
+    }
+
+    /// `R S Rᵀ` for the turn `R = [[1, 0, 0], [0, c, −s], [0, s, c]]` about `e_x`, as
+    /// [`turned_about_z`](Self::turned_about_z) in the `yz` plane.
+    #[inline(always)]
+    pub fn turned_about_x(&self, c: f64, s: f64) -> Self {
+        let (c2, s2) = (c * c - s * s, 2.0 * c * s);
+        let (m, h) = (0.5 * (self.yy + self.zz), 0.5 * (self.yy - self.zz));
+        let t = h * c2 - self.yz * s2;
+        Self {
+            xx: self.xx,
+            xy: c * self.xy - s * self.xz,
+            xz: s * self.xy + c * self.xz,
+            yy: m + t,
+            yz: h * s2 + self.yz * c2,
+            zz: m - t,
+        }
+    }
+}
+
+impl Symmetric3 {
     /// `L` of the Cholesky factorisation `S = L Lᵀ` (lower triangle, row by row:
     /// `[l00, l10, l11, l20, l21, l22]`), or `None` unless `S` is positive definite.
     #[inline]
@@ -254,6 +291,7 @@ impl ArticulatedInertia {
     /// By blocks, with the Schur complement of the linear block `C`: `W = C⁻¹ Bᵀ`,
     /// `S = A − B W`, then `α_ω = S⁻¹ (f_n − B C⁻¹ f_F)` and `α_v = C⁻¹ f_F − W α_ω`; both 3×3
     /// systems are solved by Cholesky.
+    #[inline(always)]
     pub fn solve(&self, f: &Force) -> Option<Motion> {
         Some(self.factor()?.solve(f))
     }
@@ -303,6 +341,17 @@ impl ArticulatedInertia {
         Force::new(self.angular.mul_vec(h), self.coupling.tr_mul(h))
     }
 
+    /// `I^A [e_z; 0] = [A e_z; Bᵀ e_z]`: the ABA's `U = I^A H` for the axis `e_z` of a joint
+    /// frame, a column of `I^A`.
+    #[inline]
+    pub fn column_z(&self) -> Force {
+        let (a, b) = (&self.angular, &self.coupling);
+        Force::new(
+            Vec3::new(a.xz, a.yz, a.zz),
+            Vec3::new(b[(2, 0)], b[(2, 1)], b[(2, 2)]),
+        )
+    }
+
     /// `I^A − s U Uᵀ` for a force-like 6-vector `U` (the ABA's `I^a = I^A − U Uᵀ / D`).
     #[inline]
     pub fn minus_outer(&self, u: &Force, s: f64) -> Self {
@@ -314,18 +363,11 @@ impl ArticulatedInertia {
     }
 
     /// `Φᵀ I^A Φ` with `phi = Φ_{i+1,i}`: this inertia, given in frame `i+1`, expressed in frame
-    /// `i` (the dense form is [`super::congruence`]).
-    ///
-    /// With `A' = Rᵀ A R`, `B' = Rᵀ B R`, `C' = Rᵀ C R`, `P = [p]×` and `N = B' + ½ P C'`:
-    /// `Φᵀ I^A Φ = [[A' − (N P + (N P)ᵀ), B' + P C'], [(B' + P C')ᵀ, C']]`, since
-    /// `N P + (N P)ᵀ = B' P + (B' P)ᵀ + P C' P` (`P C' P` is symmetric). Row `k` of `N P` is
-    /// `n_k × p` for the rows `n_k` of `N`, and column `k` of `P C'` is `p × c_k`.
-    #[inline]
+    /// `i` (the dense form is [`super::congruence`]): `Rᵀ (·) R` on each block, then
+    /// [`shifted`](Self::shifted) by `p`.
+    #[inline(always)]
     pub fn transformed_to_parent(&self, phi: &Transform) -> Self {
         let r = &phi.rotation;
-        let p = &phi.translation;
-        let a = self.angular.rotated_by_transpose(r);
-        let c = self.linear.rotated_by_transpose(r);
         // B' = Rᵀ B R: entry (i, j) is r_i · (B r_j).
         let (r0, r1, r2) = columns(r);
         let (b0, b1, b2) = (self.coupling * r0, self.coupling * r1, self.coupling * r2);
@@ -340,6 +382,42 @@ impl ArticulatedInertia {
             r2.dot(&b1),
             r2.dot(&b2),
         );
+        Self {
+            angular: self.angular.rotated_by_transpose(r),
+            coupling: b,
+            linear: self.linear.rotated_by_transpose(r),
+        }
+        .shifted(&phi.translation)
+    }
+
+    /// [`transformed_to_parent`](Self::transformed_to_parent) for a tilted joint's transform,
+    /// whose rotation is `R = R_z(−θ) R_x(−α) = [[c, s cα, s sα], [−s, c cα, c sα], [0, −sα, cα]]`:
+    /// `Rᵀ X R = R_x(α) (R_z(θ) X R_z(θ)ᵀ) R_x(α)ᵀ`, two plane turns read off `R`, then the shift.
+    #[inline(always)]
+    pub fn tilted_to_parent(&self, phi: &Transform) -> Self {
+        let r = &phi.rotation;
+        let (c, s, ca, sa) = (r[(0, 0)], -r[(1, 0)], r[(2, 2)], -r[(2, 1)]);
+        let b = turn_z(&self.coupling, c, s);
+        let z = Self {
+            angular: self.angular.turned_about_z(c, s),
+            coupling: b,
+            linear: self.linear.turned_about_z(c, s),
+        };
+        Self {
+            angular: z.angular.turned_about_x(ca, sa),
+            coupling: turn_x(&z.coupling, ca, sa),
+            linear: z.linear.turned_about_x(ca, sa),
+        }
+        .shifted(&phi.translation)
+    }
+
+    /// The same inertia about a point at `p` from the origin (same axes): with `P = [p]×` and
+    /// `N = B + ½ P C`, `[[A − (N P + (N P)ᵀ), B + P C], [(B + P C)ᵀ, C]]`, since
+    /// `N P + (N P)ᵀ = B P + (B P)ᵀ + P C P` (`P C P` is symmetric). Row `k` of `N P` is
+    /// `n_k × p` for the rows `n_k` of `N`, and column `k` of `P C` is `p × c_k`.
+    #[inline(always)]
+    pub fn shifted(&self, p: &Vec3) -> Self {
+        let (a, b, c) = (&self.angular, &self.coupling, &self.linear);
         let pc = Mat3::from_columns(&[
             p.cross(&Vec3::new(c.xx, c.xy, c.xz)),
             p.cross(&Vec3::new(c.xy, c.yy, c.yz)),
@@ -361,9 +439,47 @@ impl ArticulatedInertia {
         Self {
             angular,
             coupling,
-            linear: c,
+            linear: *c,
         }
     }
+}
+
+/// `R B Rᵀ` for the turn `R = [[c, −s, 0], [s, c, 0], [0, 0, 1]]`: rows 0 and 1 mixed, then
+/// columns 0 and 1.
+#[inline(always)]
+fn turn_z(b: &Mat3, c: f64, s: f64) -> Mat3 {
+    let mut t = *b;
+    for j in 0..3 {
+        let (u, v) = (b[(0, j)], b[(1, j)]);
+        t[(0, j)] = c * u - s * v;
+        t[(1, j)] = s * u + c * v;
+    }
+    let mut y = t;
+    for i in 0..3 {
+        let (u, v) = (t[(i, 0)], t[(i, 1)]);
+        y[(i, 0)] = c * u - s * v;
+        y[(i, 1)] = s * u + c * v;
+    }
+    y
+}
+
+/// `R B Rᵀ` for the turn `R = [[1, 0, 0], [0, c, −s], [0, s, c]]`: rows 1 and 2, then columns
+/// 1 and 2.
+#[inline(always)]
+fn turn_x(b: &Mat3, c: f64, s: f64) -> Mat3 {
+    let mut t = *b;
+    for j in 0..3 {
+        let (u, v) = (b[(1, j)], b[(2, j)]);
+        t[(1, j)] = c * u - s * v;
+        t[(2, j)] = s * u + c * v;
+    }
+    let mut y = t;
+    for i in 0..3 {
+        let (u, v) = (t[(i, 1)], t[(i, 2)]);
+        y[(i, 1)] = c * u - s * v;
+        y[(i, 2)] = s * u + c * v;
+    }
+    y
 }
 
 impl Add for ArticulatedInertia {

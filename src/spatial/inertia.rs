@@ -62,6 +62,16 @@ impl Inertia {
         )
     }
 
+    /// `M [e_z; 0] = [I e_z; m e_z × p_c]`: the momentum of a unit turn about the frame's z axis.
+    #[inline]
+    pub fn apply_z(&self) -> Force {
+        let (m, c) = (self.mass, &self.com);
+        Force::new(
+            self.rotational.column(2).into_owned(),
+            Vec3::new(-m * c.y, m * c.x, 0.0),
+        )
+    }
+
     /// Dense 6×6 form of (A.9).
     pub fn matrix(&self) -> Mat6 {
         let mc = skew(&self.com) * self.mass;
@@ -122,7 +132,7 @@ impl Inertia {
 
 /// The bias force `b_i` of (A.10) for a body turning at `ω` (rad/s, body frame):
 /// `[ω × (I_i)_i ω; m ω × (ω × p_c)]`.
-#[inline]
+#[inline(always)]
 pub fn bias_force(inertia: &Inertia, omega: &Vec3) -> Force {
     Force::new(
         omega.cross(&(inertia.rotational * omega)),

@@ -228,3 +228,41 @@ fn rotation_about_axis_is_rodrigues() {
         assert!((r * h - h).norm() < 1e-14);
     }
 }
+
+/// The tilted congruence (two plane turns and a shift) equals the general one on a tilted
+/// transform, and each plane turn equals its dense `R X Rᵀ`.
+#[test]
+fn tilted_congruence_equals_the_general_one() {
+    let mut rng = crate::testing::Rng::new(17);
+    for _ in 0..20 {
+        let m = rng.inertia().matrix();
+        let u = Force::from_slice(&[0.3, -0.2, 0.5, 0.1, 0.4, -0.6]);
+        let ia = ArticulatedInertia::from_matrix(&m).minus_outer(&u, 0.7);
+        let (theta, alpha) = (rng.range(-3.0, 3.0), rng.range(-3.0, 3.0));
+        let r = rotation_about_axis(&Vec3::z(), -theta) * rotation_about_axis(&Vec3::x(), -alpha);
+        let phi = Transform::new(
+            r,
+            Vec3::new(
+                rng.range(-1.0, 1.0),
+                rng.range(-1.0, 1.0),
+                rng.range(-1.0, 1.0),
+            ),
+        );
+        let fast = ia.tilted_to_parent(&phi).matrix();
+        let dense = congruence(&phi, &ia.matrix());
+        assert!(
+            (fast - dense).amax() < 1e-13 * (1.0 + dense.amax()),
+            "{fast} vs {dense}"
+        );
+        let (c, s) = (theta.cos(), theta.sin());
+        let rz = rotation_about_axis(&Vec3::z(), theta);
+        let rx = rotation_about_axis(&Vec3::x(), theta);
+        let sym = ia.angular;
+        assert!(
+            (sym.turned_about_z(c, s).matrix() - rz * sym.matrix() * rz.transpose()).amax() < 1e-14
+        );
+        assert!(
+            (sym.turned_about_x(c, s).matrix() - rx * sym.matrix() * rx.transpose()).amax() < 1e-14
+        );
+    }
+}
