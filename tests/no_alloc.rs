@@ -1,6 +1,7 @@
 //! The hot paths allocate nothing per call: counted with a global allocator.
 
 use orbitflex::algorithms::{self, Data};
+use orbitflex::integrate::{simulate_into, Chunks, Unobserved};
 use orbitflex::testing::{random_chain, random_state};
 use orbitflex::{
     ArmWorkspace, FlexibleArm, FlexibleJoints, Inputs, Loads, MotorPD, RigidState, Schedule,
@@ -177,4 +178,43 @@ fn hot_paths_do_not_allocate() {
         })
     };
     assert_eq!(count(10), count(1000), "simulate allocates per step");
+
+    // Streaming into a reused chunk buffer: the run's own few allocations (workspace, state,
+    // torque and last-good-state buffers), none per step or per chunk; the buffer, made once,
+    // is not counted.
+    let wrenches = Wrenches {
+        base: Schedule::Zero,
+        ee: Schedule::Constant(w.to_vec()),
+    };
+    let mut rows = 0;
+    let mut sink = Chunks::new(arm.layout(), 16, |chunk| {
+        rows += chunk.len();
+        Ok(())
+    })
+    .unwrap();
+    let mut stream = |steps: usize, every: usize| {
+        let mut pd = pd.clone();
+        allocations(|| {
+            simulate_into(
+                &arm,
+                &x,
+                1e-4,
+                steps,
+                every,
+                &mut pd,
+                &wrenches,
+                &mut Unobserved,
+                &mut sink,
+            )
+            .unwrap();
+        })
+    };
+    let (short, long) = (stream(10, 3), stream(2000, 3)); // 5 rows in 1 chunk; 668 in 42 chunks
+    assert_eq!(
+        short, long,
+        "a streaming run allocates per step or per chunk"
+    );
+    assert_eq!(stream(2000, 1), stream(10, 1), "record_every = 1");
+    drop(sink);
+    assert_eq!(rows, 5 + 668 + 2001 + 11);
 }

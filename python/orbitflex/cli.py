@@ -212,12 +212,19 @@ def slew_controller(arm: FlexibleArm, slew: Array, steps: int, dt: float, slew_t
 # ---------------------------------------------------------------------------------------------
 
 
-def run_bytes(steps: int, n: int) -> Dict[str, int]:
-    """Bytes a run of ``steps`` steps of an ``n``-joint arm allocates, by part."""
-    rows = steps + 1
+def recorded_rows(steps: int, record_every: int) -> int:
+    """Rows a run of ``steps`` steps keeps with ``record_every`` (``simulate``'s rule): rows 0,
+    k, 2k, ... and the final row."""
+    return steps // record_every + 1 + (steps % record_every != 0)
+
+
+def run_bytes(steps: int, n: int, record_every: int = 1) -> Dict[str, int]:
+    """Bytes a run of ``steps`` steps of an ``n``-joint arm allocates, by part, keeping one row
+    in ``record_every``."""
+    rows = recorded_rows(steps, record_every)
     return {
         "reference tables": 2 * steps * n * 8,  # theta_ref, theta_dot_ref
-        "record": rows * (14 + 4 * n) * 8 + steps * n * 8,  # t and x per row, u per step
+        "record": rows * (14 + 4 * n) * 8 + (rows - 1) * n * 8,  # t and x per row, u per kept row
         # momentum (6), energy (1), EE pose (7), deflection, spring torque and the energy
         # balance's temporaries (4n), per row
         "diagnostics": rows * (14 + 4 * n) * 8,
@@ -233,8 +240,8 @@ def free_memory() -> Optional[int]:
 
 
 def check_memory(steps: int, n: int, flag: str = "--duration/--dt",
-                 advice: str = "shorten --duration or lengthen --dt") -> None:
-    parts = run_bytes(steps, n)
+                 advice: str = "shorten --duration or lengthen --dt", record_every: int = 1) -> None:
+    parts = run_bytes(steps, n, record_every)
     need, free = sum(parts.values()), free_memory()
     if free is not None and need > free:
         sizes = ", ".join(f"{name} {gb(size)}" for name, size in parts.items())
@@ -271,6 +278,11 @@ class Outcome:
     elapsed: float  # s of wall time
     failure: Optional[SimulationError] = None
     warnings: int = 0  # how many warnings simulate emitted (dt past the RK4 stability limit)
+    record_every: int = 1  # the run kept rows 0, k, 2k, ... and the final row
+
+    def steps_done(self, steps: int) -> int:
+        """Steps completed: all ``steps``, or those before the failure."""
+        return steps if self.failure is None else self.failure.step
 
 
 class ProgressBar:
@@ -310,9 +322,11 @@ class WarningPrinter:
         print(f"orbitflex: warning: {cli_words(str(message))}", file=sys.stderr)
 
 
-def simulate(arm: FlexibleArm, pd: MotorPD, steps: int, dt: float, progress: bool) -> Outcome:
-    """Simulates ``steps`` steps under ``pd`` in one ``simulate`` call. A run that diverges keeps
-    the steps computed before the failure."""
+def simulate(arm: FlexibleArm, pd: MotorPD, steps: int, dt: float, progress: bool,
+             record_every: int = 1) -> Outcome:
+    """Simulates ``steps`` steps under ``pd`` in one ``simulate`` call, keeping one row in
+    ``record_every`` (and the final row). A run that diverges keeps the rows computed before the
+    failure, the last good state last."""
     bar = ProgressBar(steps) if progress else None
     printer = WarningPrinter()
     start = time.perf_counter()
@@ -320,15 +334,16 @@ def simulate(arm: FlexibleArm, pd: MotorPD, steps: int, dt: float, progress: boo
         warnings.simplefilter("always")
         warnings.showwarning = printer
         try:
-            traj = arm.simulate(arm.state(), dt, steps, u=pd, progress=bar.to if bar else None)
-            outcome = Outcome(traj, time.perf_counter() - start)
+            traj = arm.simulate(arm.state(), dt, steps, u=pd, progress=bar.to if bar else None,
+                                record_every=record_every)
+            outcome = Outcome(traj, time.perf_counter() - start, record_every=record_every)
         except SimulationError as e:
-            outcome = Outcome(e.trajectory, time.perf_counter() - start, e)
+            outcome = Outcome(e.trajectory, time.perf_counter() - start, e, record_every=record_every)
     if bar is not None:
         bar.close()
     outcome.warnings = printer.count
     if outcome.failure is not None:
-        kept = len(outcome.traj) - 1
+        kept = outcome.failure.step
         print(f"orbitflex: the run failed: {failure_reason(outcome.failure)}; the outputs describe "
               f"the {kept} steps before the failure (exit code 1)", file=sys.stderr)
     return outcome
@@ -342,7 +357,7 @@ def failure_reason(e: SimulationError) -> str:
 
 def run(job: Job, args: argparse.Namespace) -> int:
     steps = int(round(args.duration / args.dt))
-    check_memory(steps, job.arm.dof)
+    check_memory(steps, job.arm.dof, record_every=args.record_every)
     pd = slew_controller(job.arm, job.slew, steps, args.dt, args.slew_time, args.bandwidth)
     out = output_folder(args.out)
     limit = job.arm.rk4_stability_limit(u=pd)
@@ -350,7 +365,7 @@ def run(job: Job, args: argparse.Namespace) -> int:
           f"dt = {args.dt:g} s (RK4 limit of the closed loop at rest: {limit:.3g} s)")
     if job.note:
         print(job.note)
-    outcome = simulate(job.arm, pd, steps, args.dt, progress=not args.quiet)
+    outcome = simulate(job.arm, pd, steps, args.dt, progress=not args.quiet, record_every=args.record_every)
     comparison, note = demo_comparison(job.arm, job.name, args.dt) if job.compare_plans else (None, None)
     with np.errstate(all="ignore"):  # a diverged run's finite part may overflow in the summary
         summary = summarise(job.name, outcome, steps)
@@ -459,12 +474,20 @@ def angle_unit(largest_rad: float) -> Tuple[float, str]:
 
 
 def summarise(name: str, outcome: Outcome, steps_asked: int) -> Dict[str, Any]:
+    """The summary; with ``record_every`` > 1 the peaks and drifts are over the kept rows, and the
+    energy balance (which needs the torque of every step) is left out (None)."""
     traj = outcome.traj
-    steps = len(traj.t) - 1
+    steps = outcome.steps_done(steps_asked)
     h = traj.momentum
     h_drift = np.abs(h - h[0]).max(axis=0)
-    de, work, dissipated = energy_balance(traj)
-    flow = float(np.sum(np.abs(np.diff(traj.energy))))
+    de = float(traj.energy[-1] - traj.energy[0])
+    balance: Dict[str, Optional[float]] = dict.fromkeys(
+        ("motor_work_J", "dissipated_J", "energy_balance_residual_J", "energy_flow_J"))
+    if outcome.record_every == 1:
+        de, work, dissipated = energy_balance(traj)
+        balance = {"motor_work_J": work, "dissipated_J": dissipated,
+                   "energy_balance_residual_J": de - (work - dissipated),
+                   "energy_flow_J": float(np.sum(np.abs(np.diff(traj.energy))))}
     deflection = np.abs(traj.deflection).max(axis=0)
     summary: Dict[str, Any] = {
         "model": name,
@@ -472,6 +495,8 @@ def summarise(name: str, outcome: Outcome, steps_asked: int) -> Dict[str, Any]:
         "warnings": outcome.warnings,
         "steps_requested": steps_asked,
         "steps": steps,
+        "record_every": outcome.record_every,
+        "rows": len(traj.t),
         "simulated_s": float(traj.t[-1]),
         "steps_per_second": steps / outcome.elapsed if outcome.elapsed > 0 else float("inf"),
         "base_attitude_change_deg": float(rotation_angle_deg(traj.base_pose[0, 3:], traj.base_pose[-1, 3:])),
@@ -481,10 +506,7 @@ def summarise(name: str, outcome: Outcome, steps_asked: int) -> Dict[str, Any]:
         "momentum_drift_angular": float(h_drift[:3].max()),
         "momentum_drift_linear": float(h_drift[3:].max()),
         "energy_change_J": de,
-        "motor_work_J": work,
-        "dissipated_J": dissipated,
-        "energy_balance_residual_J": de - (work - dissipated),
-        "energy_flow_J": flow,
+        **balance,
         "ee_travel_m": float(np.linalg.norm(traj.ee_pose[-1, :3] - traj.ee_pose[0, :3])),
     }
     if outcome.failure is not None:
@@ -502,6 +524,9 @@ def print_summary(s: Dict[str, Any], dof: int) -> None:
               f"(t = 0 to {s['simulated_s']:.6g} s, {s['steps']} of {s['steps_requested']} steps)")
     print(f"  simulated           {s['simulated_s']:.6g} s in {s['steps']} RK4 steps, "
           f"{s['steps_per_second']:,.0f} steps/s")
+    if s["record_every"] > 1:
+        print(f"  recorded            {s['rows']} rows: one step in {s['record_every']} and the last "
+              f"(--record-every); peaks and drifts below are over these rows")
     print(f"  base attitude       rotated by {s['base_attitude_change_deg']:.3f} deg "
           f"(origin moved {s['base_displacement_m'] * 1e3:.3g} mm)")
     largest = np.radians(s["max_deflection_deg"])
@@ -517,6 +542,10 @@ def print_summary(s: Dict[str, Any], dof: int) -> None:
         cause = "RK4 truncation and round-off"
     print(f"  momentum drift      {s['momentum_drift_angular']:.2e} N·m·s (angular), "
           f"{s['momentum_drift_linear']:.2e} N·s (linear): {cause}")
+    if s["motor_work_J"] is None:
+        print(f"  energy balance      E(T) − E(0) = {s['energy_change_J']:+.6g} J; motor work and damping "
+              f"loss not computed: they need every step's torque (--record-every 1)")
+        return
     print(f"  energy balance      E(T) − E(0) = {s['energy_change_J']:+.6g} J = motor work "
           f"{s['motor_work_J']:+.6g} J − damping loss {s['dissipated_J']:.6g} J + residual")
     residual, flow = s["energy_balance_residual_J"], s["energy_flow_J"]
@@ -613,6 +642,8 @@ class Figures:
 def plot(job: Job, outcome: Outcome, dt: float, out: Path) -> List[Path]:
     traj = outcome.traj
     caption = f"model {job.name}, dt = {seconds(dt)}, {traj.t[-1]:.6g} s free-floating slew"
+    if outcome.record_every > 1:
+        caption += f", a row every {seconds(outcome.record_every * dt)} (--record-every {outcome.record_every})"
     if outcome.failure is not None:
         caption += f", diverged at t = {outcome.failure.time:.6g} s (finite part shown)"
     figures = Figures(out, caption)
@@ -1561,6 +1592,20 @@ def common_options(p: argparse.ArgumentParser, duration: float) -> None:
     p.add_argument("--csv", action="store_true", help="also write trajectory.csv (t and x, named columns)")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.add_argument("--record-every", metavar="K", type=at_least_one, default=1,
+                   help="keep every K-th step's state and the last (rows at t = 0, K·dt, 2K·dt, ..., "
+                        "and the end): K times less memory and output for long runs; the energy "
+                        "balance then is not computed (default %(default)s: every step)")
+
+
+def at_least_one(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 1, given {text}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 1, given {text}")
+    return value
 
 
 def model_options(p: argparse.ArgumentParser, verb: str) -> None:

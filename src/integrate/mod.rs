@@ -5,6 +5,8 @@
 //! - [`control`]: input [`Schedule`]s, the [`Controller`] trait and the built-in [`MotorPD`];
 //! - [`simulate`](mod@simulate): one [`step`], a whole run ([`simulate()`]) with its checks,
 //!   stability warning and [`Observer`] hook;
+//! - [`record`]: which rows a run keeps (`record_every`) and where they go: the [`Recorder`]
+//!   trait, the in-memory [`Trajectory`], the streaming [`Chunks`];
 //! - [`trajectory`]: the [`Trajectory`] a run returns and the diagnostics along it.
 //!
 //! ```
@@ -25,13 +27,16 @@
 //! ```
 
 pub mod control;
+pub mod record;
 pub mod rk4;
 pub mod simulate;
 pub mod trajectory;
 
 pub use control::{Controller, Feedback, MotorPD, Schedule};
+pub use record::{is_recorded, recorded_rows, Chunk, Chunks, Recorder};
 pub use rk4::{OdeSystem, Rk4};
 pub use simulate::{
-    check_run, simulate, stability_warning, step, Observer, SimulationFailure, Unobserved, Wrenches,
+    check_run, simulate, simulate_into, stability_warning, step, Observer, SimulationFailure,
+    Unobserved, Wrenches,
 };
 pub use trajectory::{StateRows, Trajectory};

@@ -2,6 +2,7 @@
 //! stability warning, a progress/interrupt hook and a record that survives a failure.
 
 use super::control::{Controller, Schedule};
+use super::record::{check_record_every, is_recorded, Recorder};
 use super::rk4::OdeSystem;
 use super::trajectory::Trajectory;
 use crate::algorithms::Data;
@@ -219,7 +220,7 @@ fn describe_excess(dt: f64, limit: &StabilityLimit) -> String {
 }
 
 /// Integrates `steps` RK4 steps of `dt` from `x0` ([`step`] each), asking the controller `u` for
-/// the motor torques once per step and reading `wrenches` per step.
+/// the motor torques once per step and reading `wrenches` per step, and returns every state.
 ///
 /// The arguments are checked first ([`check_run`]). A state that turns non-finite (or whose
 /// quaternion collapses), or a controller that fails or returns non-finite torques, stops the
@@ -227,7 +228,8 @@ fn describe_excess(dt: f64, limit: &StabilityLimit) -> String {
 /// the failure keeps the `k + 1` valid states computed before it. The observer is asked before
 /// every `observer.every()`-th step whether to go on.
 ///
-/// Allocates the record once, then nothing per step.
+/// [`simulate_into`] with `record_every = 1` into a [`Trajectory`]. Allocates the record once,
+/// then nothing per step.
 pub fn simulate(
     arm: &FlexibleArm,
     x0: &[f64],
@@ -240,96 +242,159 @@ pub fn simulate(
     let layout = arm.layout();
     let fail = |error, trajectory| Box::new(SimulationFailure { error, trajectory });
     check_run(arm, x0, dt, steps, u, wrenches).map_err(|e| fail(e, Trajectory::empty(layout)))?;
-    let mut traj = reserve(layout, steps).map_err(|e| fail(e, Trajectory::empty(layout)))?;
+    let mut traj =
+        Trajectory::reserved(layout, steps, 1).map_err(|e| fail(e, Trajectory::empty(layout)))?;
+    match run_checked(arm, x0, dt, steps, 1, u, wrenches, observer, &mut traj) {
+        Ok(()) => Ok(traj),
+        Err(error) => Err(fail(error, traj)),
+    }
+}
+
+/// Integrates `steps` RK4 steps of `dt` (s) from `x0` as [`simulate`] does, and hands the rows
+/// kept with `record_every` (≥ 1) to `recorder`: rows `0, k, 2k, …` and the final row, each with
+/// the torques of the step that starts there (the rule of [`record`](super::record)).
+///
+/// With a [`Trajectory`] ([`Trajectory::reserved`]) the record takes O(rows) memory; with a
+/// streaming recorder ([`Chunks`](super::record::Chunks)) it takes O(chunk), whatever `steps`.
+/// Nothing is allocated per step (a buffer of one state when `record_every > 1`, for the last
+/// good state of a failed run).
+///
+/// Errors: the argument checks ([`check_run`], `record_every` = 0) before row 0, with nothing
+/// recorded; otherwise an [`Error::Simulation`] naming the step, after the recorder has received
+/// the rows kept so far and the last good state as the final row, and
+/// [`Recorder::finish`](super::record::Recorder::finish). A recorder error stops the run as an
+/// [`Error::Simulation`] with the recorder's message.
+#[allow(clippy::too_many_arguments)]
+pub fn simulate_into(
+    arm: &FlexibleArm,
+    x0: &[f64],
+    dt: f64,
+    steps: usize,
+    record_every: usize,
+    u: &mut dyn Controller,
+    wrenches: &Wrenches,
+    observer: &mut dyn Observer,
+    recorder: &mut dyn Recorder,
+) -> Result<()> {
+    check_record_every(record_every)?;
+    check_run(arm, x0, dt, steps, u, wrenches)?;
+    run_checked(
+        arm,
+        x0,
+        dt,
+        steps,
+        record_every,
+        u,
+        wrenches,
+        observer,
+        recorder,
+    )
+}
+
+/// [`simulate_into`] after its checks.
+#[allow(clippy::too_many_arguments)]
+fn run_checked(
+    arm: &FlexibleArm,
+    x0: &[f64],
+    dt: f64,
+    steps: usize,
+    record_every: usize,
+    u: &mut dyn Controller,
+    wrenches: &Wrenches,
+    observer: &mut dyn Observer,
+    recorder: &mut dyn Recorder,
+) -> Result<()> {
+    let layout = arm.layout();
     let mut ws = arm.workspace();
     let mut x = x0.to_vec();
     normalise_quaternion(&mut x[layout.quaternion()]);
-    traj.t.push(0.0);
-    traj.x.extend_from_slice(&x);
+    let recording = |step: usize, e: Error| Error::Simulation {
+        step,
+        time: step as f64 * dt,
+        message: format!("the recorder failed: {e}"),
+    };
+    recorder.state(0.0, &x).map_err(|e| recording(0, e))?;
+    // the state before the step, kept when its row is not recorded: a failed run ends on it
+    let mut last_good = if record_every > 1 {
+        vec![0.0; x.len()]
+    } else {
+        Vec::new()
+    };
     let mut torque = vec![0.0; layout.n];
     let every = observer.every();
     for k in 0..steps {
         let t = k as f64 * dt;
+        let kept = k % record_every == 0;
         let stop = |message: String| Error::Simulation {
             step: k,
             time: t,
             message,
         };
-        if every > 0 && k > 0 && k % every == 0 && !observer.observe(k, steps) {
-            return Err(fail(stop("interrupted by the caller".into()), traj));
+        if !kept {
+            last_good.copy_from_slice(&x);
         }
-        let outcome = u
-            .torque(k, t, &x, &mut torque)
-            .map_err(|e| stop(format!("the controller failed: {e}")))
-            .and_then(|_| {
-                check_finite("u", &torque).map_err(|e| stop(format!("the controller returned {e}")))
-            })
-            .and_then(|_| {
-                let inputs = Inputs {
-                    u: &torque,
-                    loads: wrenches.loads(k),
-                };
-                step_unchecked(arm, &mut ws, &mut x, dt, &inputs).map_err(|e| {
-                    stop(format!(
-                        "the state diverged during the step ({e}); dt = {dt} s may be past the \
-                         RK4 stability limit"
-                    ))
-                })
-            })
-            .and_then(|_| match state_defect(&layout, &x) {
-                Some(defect) => Err(stop(format!(
-                    "the state diverged: {defect}; dt = {dt} s may be past the RK4 stability \
-                     limit"
-                ))),
-                None => Ok(()),
-            });
+        let outcome = if every > 0 && k > 0 && k % every == 0 && !observer.observe(k, steps) {
+            Err(stop("interrupted by the caller".into()))
+        } else {
+            run_step(arm, &mut ws, &mut x, dt, k, t, u, wrenches, &mut torque).map_err(stop)
+        };
         if let Err(error) = outcome {
-            return Err(fail(error, traj));
+            if !kept {
+                recorder.state(t, &last_good).map_err(|e| recording(k, e))?;
+            }
+            recorder.finish().map_err(|e| recording(k, e))?;
+            return Err(error);
         }
-        traj.t.push((k + 1) as f64 * dt);
-        traj.x.extend_from_slice(&x);
-        traj.u.extend_from_slice(&torque);
+        if kept {
+            recorder.input(&torque).map_err(|e| recording(k, e))?;
+        }
+        if is_recorded(k + 1, steps, record_every) {
+            recorder
+                .state((k + 1) as f64 * dt, &x)
+                .map_err(|e| recording(k, e))?;
+        }
     }
-    Ok(traj)
+    recorder.finish().map_err(|e| recording(steps, e))
 }
 
-/// The bytes a record of `steps` steps takes: `t`, `x` and `u` (`None` if it overflows).
-pub fn record_bytes(layout: crate::flex::StateLayout, steps: usize) -> Option<usize> {
-    let rows = steps.checked_add(1)?;
-    let values = rows
-        .checked_mul(layout.len() + 1)?
-        .checked_add(steps.checked_mul(layout.n)?)?;
-    values.checked_mul(8)
-}
-
-/// An empty record with room for `steps` steps, or a clear error, before anything is allocated,
-/// if it needs more memory than the system has available.
-fn reserve(layout: crate::flex::StateLayout, steps: usize) -> Result<Trajectory> {
-    let mut traj = Trajectory::empty(layout);
-    let bytes = record_bytes(layout, steps);
-    let available = crate::io::available_memory();
-    let too_big = || Error::InvalidArgument {
-        what: "steps".into(),
-        message: format!(
-            "the record of {steps} steps of a {}-element state needs {}, more than the {} of \
-             memory available; simulate in shorter pieces",
-            layout.len(),
-            crate::args::describe_bytes(bytes),
-            available.map_or("memory".into(), |a| crate::args::describe_bytes(Some(
-                a as usize
-            )))
-        ),
+/// Step `k` of a run: the controller's torque into `torque`, checked, then the RK4 step of `x`,
+/// checked; the message of what went wrong otherwise.
+#[allow(clippy::too_many_arguments)]
+#[inline]
+fn run_step(
+    arm: &FlexibleArm,
+    ws: &mut ArmWorkspace,
+    x: &mut [f64],
+    dt: f64,
+    k: usize,
+    t: f64,
+    u: &mut dyn Controller,
+    wrenches: &Wrenches,
+    torque: &mut [f64],
+) -> std::result::Result<(), String> {
+    u.torque(k, t, x, torque)
+        .map_err(|e| format!("the controller failed: {e}"))?;
+    check_finite("u", torque).map_err(|e| format!("the controller returned {e}"))?;
+    let inputs = Inputs {
+        u: torque,
+        loads: wrenches.loads(k),
     };
-    match (bytes, available) {
-        (None, _) => return Err(too_big()),
-        (Some(b), Some(a)) if b as u64 > a => return Err(too_big()),
-        _ => {}
+    step_unchecked(arm, ws, x, dt, &inputs).map_err(|e| {
+        format!(
+            "the state diverged during the step ({e}); dt = {dt} s may be past the RK4 \
+             stability limit"
+        )
+    })?;
+    match state_defect(&arm.layout(), x) {
+        Some(defect) => Err(format!(
+            "the state diverged: {defect}; dt = {dt} s may be past the RK4 stability limit"
+        )),
+        None => Ok(()),
     }
-    let rows = steps + 1;
-    let states = rows * layout.len();
-    let inputs = steps * layout.n;
-    traj.t.try_reserve_exact(rows).map_err(|_| too_big())?;
-    traj.x.try_reserve_exact(states).map_err(|_| too_big())?;
-    traj.u.try_reserve_exact(inputs).map_err(|_| too_big())?;
-    Ok(traj)
+}
+
+/// The bytes a record of `steps` steps takes with every row kept: `t`, `x` and `u` (`None` if it
+/// overflows). See [`Trajectory::reserved`] for `record_every > 1`.
+pub fn record_bytes(layout: crate::flex::StateLayout, steps: usize) -> Option<usize> {
+    super::trajectory::rows_bytes(layout, steps.checked_add(1)?)
 }

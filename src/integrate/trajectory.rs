@@ -12,20 +12,34 @@
 //! # Ok::<(), orbitflex::Error>(())
 //! ```
 
+use super::record::{check_record_every, recorded_rows};
+use crate::error::{Error, Result};
 use crate::flex::{FlexibleArm, StateLayout};
 
+/// The bytes of a record of `rows` rows: `t`, `x` and the `rows - 1` inputs (`None` if it
+/// overflows).
+pub(crate) fn rows_bytes(layout: StateLayout, rows: usize) -> Option<usize> {
+    let values = rows
+        .checked_mul(layout.len() + 1)?
+        .checked_add(rows.saturating_sub(1).checked_mul(layout.n)?)?;
+    values.checked_mul(8)
+}
+
 /// The record of a run: times `t` (rows), states `x` (rows × (13+4n), row-major) and the motor
-/// torques `u` applied during each step (steps × n, row-major; held over the step).
+/// torques `u` (N·m) held during the step that starts at each row but the last ((rows − 1) × n,
+/// row-major).
 ///
 /// A complete run of `steps` steps has `steps + 1` states and `steps` inputs; a run that failed at
 /// step `k` keeps the `k + 1` states before the failure and the `k` inputs that produced them.
+/// With `record_every = k > 1` ([`crate::integrate::simulate_into`]) it keeps rows `0, k, 2k, …`
+/// and the final row (the last good state of a failed run), see [`super::record`].
 #[derive(Debug, Clone, PartialEq)]
 pub struct Trajectory {
     /// Times (s), one per state.
     pub t: Vec<f64>,
     /// States, one row per time.
     pub x: Vec<f64>,
-    /// Motor torques (N·m), one row per completed step.
+    /// Motor torques (N·m), one row per kept row but the last: those of the step starting there.
     pub u: Vec<f64>,
     /// The state layout (number of joints).
     pub layout: StateLayout,
@@ -40,6 +54,48 @@ impl Trajectory {
             u: Vec::new(),
             layout,
         }
+    }
+
+    /// An empty record with room for the rows a run of `steps` steps keeps with `record_every`
+    /// ([`recorded_rows`]), or a clear error naming `steps`, before anything is allocated, if it
+    /// needs more memory than the system has available.
+    pub fn reserved(layout: StateLayout, steps: usize, record_every: usize) -> Result<Self> {
+        check_record_every(record_every)?;
+        let rows = recorded_rows(steps, record_every);
+        let mut traj = Trajectory::empty(layout);
+        let bytes = rows_bytes(layout, rows);
+        let available = crate::io::available_memory();
+        let every = if record_every > 1 {
+            format!(" (record_every = {record_every}: {rows} rows)")
+        } else {
+            String::new()
+        };
+        let too_big = || Error::InvalidArgument {
+            what: "steps".into(),
+            message: format!(
+                "the record of {steps} steps{every} of a {}-element state needs {}, more than the \
+                 {} of memory available; simulate in shorter pieces, keep fewer rows \
+                 (record_every) or stream them",
+                layout.len(),
+                crate::args::describe_bytes(bytes),
+                available.map_or("memory".into(), |a| crate::args::describe_bytes(Some(
+                    a as usize
+                )))
+            ),
+        };
+        match (bytes, available) {
+            (None, _) => return Err(too_big()),
+            (Some(b), Some(a)) if b as u64 > a => return Err(too_big()),
+            _ => {}
+        }
+        traj.t.try_reserve_exact(rows).map_err(|_| too_big())?;
+        traj.x
+            .try_reserve_exact(rows * layout.len())
+            .map_err(|_| too_big())?;
+        traj.u
+            .try_reserve_exact((rows - 1) * layout.n)
+            .map_err(|_| too_big())?;
+        Ok(traj)
     }
 
     /// Number of stored states (`steps + 1` for a complete run).

@@ -2,16 +2,17 @@
 //! flexible-joint inverse dynamics.
 
 use super::control::{schedule, PyCallable, PyMotorPD};
-use super::convert::{array1, array2, count, real, vector, vector_or};
+use super::convert::{array1, array2, count, positive_count, real, vector, vector_or};
 use super::errors::simulation_error;
+use super::errors::ModelError;
 use super::joints::PyFlexibleJoints;
 use super::robot::PyRobot;
-use super::run::{run_releasing_gil, run_with_gil, Progress};
+use super::run::{deliver, record_releasing_gil, record_with_gil, Progress, Stream};
 use super::trajectory::PyTrajectory;
 use crate::args::Loads;
 use crate::error::Error;
 use crate::flex::{ArmWorkspace, FlexibleArm, Inputs, StateSpec};
-use crate::integrate::{self, Controller, Schedule, Wrenches};
+use crate::integrate::{self, Chunk, Chunks, Controller, Recorder, Schedule, Trajectory, Wrenches};
 use crate::planning::{BaseMode, LinkMotion};
 use numpy::{PyArray1, PyArray2};
 use pyo3::exceptions::PyRuntimeWarning;
@@ -19,6 +20,24 @@ use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyTuple};
 use std::ffi::CString;
 use std::sync::{Mutex, MutexGuard};
+
+/// Rows per chunk given to ``on_rows`` by default.
+const CHUNK_ROWS: usize = 1024;
+
+/// Where `simulate` puts the kept rows: a `Trajectory`, or chunks for `on_rows`.
+enum Sink<F> {
+    Memory(Trajectory),
+    Stream(Stream<F>),
+}
+
+impl<F: FnMut(Chunk<'_>) -> crate::Result<()> + Send> Sink<F> {
+    fn recorder(&mut self) -> &mut (dyn Recorder + Send) {
+        match self {
+            Sink::Memory(traj) => traj,
+            Sink::Stream(stream) => stream,
+        }
+    }
+}
 
 /// A floating-base arm with Spong flexible joints.
 ///
@@ -501,11 +520,28 @@ impl PyFlexibleArm {
     /// an optional callable ``progress(done, steps)`` called about every thousand steps and at
     /// the end.
     ///
+    /// ``record_every`` (int ≥ 1, default 1: every row): keep rows 0, k, 2k, … and always the
+    /// final row, that is ``steps // k + 1`` rows, plus one when ``k`` does not divide ``steps``.
+    /// Each kept row and its time ``t = j·dt`` are bit for bit those of the full run; ``u`` holds,
+    /// for each kept row but the final one, the torque held during the step that starts there
+    /// (rows − 1, n). Memory is O(rows), not O(steps).
+    ///
+    /// ``on_rows``: an optional callable ``on_rows(t, x, u)`` that receives the kept rows in
+    /// order, each exactly once, in chunks of at most ``chunk_rows`` rows (default 1024): ``t``
+    /// (r,) in s, ``x`` (r, 13+4n), ``u`` (r, n), or (r − 1, n) in the chunk that holds the final
+    /// row (new arrays, yours to keep). The last partial chunk comes at the end of the run, or
+    /// before ``SimulationError`` is raised. The run holds the GIL only to deliver a chunk. With
+    /// ``on_rows`` the returned ``Trajectory`` holds only the final row (the state to continue
+    /// from; ``u`` (0, n)), so memory stays O(chunk_rows) however long the run. An exception in
+    /// ``on_rows`` stops the run and is raised as it is.
+    ///
     /// Warns (``RuntimeWarning``) before it starts when ``dt`` is past the RK4 stability limit of
     /// the closed loop at ``x0`` (see :meth:`rk4_stability_limit`). Raises ``SimulationError``
     /// (with ``.trajectory``, the finite part, ``.step`` and ``.time``) when the state turns
-    /// non-finite or the controller raises or returns non-finite torques. Ctrl-C stops the run.
-    #[pyo3(signature = (x0, dt, steps, u=None, base_wrench=None, ee_wrench=None, *, progress=None))]
+    /// non-finite or the controller raises or returns non-finite torques; its trajectory keeps
+    /// the rows kept so far and ends on the last good state (with ``on_rows``: that state
+    /// alone). Ctrl-C stops the run.
+    #[pyo3(signature = (x0, dt, steps, u=None, base_wrench=None, ee_wrench=None, *, progress=None, record_every=None, on_rows=None, chunk_rows=None))]
     #[allow(clippy::too_many_arguments)]
     fn simulate<'py>(
         slf: &Bound<'py, Self>,
@@ -516,6 +552,9 @@ impl PyFlexibleArm {
         base_wrench: Option<&Bound<'py, PyAny>>,
         ee_wrench: Option<&Bound<'py, PyAny>>,
         progress: Option<&Bound<'py, PyAny>>,
+        record_every: Option<&Bound<'py, PyAny>>,
+        on_rows: Option<&Bound<'py, PyAny>>,
+        chunk_rows: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<PyTrajectory> {
         let py = slf.py();
         let me = slf.get();
@@ -524,12 +563,47 @@ impl PyFlexibleArm {
         let dt = real(dt, "dt")?;
         let steps = count(steps, "steps")?;
         let x0 = vector(x0, "x0", Some(layout.len()))?;
+        let record_every = match record_every {
+            Some(k) => positive_count(k, "record_every")?,
+            None => 1,
+        };
+        let on_rows = on_rows.filter(|o| !o.is_none());
+        if let Some(callback) = on_rows {
+            if !callback.is_callable() {
+                return Err(ModelError::new_err(format!(
+                    "on_rows: expected a callable on_rows(t, x, u), given {}",
+                    callback.get_type().name()?
+                )));
+            }
+        }
+        let chunk_rows =
+            match (chunk_rows.filter(|o| !o.is_none()), on_rows) {
+                (Some(c), Some(_)) => positive_count(c, "chunk_rows")?,
+                (Some(_), None) => return Err(ModelError::new_err(
+                    "chunk_rows: sizes the chunks given to on_rows; give on_rows too, or leave \
+                     chunk_rows out",
+                )),
+                (None, _) => CHUNK_ROWS,
+            };
         let wrenches = Wrenches {
             base: schedule(base_wrench, "base_wrench", 6)?,
             ee: schedule(ee_wrench, "ee_wrench", 6)?,
         };
         let mut controller = RunController::parse(u, arm.dof())?;
         integrate::check_run(arm, &x0, dt, steps, controller.controller(), &wrenches)?;
+        // the buffers, before the warning: a run whose record cannot fit does not start
+        let callback = on_rows.map(|c| c.clone().unbind());
+        let mut stream_error = None;
+        let mut sink = match &callback {
+            None => Sink::Memory(Trajectory::reserved(layout, steps, record_every)?),
+            Some(callback) => {
+                let rows = chunk_rows.min(integrate::recorded_rows(steps, record_every));
+                let error = &mut stream_error;
+                let chunks =
+                    Chunks::new(layout, rows, move |chunk| deliver(callback, chunk, error))?;
+                Sink::Stream(Stream::new(layout, chunks))
+            }
+        };
         if let Some(warning) = integrate::stability_warning(arm, &x0, dt, controller.controller())?
         {
             PyErr::warn(
@@ -540,17 +614,50 @@ impl PyFlexibleArm {
             )?;
         }
         let mut progress = Progress::new(progress.filter(|p| !p.is_none()).cloned());
+        let recorder = sink.recorder();
         let (result, cause) = match &mut controller {
             RunController::Pd(pd) => (
-                run_releasing_gil(py, arm, &x0, dt, steps, pd, &wrenches, &mut progress)?,
+                record_releasing_gil(
+                    py,
+                    arm,
+                    &x0,
+                    dt,
+                    steps,
+                    record_every,
+                    pd,
+                    &wrenches,
+                    &mut progress,
+                    recorder,
+                )?,
                 None,
             ),
             RunController::Schedule(s) => (
-                run_releasing_gil(py, arm, &x0, dt, steps, s, &wrenches, &mut progress)?,
+                record_releasing_gil(
+                    py,
+                    arm,
+                    &x0,
+                    dt,
+                    steps,
+                    record_every,
+                    s,
+                    &wrenches,
+                    &mut progress,
+                    recorder,
+                )?,
                 None,
             ),
             RunController::Callable(c) => {
-                let result = run_with_gil(arm, &x0, dt, steps, c, &wrenches, &mut progress)?;
+                let result = record_with_gil(
+                    arm,
+                    &x0,
+                    dt,
+                    steps,
+                    record_every,
+                    c,
+                    &wrenches,
+                    &mut progress,
+                    recorder,
+                )?;
                 // KeyboardInterrupt, SystemExit and other non-Exception errors are not a
                 // controller failure: re-raise them as they are.
                 match c.error.take() {
@@ -561,16 +668,24 @@ impl PyFlexibleArm {
                 }
             }
         };
+        let traj = match sink {
+            Sink::Memory(traj) => traj,
+            Sink::Stream(stream) => stream.last_row(),
+        };
+        // an exception from on_rows stops the run and is raised as it is
+        if let Some(e) = stream_error {
+            return Err(e);
+        }
         let arm_ref = slf.clone().unbind();
         match result {
-            Ok(traj) => {
-                progress.finish(py, traj.len().saturating_sub(1), steps)?;
+            Ok(()) => {
+                progress.finish(py, steps, steps)?;
                 PyTrajectory::from_run(py, arm_ref, traj)
             }
-            Err(failure) => match failure.error {
+            Err(error) => match error {
                 Error::Simulation { step, time, .. } => {
-                    let message = failure.error.to_string();
-                    let traj = PyTrajectory::from_run(py, arm_ref, failure.trajectory)?;
+                    let message = error.to_string();
+                    let traj = PyTrajectory::from_run(py, arm_ref, traj)?;
                     let traj = Py::new(py, traj)?.into_any();
                     Err(simulation_error(py, message, step, time, traj, cause)?)
                 }

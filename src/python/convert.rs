@@ -192,3 +192,22 @@ pub fn count(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<usize> {
         ))
     })
 }
+
+/// A count of at least 1 (an int or numpy integer, not a bool or a float), for `record_every`
+/// and `chunk_rows`.
+pub fn positive_count(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<usize> {
+    let wrong = || {
+        ModelError::new_err(format!(
+            "{what}: expected an integer >= 1, given {} ({})",
+            type_name(obj),
+            obj.repr().map(|r| r.to_string()).unwrap_or_default()
+        ))
+    };
+    if obj.is_instance_of::<pyo3::types::PyBool>() || obj.hasattr("__index__").ok() != Some(true) {
+        return Err(wrong());
+    }
+    match obj.call_method0("__index__")?.extract::<usize>() {
+        Ok(k) if k >= 1 => Ok(k),
+        _ => Err(wrong()),
+    }
+}

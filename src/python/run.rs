@@ -1,8 +1,13 @@
 //! Running a simulation from Python: without the GIL when the controller is Rust, with it when
 //! it is a Python callable; honouring Ctrl-C and reporting progress either way.
 
-use crate::flex::FlexibleArm;
-use crate::integrate::{self, Controller, Observer, SimulationFailure, Trajectory, Wrenches};
+use super::convert::row_major;
+use crate::error::Error;
+use crate::flex::{FlexibleArm, StateLayout};
+use crate::integrate::{
+    self, Chunk, Chunks, Controller, Observer, Recorder, SimulationFailure, Trajectory, Wrenches,
+};
+use numpy::PyArray1;
 use pyo3::prelude::*;
 
 /// How often (in steps) a run looks for Ctrl-C and reports progress.
@@ -91,23 +96,140 @@ pub(crate) fn run_releasing_gil(
     }
 }
 
-/// [`integrate::simulate()`] holding the GIL, for a controller that calls Python.
-pub(crate) fn run_with_gil(
+/// [`integrate::simulate_into()`] without the GIL. A pending `KeyboardInterrupt` (or an
+/// exception from the progress callback) stops the run and is raised as it is.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn record_releasing_gil(
+    py: Python<'_>,
     arm: &FlexibleArm,
     x0: &[f64],
     dt: f64,
     steps: usize,
-    u: &mut dyn Controller,
+    record_every: usize,
+    u: &mut (dyn Controller + Send),
     wrenches: &Wrenches,
     progress: &mut Progress,
-) -> PyResult<RunResult> {
+    recorder: &mut (dyn Recorder + Send),
+) -> PyResult<crate::Result<()>> {
     let mut watch = Watch {
         progress,
         error: None,
     };
-    let result = integrate::simulate(arm, x0, dt, steps, u, wrenches, &mut watch);
+    let result = py.allow_threads(|| {
+        integrate::simulate_into(
+            arm,
+            x0,
+            dt,
+            steps,
+            record_every,
+            u,
+            wrenches,
+            &mut watch,
+            recorder,
+        )
+    });
     match watch.error {
         Some(e) => Err(e),
         None => Ok(result),
+    }
+}
+
+/// [`integrate::simulate_into()`] holding the GIL, for a controller that calls Python.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn record_with_gil(
+    arm: &FlexibleArm,
+    x0: &[f64],
+    dt: f64,
+    steps: usize,
+    record_every: usize,
+    u: &mut dyn Controller,
+    wrenches: &Wrenches,
+    progress: &mut Progress,
+    recorder: &mut dyn Recorder,
+) -> PyResult<crate::Result<()>> {
+    let mut watch = Watch {
+        progress,
+        error: None,
+    };
+    let result = integrate::simulate_into(
+        arm,
+        x0,
+        dt,
+        steps,
+        record_every,
+        u,
+        wrenches,
+        &mut watch,
+        recorder,
+    );
+    match watch.error {
+        Some(e) => Err(e),
+        None => Ok(result),
+    }
+}
+
+/// Delivers one chunk to the Python callable `on_rows(t, x, u)` as new numpy arrays, taking the
+/// GIL back for it; the callable's exception is kept in `error` (and stops the run).
+pub(crate) fn deliver(
+    callback: &Py<PyAny>,
+    chunk: Chunk<'_>,
+    error: &mut Option<PyErr>,
+) -> crate::Result<()> {
+    Python::with_gil(|py| {
+        let layout = chunk.layout;
+        let t = PyArray1::from_slice(py, chunk.t);
+        let x = row_major(py, chunk.len(), layout.len(), chunk.x.to_vec());
+        let u = row_major(py, chunk.inputs, layout.n, chunk.u.to_vec());
+        callback.call1(py, (t, x, u)).map(drop)
+    })
+    .map_err(|e| {
+        let message = format!("on_rows raised {e}");
+        *error = Some(e);
+        Error::InvalidArgument {
+            what: "on_rows".into(),
+            message,
+        }
+    })
+}
+
+/// Streams the kept rows in chunks and keeps only the last row (the final state of the run, or
+/// the last good state of a failed one).
+pub(crate) struct Stream<F> {
+    chunks: Chunks<F>,
+    last: Trajectory,
+}
+
+impl<F: FnMut(Chunk<'_>) -> crate::Result<()>> Stream<F> {
+    pub fn new(layout: StateLayout, chunks: Chunks<F>) -> Self {
+        let last = Trajectory {
+            t: vec![0.0],
+            x: vec![0.0; layout.len()],
+            u: Vec::new(),
+            layout,
+        };
+        Self { chunks, last }
+    }
+
+    /// The last row recorded, as a one-row record (empty if none was).
+    pub fn last_row(self) -> Trajectory {
+        if self.chunks.received() == 0 {
+            Trajectory::empty(self.last.layout)
+        } else {
+            self.last
+        }
+    }
+}
+
+impl<F: FnMut(Chunk<'_>) -> crate::Result<()>> Recorder for Stream<F> {
+    fn state(&mut self, t: f64, x: &[f64]) -> crate::Result<()> {
+        self.last.t[0] = t;
+        self.last.x.copy_from_slice(x);
+        self.chunks.state(t, x)
+    }
+    fn input(&mut self, u: &[f64]) -> crate::Result<()> {
+        self.chunks.input(u)
+    }
+    fn finish(&mut self) -> crate::Result<()> {
+        self.chunks.finish()
     }
 }

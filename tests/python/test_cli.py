@@ -815,3 +815,69 @@ def test_readme_table_describes_every_output():
         assert f"| `{name}` |" in section, name
     for words in ["residual", "Σ|ΔE|", "trapezoid", "z-y′-x″", "--base-mass", "--locked-joints a,b"]:
         assert words in section, words
+
+
+# ---------------------------------------------------------------------------------------------
+# --record-every
+# ---------------------------------------------------------------------------------------------
+
+
+def test_record_every_keeps_the_full_runs_rows(model_files, tmp_path):
+    urdf, params = model_files
+    common = ("simulate", urdf, "--params", params, "--locked-joints", "finger_slide",
+              "--duration", "0.2", "--quiet")
+    full = run_cli(*common, "--no-plots", "--out", tmp_path / "full", cwd=tmp_path)
+    thin = run_cli(*common, "--record-every", "30", "--out", tmp_path / "thin", cwd=tmp_path)
+    assert full.returncode == thin.returncode == 0, thin.stderr[-2000:]
+    with np.load(tmp_path / "full" / "trajectory.npz") as f, np.load(tmp_path / "thin" / "trajectory.npz") as g:
+        rows = [0, 30, 60, 90, 120, 150, 180, 200]  # 200 steps: every 30th row and the last
+        for key in ("t", "x", "momentum", "energy"):
+            np.testing.assert_array_equal(g[key], f[key][rows])
+        np.testing.assert_array_equal(g["u"], f["u"][rows[:-1]])
+    summary = json.loads((tmp_path / "thin" / "summary.json").read_text())
+    assert (summary["steps"], summary["record_every"], summary["rows"]) == (200, 30, 8)
+    assert summary["motor_work_J"] is None and summary["energy_balance_residual_J"] is None
+    assert "8 rows: one step in 30 and the last (--record-every)" in thin.stdout
+    assert "not computed: they need every step's torque (--record-every 1)" in thin.stdout
+    assert {p.name for p in (tmp_path / "thin").glob("*.png")} == PNGS
+
+
+def test_record_every_is_in_the_plot_caption(tmp_path):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    robot = orbitflex.Robot.from_urdf_string(URDF, locked_joints=["finger_slide"])
+    arm = orbitflex.FlexibleArm(robot, orbitflex.FlexibleJoints.defaults_for(robot))
+    slew = np.full(2, 0.3)
+    pd = cli.slew_controller(arm, slew, 400, 1e-3, 5.0, 0.25)
+    traj = arm.simulate(arm.state(), 1e-3, 400, u=pd, record_every=25)
+    job = cli.Job(arm, robot.name, slew, cli.sketch_side(robot), np.zeros(3))
+    captions = []
+    original = cli.Figures.save
+
+    def keep(self, fig, name):
+        captions.append(fig._suptitle.get_text())
+        matplotlib.pyplot.close(fig)
+
+    cli.Figures.save = keep
+    try:
+        cli.plot(job, cli.Outcome(traj, 1.0, record_every=25), 1e-3, tmp_path)
+    finally:
+        cli.Figures.save = original
+    assert len(captions) == len(PNGS)
+    for caption in captions:
+        assert "model two_link_sat, dt = 1 ms, 0.4 s free-floating slew, a row every 25 ms (--record-every 25)" in caption
+
+
+@pytest.mark.parametrize("value", ["0", "-2", "1.5", "x"])
+def test_bad_record_every_is_a_clean_error(tmp_path, value):
+    result = run_cli("demo", "--duration", "0.1", "--record-every", value, "--out", tmp_path / "o", "--quiet",
+                     cwd=tmp_path)
+    assert_clean_error(result, f"expected an integer >= 1, given {value}", flag="--record-every")
+
+
+def test_memory_estimate_counts_the_kept_rows():
+    parts = cli.run_bytes(1000, 7, record_every=10)
+    assert parts["reference tables"] == 2 * 1000 * 7 * 8  # per step, whatever is kept
+    assert parts["record"] == 101 * (14 + 28) * 8 + 100 * 7 * 8
+    assert [cli.recorded_rows(s, k) for s, k in ((1000, 10), (1001, 10), (5, 9), (0, 3))] == [101, 102, 2, 1]
