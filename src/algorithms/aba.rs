@@ -61,16 +61,16 @@ pub(crate) fn aba_kernel(
     loads: &Loads,
 ) -> Result<()> {
     let n = robot.dof();
-    let inertias = robot.frame_inertias();
+    let articulated = robot.frame_articulated();
     let parents = robot.parents();
 
     data.v[0] = Motion::from_slice(state.base_twist);
     data.c[0] = Motion::zero();
-    data.ia[0] = ArticulatedInertia::from(&inertias[0]);
+    data.ia[0] = articulated[0];
     data.pa[0] = body_bias(robot, data, 0);
     for i in 1..=n {
         body_velocity(robot, data, i, state);
-        data.ia[i] = ArticulatedInertia::from(&inertias[i]);
+        data.ia[i] = articulated[i];
         data.pa[i] = body_bias(robot, data, i);
     }
     data.pa[robot.ee_body()] += robot

@@ -10,7 +10,7 @@
 //! [`crate::algorithms::Data`] are in joint frames; [`Robot::joint_frame_rotation`] maps them back.
 
 use super::Robot;
-use crate::spatial::{rotation_about_axis, Inertia, Mat3, Transform, Vec3};
+use crate::spatial::{rotation_about_axis, ArticulatedInertia, Inertia, Mat3, Transform, Vec3};
 
 /// The model in joint frames (module docs), derived from the public link-frame model when a
 /// [`Robot`] is built.
@@ -24,6 +24,8 @@ pub(crate) struct JointFrames {
     pub(crate) tilts: Vec<Option<Tilt>>,
     /// Body inertias in joint frames (index 0 is the base, unchanged).
     pub(crate) inertias: Vec<Inertia>,
+    /// The same in the block form of the ABA, where each body's recursion starts.
+    pub(crate) articulated: Vec<ArticulatedInertia>,
     /// `Φ_{n+1,e}` from the joint frame of the EE body.
     pub(crate) ee_transform: Transform,
     /// `Q_i`: link-frame components to joint-frame components (index 0 is the base, `𝟙`).
@@ -83,12 +85,14 @@ impl JointFrames {
             .iter()
             .enumerate()
             .map(|(i, inertia)| inertia.transformed_to_parent(&back(i)))
-            .collect();
+            .collect::<Vec<_>>();
+        let articulated = inertias.iter().map(ArticulatedInertia::from).collect();
         let ee_transform = robot.ee_transform.compose(&back(robot.ee_body));
         Self {
             origins,
             tilts,
             inertias,
+            articulated,
             ee_transform,
             rotations,
         }
@@ -165,6 +169,12 @@ impl Robot {
     #[inline(always)]
     pub(crate) fn frame_inertias(&self) -> &[Inertia] {
         &self.frames.inertias
+    }
+
+    /// The body inertias in joint frames, in the ABA's block form.
+    #[inline(always)]
+    pub(crate) fn frame_articulated(&self) -> &[ArticulatedInertia] {
+        &self.frames.articulated
     }
 
     /// `Φ_{n+1,e}` from the joint frame of the EE body.
