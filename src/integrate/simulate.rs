@@ -262,7 +262,7 @@ pub fn simulate(
 /// Errors: the argument checks ([`check_run`], `record_every` = 0) before row 0, with nothing
 /// recorded; otherwise an [`Error::Simulation`] naming the step, after the recorder has received
 /// the rows kept so far and the last good state as the final row, and
-/// [`Recorder::finish`](super::record::Recorder::finish). A recorder error stops the run as an
+/// [`Recorder::finish`]. A recorder error stops the run as an
 /// [`Error::Simulation`] with the recorder's message.
 #[allow(clippy::too_many_arguments)]
 pub fn simulate_into(
