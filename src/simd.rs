@@ -8,20 +8,21 @@
 //! tests check this on every machine that has AVX2.
 
 /// Calls `kernel(args…)`, an `#[inline(always)]` function, through a copy compiled for AVX2
-/// when the processor has it, and directly otherwise. The detection is cached by the standard
-/// library (one load and a test per call).
+/// when the processor has it, and directly otherwise: `dispatch!(kernel(a: A, b: B) -> R)`
+/// names each argument (a variable in scope) with its type. The detection is cached
+/// ([`avx2`]).
 macro_rules! dispatch {
-    ($kernel:ident ( $($arg:expr),* $(,)? )) => {{
+    ($kernel:ident ( $($arg:ident : $ty:ty),* $(,)? ) $(-> $ret:ty)?) => {{
         #[cfg(target_arch = "x86_64")]
         {
             #[target_feature(enable = "avx2")]
             #[allow(clippy::too_many_arguments)]
-            unsafe fn avx2<R>(f: impl FnOnce() -> R) -> R {
-                f()
+            unsafe fn avx2($($arg: $ty),*) $(-> $ret)? {
+                $kernel($($arg),*)
             }
             if $crate::simd::avx2() {
                 // SAFETY: the processor has AVX2, checked just above.
-                unsafe { avx2(|| $kernel($($arg),*)) }
+                unsafe { avx2($($arg),*) }
             } else {
                 $kernel($($arg),*)
             }

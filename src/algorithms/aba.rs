@@ -48,7 +48,7 @@ pub(crate) fn aba_unchecked(
     tau: &[f64],
     loads: &Loads,
 ) -> Result<()> {
-    crate::simd::dispatch!(aba_kernel(robot, data, state, tau, loads))
+    crate::simd::dispatch!(aba_kernel(robot: &Robot, data: &mut Data, state: &RigidState, tau: &[f64], loads: &Loads) -> Result<()>)
 }
 
 #[allow(clippy::needless_range_loop)]

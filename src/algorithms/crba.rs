@@ -21,7 +21,7 @@ pub fn crba<'a>(robot: &Robot, data: &'a mut Data, q: &[f64]) -> Result<&'a DMat
     check_data(robot, data)?;
     check_vector("q", q, robot.dof())?;
     data.mass_matrix_buffer()?;
-    crate::simd::dispatch!(crba_kernel(robot, data, q));
+    crate::simd::dispatch!(crba_kernel(robot: &Robot, data: &mut Data, q: &[f64]));
     Ok(&data.mass_matrix)
 }
 

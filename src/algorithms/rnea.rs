@@ -64,7 +64,7 @@ pub(crate) fn rnea_unchecked(
     qdd: Option<&[f64]>,
     ee_wrench: &Force,
 ) {
-    crate::simd::dispatch!(rnea_kernel(robot, data, state, base_acc, qdd, ee_wrench))
+    crate::simd::dispatch!(rnea_kernel(robot: &Robot, data: &mut Data, state: &RigidState, base_acc: Motion, qdd: Option<&[f64]>, ee_wrench: &Force))
 }
 
 #[inline(always)]

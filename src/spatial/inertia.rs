@@ -104,7 +104,7 @@ impl Inertia {
     /// With the COM in parent axes `c_r = Rᵀ p_c` and `c' = p + c_r`, the parallel-axis theorem
     /// moves `Rᵀ (I_i)_i R` from the child origin to the COM and on to the parent origin:
     /// `Rᵀ (I_i)_i R + m ([c_r]×² − [c']×²)`, with `[a]×² = a aᵀ − |a|² 𝟙`.
-    #[inline]
+    #[inline(always)]
     pub fn transformed_to_parent(&self, phi: &Transform) -> Inertia {
         let r = &phi.rotation;
         let c_r = r.tr_mul(&self.com);
