@@ -2,7 +2,7 @@
 """orbitflex against Pinocchio (``pin``) from Python, on the same models in one run (BENCHMARKS.md).
 
     python3 benches/compare_pinocchio.py [--blocks 15] [--sim-blocks 5] [--json out.json]
-        [--rust-bin target/release/examples/bench_cpp_match] [--cpp-bin .../bench_aba]
+        [--rust-bin target/release/examples/bench_cpp_match] [--cpp-bin .../bench_aba_gcc]
 
 Models: the built-in space arm (its URDF written to a temporary file), panda (fingers locked, EE
 ``panda_hand_tcp``) and ur5 (EE ``tool0``), each with a free-flyer root in Pinocchio and zero
@@ -497,7 +497,7 @@ def main() -> None:
     ap.add_argument("--steps", type=int, default=STEPS, help="steps per simulation (default 10^4)")
     ap.add_argument("--rounds", type=int, default=5, help="rounds for the comparisons with native programs")
     ap.add_argument("--rust-bin", help="examples/bench_cpp_match binary (cargo build --release --example bench_cpp_match)")
-    ap.add_argument("--cpp-bin", help="benches/pinocchio_cpp/bench_aba binary (built by benches/pinocchio_cpp/run.sh)")
+    ap.add_argument("--cpp-bin", help="a bench_aba_<build> binary of benches/pinocchio_cpp/run.sh, e.g. target/pinocchio_cpp/bench_aba_gcc")
     ap.add_argument("--models", default="space_arm,panda,ur5,one_link")
     ap.add_argument("--json", help="also write the results here")
     args = ap.parse_args()

@@ -11,7 +11,8 @@
 # benches/pinocchio_cpp/run.sh; (3) Python vs Pinocchio's bindings, benches/compare_pinocchio.py
 # (uses the installed `orbitflex`); (4) the target-cpu check, benches/target_cpu.sh.
 # Needs: cargo, g++, python3 with orbitflex, pin, example-robot-data and numpy; Eigen 3 and urdfdom
-# headers for step 2 (`apt-get install libeigen3-dev liburdfdom-headers-dev`).
+# headers for step 2 (`apt-get install libeigen3-dev liburdfdom-headers-dev`), and clang-14 for its
+# clang builds (skipped without it). Step 3's native Pinocchio times come from step 2's g++ build.
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 cd "$root"
@@ -50,7 +51,7 @@ bash benches/pinocchio_cpp/run.sh "$rounds" >"$res/cpp.md"
 echo "== (3) Python vs Pinocchio: benches/compare_pinocchio.py ${py[*]}" >&2
 python3 benches/compare_pinocchio.py "${py[@]}" \
   --rust-bin "$CARGO_TARGET_DIR/release/examples/bench_cpp_match" \
-  --cpp-bin "$CARGO_TARGET_DIR/pinocchio_cpp/bench_aba" \
+  --cpp-bin "$CARGO_TARGET_DIR/pinocchio_cpp/bench_aba_gcc" \
   --json "$res/python.json" >"$res/python.md"
 
 echo "== (4) target-cpu: benches/target_cpu.sh $rounds" >&2

@@ -3,12 +3,14 @@
 //!
 //! ```text
 //! cargo run --release --example bench_cpp_match -- <urdf> <ee_link or -> [locked joint ...]
-//!     [--only NAME[,NAME...]] [--blocks N]
+//!     [--only NAME[,NAME...]] [--blocks N] [--iters N]
 //! ```
 //! Prints `<name> <median ns per call>` for `aba`, `rnea`, `crba`, `rk4_step` (one flexible-joint
 //! RK4 step, four forward dynamics) and `simulate_1e4` (10⁴ steps under MotorPD, trajectory
 //! included: the pure-Rust figure that `benches/compare_pinocchio.py` sets against `simulate`
-//! from Python). Medians are over blocks of calls, after a warm-up.
+//! from Python). Medians are over blocks of calls, after a warm-up. `--iters N` replaces every
+//! measurement's number of calls per block (`benches/pinocchio_cpp/callgrind.sh` runs one
+//! measurement with two values of `--blocks` and counts the instructions of the extra calls).
 
 use orbitflex::algorithms::{self, Data};
 use orbitflex::{
@@ -18,8 +20,17 @@ use orbitflex::{
 use std::hint::black_box;
 use std::time::Instant;
 
-/// Median over `blocks` blocks of the mean time per call (ns) of `iters` calls of `f`.
-fn median_ns(mut f: impl FnMut(), iters: usize, blocks: usize) -> f64 {
+/// How many blocks to time, and the calls per block if `--iters` overrides each measurement's own.
+#[derive(Clone, Copy)]
+struct Reps {
+    blocks: usize,
+    iters: Option<usize>,
+}
+
+/// Median over `reps.blocks` blocks of the mean time per call (ns) of `iters` calls of `f`
+/// (or `reps.iters` calls when given).
+fn median_ns(mut f: impl FnMut(), iters: usize, reps: Reps) -> f64 {
+    let (blocks, iters) = (reps.blocks, reps.iters.unwrap_or(iters));
     for _ in 0..iters / 10 + 1 {
         f();
     }
@@ -55,8 +66,10 @@ fn main() {
     let only: Option<Vec<String>> =
         take_flag("--only").map(|s| s.split(',').map(str::to_string).collect());
     let blocks: usize = take_flag("--blocks").map_or(15, |s| s.parse().expect("--blocks N"));
+    let iters: Option<usize> = take_flag("--iters").map(|s| s.parse().expect("--iters N"));
+    let reps = Reps { blocks, iters };
     if args.len() < 2 {
-        eprintln!("usage: bench_cpp_match <urdf> <ee_link or -> [locked joint ...] [--only NAMES] [--blocks N]");
+        eprintln!("usage: bench_cpp_match <urdf> <ee_link or -> [locked joint ...] [--only NAMES] [--blocks N] [--iters N]");
         std::process::exit(2);
     }
     let options = UrdfOptions {
@@ -103,7 +116,7 @@ fn main() {
                 );
             },
             20_000,
-            blocks,
+            reps,
         );
         println!("aba {t:.1}");
     }
@@ -123,7 +136,7 @@ fn main() {
                 );
             },
             20_000,
-            blocks,
+            reps,
         );
         println!("rnea {t:.1}");
     }
@@ -133,7 +146,7 @@ fn main() {
                 black_box(algorithms::crba(&robot, &mut data, black_box(&q)).unwrap()[(0, 0)]);
             },
             20_000,
-            blocks,
+            reps,
         );
         println!("crba {t:.1}");
     }
@@ -146,7 +159,7 @@ fn main() {
                 black_box(d.fd_q[(0, 0)]);
             },
             4_000,
-            blocks,
+            reps,
         );
         println!("aba_derivatives {t:.1}");
     }
@@ -159,7 +172,7 @@ fn main() {
                 black_box(d.id_q[(0, 0)]);
             },
             4_000,
-            blocks,
+            reps,
         );
         println!("rnea_derivatives {t:.1}");
     }
@@ -197,7 +210,7 @@ fn main() {
                 black_box(x[0]);
             },
             5_000,
-            blocks,
+            reps,
         );
         println!("rk4_step {t:.1}");
     }
@@ -222,7 +235,7 @@ fn main() {
                 black_box(j.x[(0, 0)]);
             },
             500,
-            blocks,
+            reps,
         );
         println!("step_jacobians {t:.1}");
         let tangent = arm.tangent_size();
@@ -246,7 +259,7 @@ fn main() {
                 }
             },
             100,
-            blocks,
+            reps,
         );
         println!("step_jacobians_central_differences {t:.1}");
     }
@@ -269,7 +282,7 @@ fn main() {
                 black_box(traj.len());
             },
             1,
-            blocks,
+            reps,
         );
         println!("simulate_1e4 {t:.1}");
     }

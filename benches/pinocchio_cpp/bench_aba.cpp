@@ -1,11 +1,15 @@
 // Pinocchio's C++ on the same models as orbitflex's `examples/bench_cpp_match.rs`
-// (BENCHMARKS.md, "Rust against Pinocchio's C++"). Built by `run.sh` with g++ -O3 -DNDEBUG
-// against the headers and libraries of the `pin` wheel.
+// (BENCHMARKS.md, "Rust against Pinocchio's C++"). Built by `run.sh` against the headers and
+// libraries of the `pin` wheel, in several configurations (compiler, -march; see run.sh). With
+// -DPINOCCHIO_ENABLE_TEMPLATE_INSTANTIATION (the `wheel` build) the algorithms are not compiled
+// here: the calls go to the explicit instantiations for double inside libpinocchio_default.so.
 //
-//   bench_aba <urdf> <ee_link or -> [locked joint ...] [--only NAME,NAME...] [--blocks N]
+//   bench_aba <urdf> <ee_link or -> [locked joint ...] [--only NAME,NAME...] [--blocks N] [--iters N]
 //
 // The URDF's root becomes a free-flyer joint (orbitflex's floating base); gravity is zero.
 // Prints one line per measurement: `<name> <median ns per call>`, the median over blocks.
+// `--iters N` replaces every measurement's number of calls per block (the warm-up is N/10 calls);
+// callgrind.sh uses it with two values of `--blocks` to count the instructions of one call.
 // Inputs are the same deterministic numbers as the Rust program: q_i = 0.3 sin(i+1),
 // q̇_i = 0.2 cos(i+1), base twist [v; ω] = [0.01, -0.02, 0.03; 0.05, -0.04, 0.03], τ_i = 1 + 0.1 i.
 #include <algorithm>
@@ -29,16 +33,24 @@
 using pinocchio::Data;
 using pinocchio::Model;
 using Vec = Eigen::VectorXd;
+// Every algorithm gets its vectors as Eigen::Ref<const VectorXd>: the argument type of the
+// library's explicit instantiations, so that the `wheel` build calls them instead of compiling
+// its own copy. The header-only builds compile the same call (Pinocchio converts to Ref inside
+// most algorithms anyway).
+using CRef = Eigen::Ref<const Vec>;
 
 static volatile double sink = 0.0;
 
 // Median over `blocks` blocks of the mean time per call (ns) of `iters` calls of `f`.
 static int g_blocks = 15;
+static int g_iters = 0; // 0: each measurement's own count
 
 template<typename F>
 double median_ns(F && f, int iters, int blocks = g_blocks)
 {
   std::vector<double> t;
+  if (g_iters > 0)
+    iters = g_iters;
   for (int i = 0; i < iters / 10; ++i)
     f(); // warm-up
   for (int b = 0; b < blocks; ++b)
@@ -86,7 +98,7 @@ struct FlexArm
     tau.head<6>().setZero();
     tau.tail(n).array() = k.array() * (theta - q.tail(n)).array()
                           + d.array() * (theta_dot - v.tail(n)).array();
-    const Vec & a = pinocchio::aba(model, data, q, v, tau);
+    const Vec & a = pinocchio::aba(model, data, CRef(q), CRef(v), CRef(tau));
     const Eigen::Quaterniond quat(x[6], x[3], x[4], x[5]);
     const Eigen::Vector3d omega = v.segment<3>(3);
     xd.segment<3>(0) = quat.toRotationMatrix() * v.head<3>();
@@ -130,6 +142,8 @@ int main(int argc, char ** argv)
       only = "," + std::string(argv[++a]) + ",";
     else if (arg == "--blocks" && a + 1 < argc)
       g_blocks = std::atoi(argv[++a]);
+    else if (arg == "--iters" && a + 1 < argc)
+      g_iters = std::atoi(argv[++a]);
     else
       locked_names.push_back(arg);
   }
@@ -166,7 +180,8 @@ int main(int argc, char ** argv)
 
   std::printf("model %s nq %d nv %d n %d\n", argv[1], model.nq, model.nv, n);
   // The joint accelerations and one RK4 step's (q, θ) for run.sh's agreement check.
-  const Vec qdd = pinocchio::aba(model, data, q, v, tau).tail(n);
+  const CRef qr(q), vr(v), taur(tau), ar(a);
+  const Vec qdd = pinocchio::aba(model, data, qr, vr, taur).tail(n);
   std::printf("check_qdd");
   for (int i = 0; i < n; ++i)
     std::printf(" %.15e", qdd[i]);
@@ -176,17 +191,17 @@ int main(int argc, char ** argv)
       std::printf("%s %.1f\n", name, median_ns(f, iters));
   };
   using pinocchio::Convention;
-  report("aba_local", 20000, [&] { sink += pinocchio::aba(model, data, q, v, tau, Convention::LOCAL)[0]; });
-  report("aba_world", 20000, [&] { sink += pinocchio::aba(model, data, q, v, tau, Convention::WORLD)[0]; });
-  report("rnea", 20000, [&] { sink += pinocchio::rnea(model, data, q, v, a)[0]; });
-  report("crba_local", 20000, [&] { sink += pinocchio::crba(model, data, q, Convention::LOCAL)(0, 0); });
-  report("crba_world", 20000, [&] { sink += pinocchio::crba(model, data, q, Convention::WORLD)(0, 0); });
+  report("aba_local", 20000, [&] { sink += pinocchio::aba(model, data, qr, vr, taur, Convention::LOCAL)[0]; });
+  report("aba_world", 20000, [&] { sink += pinocchio::aba(model, data, qr, vr, taur, Convention::WORLD)[0]; });
+  report("rnea", 20000, [&] { sink += pinocchio::rnea(model, data, qr, vr, ar)[0]; });
+  report("crba_local", 20000, [&] { sink += pinocchio::crba(model, data, qr, Convention::LOCAL)(0, 0); });
+  report("crba_world", 20000, [&] { sink += pinocchio::crba(model, data, qr, Convention::WORLD)(0, 0); });
   report("aba_derivatives", 4000, [&] {
-    pinocchio::computeABADerivatives(model, data, q, v, tau);
+    pinocchio::computeABADerivatives(model, data, qr, vr, taur);
     sink += data.ddq_dq(0, 0);
   });
   report("rnea_derivatives", 4000, [&] {
-    pinocchio::computeRNEADerivatives(model, data, q, v, a);
+    pinocchio::computeRNEADerivatives(model, data, qr, vr, ar);
     sink += data.dtau_dq(0, 0);
   });
 
