@@ -266,7 +266,7 @@ pub fn rnea_derivatives<'a>(
         qdd,
         &Force::from_slice(ee_wrench),
     );
-    ee_force_map(robot, data, &mut d, state.q)?;
+    ee_force_map(robot, &mut d);
     data.derivatives = d;
     Ok(&data.derivatives)
 }
@@ -292,7 +292,7 @@ pub fn aba_derivatives<'a>(
     qdd.copy_from_slice(&data.ddq.as_slice()[6..]);
     id_derivatives(robot, data, &mut d, state, &acc, &qdd, &loads.ee_wrench);
     d.scratch.qdd = qdd;
-    ee_force_map(robot, data, &mut d, state.q)?;
+    ee_force_map(robot, &mut d);
     factorisation(robot, data, &mut d.scratch)?;
     // 𝓜⁻¹ on the unit columns; ∂FD/∂f_B, ∂FD/∂τ are its columns
     let m = 6 + n;
@@ -360,16 +360,30 @@ fn take_derivatives(data: &mut Data, n: usize) -> Derivatives {
     std::mem::take(&mut data.derivatives)
 }
 
-/// `∂ID/∂f = [Φ_{n+1,B}ᵀ; Jᵀ]`.
-fn ee_force_map(robot: &Robot, data: &mut Data, d: &mut Derivatives, q: &[f64]) -> Result<()> {
-    super::ee_jacobian(robot, data, q)?;
-    d.id_ee_wrench
-        .view_mut((0, 0), (6, 6))
-        .tr_copy_from(&data.ee_base);
-    d.id_ee_wrench
-        .view_mut((6, 0), (robot.dof(), 6))
-        .tr_copy_from(&data.jacobian);
-    Ok(())
+/// `∂ID/∂f = [Φ_{n+1,B}ᵀ; Jᵀ]` from the transforms and axes [`id_derivatives`] left in the
+/// scratch: column `j` is the unit EE wrench `e_j` moved to the base, `F = Φ_{n+1,B}ᵀ e_j`, and
+/// its generalized force `S_kᵀ F` for the joints `k` that move the EE body (0 for the others).
+fn ee_force_map(robot: &Robot, d: &mut Derivatives) {
+    let s = &d.scratch;
+    let ee = robot.ee_body();
+    let to_ee = robot.frame_ee_transform().compose(&s.to_body[ee]);
+    let rows = 6 + robot.dof();
+    let forces: [Force; 6] = std::array::from_fn(|j| {
+        let mut unit = [0.0; 6];
+        unit[j] = 1.0;
+        to_ee.apply_force_transpose(&Force::from_slice(&unit))
+    });
+    // column-major: column j is one contiguous slice
+    let map = d.id_ee_wrench.as_mut_slice();
+    for (column, f) in map.chunks_exact_mut(rows).zip(&forces) {
+        column[..6].copy_from_slice(&f.to_array());
+        column[6..].fill(0.0);
+    }
+    for k in robot.path_to_base(ee) {
+        for (j, f) in forces.iter().enumerate() {
+            map[j * rows + 5 + k] = s.axis[k].dot(f);
+        }
+    }
 }
 
 /// Body `i`'s own terms, in base-frame components, from `v_i`, `a_i` and its inertia there:
