@@ -14,8 +14,8 @@ use nalgebra::{Complex, DMatrix};
 /// in `a`: the inner product of the derivative chains, whose matrices are too small for a
 /// packing GEMM to pay.
 ///
-/// On x86-64 processors with AVX2 (detected at run time) the same code runs compiled for
-/// 256-bit registers. It multiplies and adds separately (no fused multiply-add) in the same
+/// On x86-64 processors with AVX2 (detected at run time; `ORBITFLEX_PORTABLE` turns it off, see
+/// `crate::simd`) the same code runs compiled for 256-bit registers. It multiplies and adds separately (no fused multiply-add) in the same
 /// order, so both versions give the same bits.
 pub(crate) fn scaled_product(scale: f64, a: &[f64], rows: usize, w: &[f64], out: &mut [f64]) {
     assert_eq!(
@@ -29,8 +29,8 @@ pub(crate) fn scaled_product(scale: f64, a: &[f64], rows: usize, w: &[f64], out:
         "scaled_product: out has one entry per row of A"
     );
     #[cfg(target_arch = "x86_64")]
-    if std::is_x86_feature_detected!("avx2") {
-        // SAFETY: the processor has AVX2, checked just above.
+    if crate::simd::avx2() {
+        // SAFETY: the processor has AVX2 (`simd::avx2` checks it), checked just above.
         unsafe { scaled_product_avx2(scale, a, rows, w, out) };
         return;
     }

@@ -5,7 +5,8 @@
 //! three-operand instructions save the register copies of SSE2, and 256-bit registers halve
 //! some arithmetic. Fused multiply-add stays off (Rust never contracts `a * b + c` by itself),
 //! and floating-point operations are not reordered, so both copies give the same bits; the
-//! tests check this on every machine that has AVX2.
+//! tests compare them (`aba`, `rnea`, `crba` here, `apply_inverse` and the product kernel of
+//! `crate::linalg` beside their code) on every machine that has AVX2.
 
 /// Calls `kernel(args…)`, an `#[inline(always)]` function, through a copy compiled for AVX2
 /// when the processor has it, and directly otherwise: `dispatch!(kernel(a: A, b: B) -> R)`
@@ -35,10 +36,12 @@ macro_rules! dispatch {
 }
 pub(crate) use dispatch;
 
-/// Whether the AVX2 copies run: the processor has AVX2 and `ORBITFLEX_PORTABLE` was not set
-/// when the first dispatch happened. (The environment variable exists for the tests that
-/// compare the two copies, and for timing the portable code.)
+/// Whether the AVX2 copies run: the processor has AVX2 and `ORBITFLEX_PORTABLE` was not set to
+/// a non-empty value other than `0` when the first dispatch happened (it is read once per
+/// process). The variable exists for tools that do not decode every AVX instruction (valgrind
+/// 3.19) and for timing the portable code.
 #[inline(always)]
+#[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
 pub(crate) fn avx2() -> bool {
     #[cfg(target_arch = "x86_64")]
     {
@@ -48,8 +51,9 @@ pub(crate) fn avx2() -> bool {
             1 => true,
             2 => false,
             _ => {
-                let on = std::is_x86_feature_detected!("avx2")
-                    && std::env::var_os("ORBITFLEX_PORTABLE").is_none();
+                let portable = std::env::var_os("ORBITFLEX_PORTABLE")
+                    .is_some_and(|v| !v.is_empty() && v != "0");
+                let on = std::is_x86_feature_detected!("avx2") && !portable;
                 STATE.store(if on { 1 } else { 2 }, Ordering::Relaxed);
                 on
             }

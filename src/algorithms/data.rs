@@ -10,22 +10,25 @@ use nalgebra::{DMatrix, DVector};
 /// Index 0 is the base and `i` is link `i`. Each buffer has one meaning. Per-body quantities are
 /// in each body's **joint frame**: the link frame turned by the constant
 /// [`Robot::joint_frame_rotation`] so that the joint axis is `e_z` (the base frame is unchanged);
-/// `Q_iᵀ` takes their 3-vectors back to link-frame components. Results in joint space or in the
-/// base frame (`tau`, `ddq`, `mass_matrix`, `jacobian`, `ee_base`) do not depend on this. Reuse one `Data` for many
+/// `Q_iᵀ` takes their 3-vectors back to link-frame components. Results in joint space, the base
+/// frame or the EE frame (`tau`, `ddq`, `mass_matrix`, `jacobian`, `ee_base`) do not depend on
+/// this. Reuse one `Data` for many
 /// calls: after the first call of each algorithm nothing is allocated. The memory is O(n); the
 /// one dense buffer, the (6+n)² mass matrix, is allocated by the first [`crate::algorithms::crba`]
 /// call, not by `Data::new`.
 #[derive(Debug, Clone)]
 pub struct Data {
-    /// `Φ_{i,λ(i)}(q)` (A.5), from the parent `λ(i)` to body `i`; entry 0 is unused.
+    /// `Φ'_{i,λ(i)}(q)` (A.5) between joint frames, from the parent `λ(i)` to body `i`; entry 0 is
+    /// unused.
     pub x: Vec<Transform>,
     /// Body velocities `V_i` (A.4), joint frames.
     pub v: Vec<Motion>,
     /// Coriolis terms `a_i` (A.7); entry 0 is zero (`a_B = 0`).
     pub c: Vec<Motion>,
-    /// Classical body accelerations `α_i` (A.6).
+    /// Classical body accelerations `α_i` (A.6), joint frames.
     pub acc: Vec<Motion>,
-    /// Body forces `f_i` (A.8): the force body `i` receives through joint `i` from its parent.
+    /// Body forces `f_i` (A.8), joint frames: the force body `i` receives through joint `i` from
+    /// its parent.
     pub f: Vec<Force>,
     /// Spatial momenta: `M_i V_i` summed over the subtree of body `i`, about origin `i`.
     pub h: Vec<Force>,

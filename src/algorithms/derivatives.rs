@@ -717,3 +717,29 @@ fn id_directional(
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::testing::{random_chain, random_state};
+
+    /// The dispatched `apply_inverse` (the AVX2 copy where the processor has it) gives the same
+    /// bits as the portable kernel.
+    #[test]
+    fn apply_inverse_copies_give_the_same_bits() {
+        let robot = random_chain(11, 6);
+        let (q, v, qd) = random_state(&robot, 3);
+        let state = RigidState::new(&q, &v, &qd);
+        let tau = vec![0.5; robot.dof()];
+        let mut data = Data::new(&robot);
+        aba_derivatives(&robot, &mut data, &state, &tau, &Loads::ZERO).unwrap();
+        let mut s = std::mem::take(&mut data.derivatives.scratch);
+        let m = 6 + robot.dof();
+        let columns = 5;
+        let rhs: Vec<f64> = (0..m * columns).map(|k| (k as f64 * 0.37).sin()).collect();
+        let (mut fast, mut portable) = (rhs.clone(), rhs);
+        apply_inverse(&robot, &mut s, &mut fast, columns);
+        apply_inverse_kernel(&robot, &mut s, &mut portable, columns);
+        assert_eq!(fast, portable);
+    }
+}
