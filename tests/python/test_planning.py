@@ -466,8 +466,10 @@ def test_planning_and_tracking_release_the_gil(demo_plan, space_arm):
     # while plan_slew / track run in a thread, this thread keeps running
     for work in (lambda: plan_slew(space_arm, GOAL, limits=Limits(MOTOR_TORQUE, 0.5), base="held"),
                  lambda: demo_plan.track(DT, KP, KD, settle=0.0)):
+        # five runs in a row: one takes only a few ms now, too short to count wakes reliably on a
+        # loaded machine; with the GIL held, this thread would not wake at all until the end
         started, wakes = threading.Event(), 0
-        thread = threading.Thread(target=lambda: (started.set(), work()))
+        thread = threading.Thread(target=lambda: (started.set(), [work() for _ in range(5)]))
         thread.start()
         started.wait()
         time.sleep(0.005)
