@@ -55,6 +55,7 @@ impl<'a> RigidState<'a> {
     }
 
     /// Checks the lengths against `robot` (n, 6, n) and that every element is finite.
+    #[inline]
     pub fn check(&self, robot: &Robot) -> Result<()> {
         let n = robot.dof();
         check_vector("q", self.q, n)?;
@@ -103,14 +104,30 @@ impl Loads {
     }
 
     /// Checks that both wrenches are finite.
+    #[inline]
     pub fn check(&self) -> Result<()> {
+        let (base, ee) = (self.base_wrench.to_array(), self.ee_wrench.to_array());
+        if base.iter().chain(&ee).all(|v| v.is_finite()) {
+            return Ok(());
+        }
         check_finite("base_wrench", &self.base_wrench.to_array())?;
         check_finite("ee_wrench", &self.ee_wrench.to_array())
     }
 }
 
 /// Checks that `values` has `expected` elements, all finite.
+#[inline]
 pub fn check_vector(what: &str, values: &[f64], expected: usize) -> Result<()> {
+    // the common case in a few instructions per element; the messages only when it fails
+    if values.len() == expected && values.iter().all(|v| v.is_finite()) {
+        return Ok(());
+    }
+    vector_error(what, values, expected)
+}
+
+#[cold]
+#[inline(never)]
+fn vector_error(what: &str, values: &[f64], expected: usize) -> Result<()> {
     check_length(what, values.len(), expected)?;
     check_finite(what, values)
 }
