@@ -409,3 +409,55 @@ fn a_subnormal_mass_is_refused_where_the_model_loads() {
         "{error}"
     );
 }
+
+/// The recursive algorithms' argument checks: lengths and finiteness, with the name, the index
+/// and the value in the message (the fast path that lets good arguments through must not let a
+/// bad one through).
+#[test]
+fn dynamics_argument_checks_name_the_bad_element() {
+    use orbitflex::algorithms::{self, Data};
+    use orbitflex::spatial::Force;
+    use orbitflex::RigidState;
+    let robot = one_link();
+    let mut data = Data::new(&robot);
+    let twist = [0.0; 6];
+    let good = RigidState::new(&[0.1], &twist, &[0.2]);
+    let mut aba = |state: &RigidState, tau: &[f64], loads: &Loads| {
+        algorithms::aba(&robot, &mut data, state, tau, loads)
+            .map(|_| ())
+            .map_err(|e| e.to_string())
+    };
+    let mut wrench = [0.0; 6];
+    wrench[4] = f64::INFINITY;
+    let base = Loads {
+        base_wrench: Force::from_slice(&wrench),
+        ee_wrench: Force::ZERO,
+    };
+    let ee = Loads {
+        base_wrench: Force::ZERO,
+        ee_wrench: Force::from_slice(&wrench),
+    };
+    assert_eq!(
+        aba(&good, &[1.0], &base),
+        Err("base_wrench: element 4 is not finite (inf)".into())
+    );
+    assert_eq!(
+        aba(&good, &[1.0], &ee),
+        Err("ee_wrench: element 4 is not finite (inf)".into())
+    );
+    assert_eq!(
+        aba(&good, &[f64::NAN], &Loads::ZERO),
+        Err("tau: element 0 is not finite (NaN)".into())
+    );
+    let bad = RigidState::new(&[0.1], &twist, &[f64::NEG_INFINITY]);
+    assert_eq!(
+        aba(&bad, &[1.0], &Loads::ZERO),
+        Err("qd: element 0 is not finite (-inf)".into())
+    );
+    let long = aba(&good, &[1.0, 2.0], &Loads::ZERO).unwrap_err();
+    assert!(
+        long.starts_with("tau") && long.contains("length 1") && long.contains("length 2"),
+        "{long}"
+    );
+    assert_eq!(aba(&good, &[1.0], &Loads::ZERO), Ok(()));
+}
