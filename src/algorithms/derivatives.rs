@@ -257,6 +257,9 @@ pub fn rnea_derivatives<'a>(
     check_vector("qdd", qdd, robot.dof())?;
     check_vector("ee_wrench", ee_wrench, 6)?;
     let mut d = take_derivatives(data, robot.dof());
+    for i in 1..=robot.dof() {
+        data.x[i] = robot.joint_transform(i, state.q[i - 1]);
+    }
     id_derivatives(
         robot,
         data,
@@ -403,8 +406,9 @@ fn body_terms(s: &mut Scratch, i: usize, inertia: &Inertia) {
 }
 
 /// The inverse-dynamics derivatives in base-frame components (module docs) into `id_q` and
-/// `id_v`; also refreshes `data.x` (the joint transforms at `q`). (Its AVX2 build was about 10 %
-/// faster, but valgrind 3.19 cannot decode one of its instructions, so it stays portable.)
+/// `id_v`, from the joint transforms at `q` in `data.x` (left there by the forward dynamics, or
+/// computed by the caller). (Its AVX2 build was about 10 % faster, but valgrind 3.19 cannot
+/// decode one of its instructions, so it stays portable.)
 fn id_derivatives(
     robot: &Robot,
     data: &mut Data,
@@ -426,8 +430,7 @@ fn id_derivatives(
     body_terms(s, 0, &inertias[0]);
     for i in 1..=n {
         let lambda = parents[i];
-        let x = robot.joint_transform(i, state.q[i - 1]);
-        data.x[i] = x;
+        let x = data.x[i];
         let to_body = x.compose(&s.to_body[lambda]);
         let axis = to_body.apply_motion_inverse(&Motion::new(Vec3::z(), Vec3::zeros()));
         let rate = axis * state.qd[i - 1];
