@@ -5,6 +5,8 @@
 //! - [`control`]: input [`Schedule`]s, the [`Controller`] trait and the built-in [`MotorPD`];
 //! - [`simulate`](mod@simulate): one [`step`], a whole run ([`simulate()`]) with its checks,
 //!   stability warning and [`Observer`] hook;
+//! - [`batch`]: many runs at once over a pool of threads ([`simulate_batch`]), inputs broadcast
+//!   over a leading run axis, one record with a status per run;
 //! - [`record`]: which rows a run keeps (`record_every`) and where they go: the [`Recorder`]
 //!   trait, the in-memory [`Trajectory`], the streaming [`Chunks`];
 //! - [`trajectory`]: the [`Trajectory`] a run returns and the diagnostics along it.
@@ -26,12 +28,14 @@
 //! # Ok::<(), orbitflex::Error>(())
 //! ```
 
+pub mod batch;
 pub mod control;
 pub mod record;
 pub mod rk4;
 pub mod simulate;
 pub mod trajectory;
 
+pub use batch::{simulate_batch, Batch, BatchRecord, BatchSettings, RunStatus};
 pub use control::{Controller, Feedback, MotorPD, Schedule};
 pub use record::{is_recorded, recorded_rows, Chunk, Chunks, Recorder};
 pub use rk4::{OdeSystem, Rk4};
