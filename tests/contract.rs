@@ -279,6 +279,26 @@ fn stability_limits_pinned() {
     assert_eq!(unknown.dt, open.dt);
 }
 
+/// Very stiff joints (k/j = 1e11 s⁻²) have a finite limit that scales as 1/√k: the scan once
+/// gave up at a million times the largest entry of the Jacobian (k/j, not √(k/j)) and reported
+/// no limit, so a run that diverged at once was not warned about.
+#[test]
+fn stiff_joints_have_a_finite_limit() {
+    let limit = |k: f64| {
+        let arm = FlexibleArm::new(
+            Robot::space_arm(),
+            FlexibleJoints::uniform(7, k, 1e-3, 0.0, 0.0).unwrap(),
+        )
+        .unwrap();
+        arm.rk4_stability_limit(&arm.rest_state(), &Schedule::Zero)
+            .unwrap()
+            .dt
+    };
+    let (soft, stiff) = (limit(1e6), limit(1e8));
+    assert!(stiff.is_finite(), "{stiff}");
+    assert!((soft / stiff - 10.0).abs() < 0.05, "{soft} / {stiff}");
+}
+
 #[test]
 fn input_checks_say_what_is_wrong() {
     let check = |r: orbitflex::Result<()>, want: &str| {

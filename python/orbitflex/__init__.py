@@ -23,6 +23,7 @@ re-exports it.
 
 from ._core import (
     SPACE_ARM_URDF,
+    BatchTrajectory,
     FlexibleArm,
     FlexibleJoints,
     Limits,
@@ -34,6 +35,7 @@ from ._core import (
     Trajectory,
     __version__,
     plan_slew,
+    simulate_batch,
 )
 from . import models
 
@@ -43,6 +45,8 @@ __all__ = [
     "FlexibleArm",
     "MotorPD",
     "Trajectory",
+    "simulate_batch",
+    "BatchTrajectory",
     "Limits",
     "Plan",
     "plan_slew",

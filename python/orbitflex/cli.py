@@ -1,4 +1,5 @@
-"""Command line: ``orbitflex demo``, ``orbitflex simulate URDF`` and ``orbitflex plan URDF``.
+"""Command line: ``orbitflex demo``, ``orbitflex simulate URDF``, ``orbitflex plan URDF`` and
+``orbitflex campaign FILE``.
 
 ``demo`` and ``simulate`` run the same job: a free-floating slew of the arm under the built-in
 motor-side PD controller, long enough to show the base's reaction and the joints' vibration, then
@@ -11,9 +12,13 @@ and as if they were rigid, runs both plans on the flexible arm and compares them
 limits, plans it again as if the joints were rigid, tracks both on the flexible arm, and writes
 the plans, the comparison, ``plan_summary.json`` and plots.
 
+``campaign`` runs a Monte-Carlo campaign file (:mod:`orbitflex.campaign`) locally or on a Dask
+cluster (``--scheduler``) and writes the per-run table ``runs.parquet``, ``summary.csv``
+(percentiles), ``log.jsonl`` and ``histograms.png``.
+
 Exit codes: 0 for a completed run, 1 when a run diverged (the outputs then describe the finite
-part before the failure; ``plan`` writes none), 2 for a usage error (one line
-``orbitflex: error: FLAG: ...``).
+part before the failure; ``plan`` writes none; ``campaign``: when any run did, the table marks
+it), 2 for a usage error (one line ``orbitflex: error: FLAG: ...``).
 """
 
 from __future__ import annotations
@@ -34,8 +39,8 @@ from typing import Any, Dict, List, NoReturn, Optional, Sequence, TextIO, Tuple,
 import numpy as np
 import numpy.typing as npt
 
-from . import (FlexibleArm, FlexibleJoints, Limits, MotorPD, Plan, Robot, SimulationError, Trajectory, __version__,
-               models, plan_slew)
+from . import (FlexibleArm, FlexibleJoints, Limits, ModelError, MotorPD, Plan, Robot, SimulationError, Trajectory,
+               __version__, models, plan_slew)
 
 Array = npt.NDArray[np.float64]
 Rows = npt.NDArray[np.intp]  # indices of the rows drawn in a plot
@@ -289,8 +294,9 @@ class ProgressBar:
     """A tqdm bar driven by ``simulate``'s ``progress(done, total)`` callback, opened at the
     first call (after any warning ``simulate`` prints before it starts)."""
 
-    def __init__(self, total: int):
+    def __init__(self, total: int, unit: str = "step", desc: str = "simulating"):
         self.total = total
+        self.unit, self.desc = unit, desc
         self.bar: Any = None
 
     def to(self, done: int, total: int) -> None:
@@ -299,7 +305,7 @@ class ProgressBar:
                 from tqdm import tqdm
             except ImportError:  # tqdm is a dependency, but keep the simulator usable without it
                 return
-            self.bar = tqdm(total=self.total, unit="step", desc="simulating", file=sys.stderr,
+            self.bar = tqdm(total=self.total, unit=self.unit, desc=self.desc, file=sys.stderr,
                             mininterval=0.25)
         self.bar.update(done - self.bar.n)
 
@@ -1681,7 +1687,7 @@ def build_parser() -> Parser:
     parser = Parser(prog="orbitflex", description="Flexible-joint space manipulator simulation: a "
                     "free-floating slew of an arm on a spacecraft bus.")
     parser.add_argument("--version", action="version", version=f"orbitflex {__version__}")
-    sub = parser.add_subparsers(dest="command", metavar="{demo,simulate,plan}")
+    sub = parser.add_subparsers(dest="command", metavar="{demo,simulate,plan,campaign}")
     demo = sub.add_parser("demo", help="simulate the built-in space arm (bus + 7-joint arm), free floating",
                           description="Simulates the built-in space arm (a 500 kg bus with a 7-joint arm) "
                                       "slewing free-floating, and writes the trajectory, a summary and plots.")
@@ -1701,7 +1707,94 @@ def build_parser() -> Parser:
                           epilog=PLAN_EPILOG + "\n" + SIMULATE_EPILOG.split("\nexamples:")[0],
                           formatter_class=argparse.RawDescriptionHelpFormatter)
     plan_options(plan)
+    camp = sub.add_parser("campaign", help="run a Monte-Carlo campaign file, locally or on a Dask cluster",
+                          description="Runs the Monte-Carlo campaign declared in FILE (see examples/campaign.toml):\n"
+                                      "many slews with dispersed parameters, locally on every core or on a Dask\n"
+                                      "cluster, and writes one row per run to DIR/runs.parquet, percentiles to\n"
+                                      "DIR/summary.csv and histograms to DIR/histograms.png. The table is the\n"
+                                      "same, bit for bit, wherever it runs.",
+                          epilog=CAMPAIGN_EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+    camp.add_argument("file", metavar="FILE", help="the campaign file (TOML)")
+    camp.add_argument("--runs", type=count_arg, default=None, help="number of runs (default: the file's)")
+    camp.add_argument("--scheduler", metavar="ADDRESS", default=None,
+                      help="a Dask scheduler (tcp://host:8786); default: run here on every core")
+    camp.add_argument("--out", metavar="DIR", default="campaign_out",
+                      help="output folder, created if missing (default %(default)s)")
+    camp.add_argument("--chunk-runs", type=count_arg, default=None, metavar="K",
+                      help="runs per batch (per Dask task); default 256 here, about 4 tasks per worker thread on Dask")
+    camp.add_argument("--threads", type=count_arg, default=None,
+                      help="threads per batch (default: every core here, 1 per Dask task)")
+    camp.add_argument("--no-plots", action="store_true", help="skip histograms.png")
+    camp.add_argument("--no-progress", action="store_true", help="no progress bar")
     return parser
+
+
+CAMPAIGN_EPILOG = """\
+examples:
+  orbitflex campaign examples/campaign.toml --runs 1000
+  orbitflex campaign examples/campaign.toml --runs 1000 --scheduler tcp://127.0.0.1:8786
+
+Start a local Dask cluster in another shell with:
+  dask scheduler --host 127.0.0.1 &  dask worker tcp://127.0.0.1:8786 --nworkers 2 --nthreads 1
+"""
+
+
+def count_arg(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 1, given {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 1, given {text}")
+    return value
+
+
+def campaign_command(args: argparse.Namespace) -> int:
+    """``orbitflex campaign FILE``: runs the campaign, writes the table, summary and plots."""
+    try:
+        from . import campaign as campaigns
+        import pandas  # noqa: F401
+    except ImportError as e:
+        raise CliError("campaign", f"needs pandas and pyarrow ({e}); pip install 'orbitflex[campaign]'") from None
+    try:
+        campaign = campaigns.Campaign.from_toml(args.file)
+    except FileNotFoundError as e:
+        raise CliError("FILE", str(e)) from None
+    except ModelError as e:
+        raise CliError("FILE", f"{args.file}: {e}" if not str(e).startswith(args.file) else str(e)) from None
+    runs = args.runs if args.runs is not None else campaign.runs
+    where = f"on the Dask cluster at {args.scheduler}" if args.scheduler else "here"
+    print(f"campaign {campaign.name}: {runs} runs of {campaign.duration:g} s (dt = {campaign.dt:g} s, "
+          f"{campaign.steps} steps), {where}")
+    bar = None if args.no_progress else ProgressBar(runs, unit="run", desc="campaign")
+    progress = None if bar is None else bar.to
+    started = time.time()
+    try:
+        table = campaign.run(runs=runs, scheduler=args.scheduler, chunk_runs=args.chunk_runs,
+                             threads=args.threads, progress=progress)
+    except ModelError as e:
+        raise CliError("FILE", str(e)) from None
+    except (OSError, TimeoutError) as e:
+        if args.scheduler:
+            raise CliError("--scheduler", f"cannot reach the Dask scheduler at {args.scheduler}: {e}") from None
+        raise
+    finally:
+        if bar is not None:
+            bar.close()
+    seconds_taken = time.time() - started
+    files = campaigns.write_outputs(table, campaign, Path(args.out), plots=not args.no_plots)
+    failed = int((~table["ok"]).sum())
+    print(f"{runs} runs in {seconds_taken:.1f} s, {failed} failed")
+    stats = campaigns.summary(table)
+    print(f"{'metric':<22}{'unit':>6}{'p5':>12}{'p50':>12}{'p95':>12}{'max':>12}")
+    for metric, row in stats.iterrows():
+        cells = "".join(f"{row[c]:>12.4g}" if c in row and row[c] == row[c] else f"{'-':>12}"
+                        for c in ("p5", "p50", "p95", "max"))
+        print(f"{metric:<22}{row['unit']:>6}{cells}")
+    print("wrote:")
+    for f in files:
+        print(f"  {f}")
+    return 1 if failed else 0
 
 
 def reject_extra(args: argparse.Namespace, extra: List[str]) -> NoReturn:
@@ -1723,6 +1816,8 @@ def main(argv: Optional[List[str]] = None) -> int:
     try:
         if args.command == "plan":
             return plan_command(args)
+        if args.command == "campaign":
+            return campaign_command(args)
         if args.dt > args.duration:
             raise CliError("--dt", f"expected at most --duration ({args.duration:g} s), given {args.dt:g}")
         job = demo_job(args) if args.command == "demo" else simulate_job(args)

@@ -115,14 +115,15 @@ impl Linear {
         // may grow; holding the controller's output shifts such slow modes by O(h), hence the
         // 10 % margin on the growth rate. A numerical instability overshoots it quickly.
         let stable = |h: f64| self.radius(h) <= (1.1 * growth * h).exp() * (1.0 + TOLERANCE);
-        let fastest = closed
-            .iter()
-            .map(|l| l.norm())
-            .fold(0.0, f64::max)
-            .max(self.f.iter().map(|v| v.abs()).fold(0.0, f64::max));
+        let spectral = closed.iter().map(|l| l.norm()).fold(0.0, f64::max);
+        let fastest = spectral.max(self.f.iter().map(|v| v.abs()).fold(0.0, f64::max));
         if fastest == 0.0 {
             return f64::INFINITY;
         }
+        // No limit within a million time constants of the fastest mode. The entries of F can be
+        // far larger than its eigenvalues (k/j against √(k/j) for a stiff joint): they only
+        // set where the scan starts.
+        let cap = 1e6 / if spectral > 0.0 { spectral } else { fastest };
         // Scan up from inside the region (|λ h| = 0.5) until a step fails, then bisect.
         let mut lo = 0.5 / fastest;
         if !stable(lo) {
@@ -132,7 +133,7 @@ impl Linear {
         while stable(hi) {
             lo = hi;
             hi *= 2.0;
-            if hi > 1e6 / fastest {
+            if hi > cap {
                 return f64::INFINITY;
             }
         }

@@ -342,40 +342,71 @@ pub struct BatchRecord {
 
 impl BatchRecord {
     /// Run `run` as the [`Trajectory`] that [`simulate`](super::simulate()) with the same
-    /// `record_every` returns for it: its kept rows, ending on the last good state when it
-    /// failed (for a failed run, the trajectory of its
-    /// [`SimulationFailure`](super::SimulationFailure)). `None` without rows
+    /// `record_every` returns for it ([`RunRecord::to_trajectory`]). `None` without rows
     /// ([`BatchSettings::keep_rows`] false) or for a run out of range.
     pub fn run(&self, run: usize) -> Option<Trajectory> {
         if self.rows == 0 || run >= self.runs {
             return None;
         }
         let (len, n) = (self.layout.len(), self.layout.n);
-        let rows = &self.x[run * self.rows * len..(run + 1) * self.rows * len];
-        let inputs = &self.u[run * (self.rows - 1) * n..(run + 1) * (self.rows - 1) * n];
-        let last = &self.final_state[run * len..(run + 1) * len];
-        let every = self.record_every;
+        let record = RunRecord {
+            layout: self.layout,
+            record_every: self.record_every,
+            t: &self.t,
+            x: &self.x[run * self.rows * len..(run + 1) * self.rows * len],
+            u: &self.u[run * (self.rows - 1) * n..(run + 1) * (self.rows - 1) * n],
+            final_state: &self.final_state[run * len..(run + 1) * len],
+            status: &self.status[run],
+        };
+        Some(record.to_trajectory())
+    }
+}
+
+/// The part of a [`BatchRecord`] that belongs to one run (with rows), borrowed.
+#[derive(Debug, Clone, Copy)]
+pub struct RunRecord<'a> {
+    /// The state layout.
+    pub layout: StateLayout,
+    /// The batch's `record_every`.
+    pub record_every: usize,
+    /// The times of the rows, `(rows,)`.
+    pub t: &'a [f64],
+    /// The run's rows, `(rows, 13 + 4n)`.
+    pub x: &'a [f64],
+    /// The run's inputs, `(rows − 1, n)`.
+    pub u: &'a [f64],
+    /// Its final state.
+    pub final_state: &'a [f64],
+    /// How it ended.
+    pub status: &'a RunStatus,
+}
+
+impl RunRecord<'_> {
+    /// The [`Trajectory`] that [`simulate`](super::simulate()) with the same `record_every`
+    /// returns for this run: its kept rows and, for a failed run, the trajectory of its
+    /// [`SimulationFailure`](super::SimulationFailure): the rows kept up to the failing step,
+    /// ending on the last good state.
+    pub fn to_trajectory(&self) -> Trajectory {
+        let (len, n, every) = (self.layout.len(), self.layout.n, self.record_every);
         let mut traj = Trajectory::empty(self.layout);
-        match &self.status[run] {
+        match self.status {
             RunStatus::Finished => {
-                traj.t = self.t.clone();
-                traj.x = rows.to_vec();
-                traj.u = inputs.to_vec();
+                traj.t = self.t.to_vec();
+                traj.x = self.x.to_vec();
+                traj.u = self.u.to_vec();
             }
             RunStatus::Failed { step, time, .. } => {
-                // the kept rows up to the failing step, then its last good state
-                let step = *step;
                 let kept = step / every + 1;
                 traj.t = self.t[..kept].to_vec();
-                traj.x = rows[..kept * len].to_vec();
+                traj.x = self.x[..kept * len].to_vec();
                 if step % every != 0 {
                     traj.t.push(*time);
-                    traj.x.extend_from_slice(last);
+                    traj.x.extend_from_slice(self.final_state);
                 }
-                traj.u = inputs[..(traj.t.len() - 1) * n].to_vec();
+                traj.u = self.u[..(traj.t.len() - 1) * n].to_vec();
             }
         }
-        Some(traj)
+        traj
     }
 }
 

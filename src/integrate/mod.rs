@@ -35,7 +35,7 @@ pub mod rk4;
 pub mod simulate;
 pub mod trajectory;
 
-pub use batch::{simulate_batch, Batch, BatchRecord, BatchSettings, RunStatus};
+pub use batch::{simulate_batch, Batch, BatchRecord, BatchSettings, RunRecord, RunStatus};
 pub use control::{Controller, Feedback, MotorPD, Schedule};
 pub use record::{is_recorded, recorded_rows, Chunk, Chunks, Recorder};
 pub use rk4::{OdeSystem, Rk4};

@@ -307,4 +307,27 @@ impl Robot {
         robot.inertias[0] = inertia;
         RobotBuilder { robot }.build()
     }
+
+    /// This robot holding a rigid payload at its end-effector: `payload` (its mass, centre of
+    /// mass and rotational inertia about the EE origin, all in the EE frame) is joined to the
+    /// last link, as a fixed link merged into it would be. Validated like any new model. For
+    /// dispersing a grasped object's mass in a campaign.
+    ///
+    /// ```
+    /// use orbitflex::spatial::{Inertia, Mat3, Vec3};
+    /// let arm = orbitflex::Robot::space_arm();
+    /// // 20 kg, 10 cm beyond the EE origin along its z axis, a point mass
+    /// let payload = Inertia::from_com(20.0, Vec3::new(0.0, 0.0, 0.1), Mat3::zeros());
+    /// let loaded = arm.with_payload(payload)?;
+    /// let mass = |r: &orbitflex::Robot| r.inertias().iter().map(|i| i.mass).sum::<f64>();
+    /// assert!((mass(&loaded) - mass(&arm) - 20.0).abs() < 1e-9);
+    /// # Ok::<(), orbitflex::Error>(())
+    /// ```
+    pub fn with_payload(&self, payload: Inertia) -> Result<Robot> {
+        let mut robot = self.clone();
+        let last = robot.inertias.len() - 1;
+        let held = payload.transformed_to_parent(&robot.ee_transform);
+        robot.inertias[last] = robot.inertias[last].add(&held);
+        RobotBuilder { robot }.build()
+    }
 }

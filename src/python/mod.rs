@@ -8,11 +8,12 @@
 //!
 //! One file per class: `robot` (`Robot`), `joints` (`FlexibleJoints`), `control` (`MotorPD`,
 //! input schedules, Python controllers), `arm` (`FlexibleArm`), `trajectory` (`Trajectory`),
-//! `plan` (`Limits`, `Plan`, `plan_slew`); `run` drives a simulation with or without the GIL;
+//! `plan` (`Limits`, `Plan`, `plan_slew`), `batch` (`simulate_batch`, `BatchTrajectory`); `run` drives a simulation with or without the GIL;
 //! `errors` maps [`crate::Error`] onto the Python exceptions; `convert` turns numpy arrays into
 //! Rust values.
 
 mod arm;
+mod batch;
 mod control;
 mod convert;
 mod errors;
@@ -38,6 +39,8 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<trajectory::PyTrajectory>()?;
     m.add_class::<plan::PyLimits>()?;
     m.add_class::<plan::PyPlan>()?;
+    m.add_class::<batch::PyBatchTrajectory>()?;
     m.add_function(wrap_pyfunction!(plan::py_plan_slew, m)?)?;
+    m.add_function(wrap_pyfunction!(batch::py_simulate_batch, m)?)?;
     Ok(())
 }

@@ -60,6 +60,28 @@ impl StateArgs {
     }
 }
 
+/// A rotational inertia given as three principal moments (3,) or a matrix (3, 3), kg·m².
+fn inertia_matrix(inertia: &Bound<'_, PyAny>) -> PyResult<crate::spatial::Mat3> {
+    use crate::spatial::{Mat3, Vec3};
+    let array = super::convert::as_float_array(inertia, "inertia")?;
+    let shape: Vec<usize> = array.getattr("shape")?.extract()?;
+    match shape.as_slice() {
+        [3] => Ok(Mat3::from_diagonal(&Vec3::from_column_slice(&vector(
+            &array,
+            "inertia",
+            Some(3),
+        )?))),
+        [3, 3] => {
+            let (_, values) = super::convert::matrix(&array, "inertia", 3)?;
+            Ok(Mat3::from_row_slice(&values))
+        }
+        other => Err(ModelError::new_err(format!(
+            "inertia: expected three principal moments (3,) or a matrix (3, 3), given shape \
+             {other:?}"
+        ))),
+    }
+}
+
 fn options(ee_link: Option<String>, locked_joints: Option<Vec<String>>) -> UrdfOptions {
     UrdfOptions {
         ee_link,
@@ -244,28 +266,10 @@ impl PyRobot {
         inertia: &Bound<'_, PyAny>,
         com: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Self> {
-        use crate::spatial::{Inertia, Mat3, Vec3};
+        use crate::spatial::{Inertia, Vec3};
         let mass = super::convert::real(mass, "mass")?;
         let com = vector_or(com, "com", 3, 0.0)?;
-        let array = super::convert::as_float_array(inertia, "inertia")?;
-        let shape: Vec<usize> = array.getattr("shape")?.extract()?;
-        let about_com = match shape.as_slice() {
-            [3] => Mat3::from_diagonal(&Vec3::from_column_slice(&vector(
-                &array,
-                "inertia",
-                Some(3),
-            )?)),
-            [3, 3] => {
-                let (_, values) = super::convert::matrix(&array, "inertia", 3)?;
-                Mat3::from_row_slice(&values)
-            }
-            other => {
-                return Err(ModelError::new_err(format!(
-                    "inertia: expected three principal moments (3,) or a matrix (3, 3), given \
-                     shape {other:?}"
-                )))
-            }
-        };
+        let about_com = inertia_matrix(inertia)?;
         crate::model::check_inertia(mass, &Vec3::from_column_slice(&com), &about_com).map_err(
             |message| {
                 ModelError::new_err(format!("base '{}': {message}", self.robot.body_names()[0]))
@@ -273,6 +277,36 @@ impl PyRobot {
         )?;
         let inertia = Inertia::from_com(mass, Vec3::from_column_slice(&com), about_com);
         Ok(Self::wrap(self.robot.with_base_inertia(inertia)?))
+    }
+
+    /// This robot holding a rigid payload at its end-effector, joined to the last link as a
+    /// merged fixed link would be: ``mass`` (kg), ``com`` its centre of mass in the EE frame (m,
+    /// default the EE origin) and ``inertia`` about that centre in EE axes (kg·m²; three
+    /// principal moments or a 3×3 matrix; default zero, a point mass). For example, a grasped
+    /// object whose mass a campaign disperses.
+    #[pyo3(signature = (mass, inertia=None, com=None))]
+    fn with_payload(
+        &self,
+        mass: &Bound<'_, PyAny>,
+        inertia: Option<&Bound<'_, PyAny>>,
+        com: Option<&Bound<'_, PyAny>>,
+    ) -> PyResult<Self> {
+        use crate::spatial::{Inertia, Mat3, Vec3};
+        let mass = super::convert::real(mass, "mass")?;
+        let com = Vec3::from_column_slice(&vector_or(com, "com", 3, 0.0)?);
+        let about_com = match inertia.filter(|o| !o.is_none()) {
+            None => Mat3::zeros(),
+            Some(inertia) => inertia_matrix(inertia)?,
+        };
+        if !(mass.is_finite() && mass >= 0.0) {
+            return Err(ModelError::new_err(format!(
+                "mass: expected a payload mass >= 0 kg, given {mass}"
+            )));
+        }
+        crate::args::check_finite("com", com.as_slice())?;
+        crate::args::check_finite("inertia", about_com.as_slice())?;
+        let payload = Inertia::from_com(mass, com, about_com);
+        Ok(Self::wrap(self.robot.with_payload(payload)?))
     }
 
     /// Inertial poses ``[position (m); quaternion (x, y, z, w), w ≥ 0]`` of the base, of each

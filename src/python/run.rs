@@ -25,7 +25,7 @@ impl Progress {
         }
     }
 
-    fn report(&self, py: Python<'_>, done: usize, steps: usize) -> PyResult<()> {
+    pub(crate) fn report(&self, py: Python<'_>, done: usize, steps: usize) -> PyResult<()> {
         if let Some(callback) = &self.callback {
             callback.call1(py, (done, steps))?;
         }

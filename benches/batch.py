@@ -1,0 +1,107 @@
+"""Throughput of many runs: ``simulate_batch`` on 1 and 2 threads against ``simulate`` one run at a
+time, and a campaign locally against a 2-worker Dask ``LocalCluster`` on loopback.
+
+    python3 benches/batch.py [--rounds R] [--runs B] [--steps S] [--campaign-runs C]
+
+Every comparison is measured side by side in one process, alternating the contenders in each
+round (the machines are shared and noisy), and reported as the median of the rounds. Prints a
+Markdown table for BENCHMARKS.md ("Batch runs and campaigns").
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import platform
+import statistics
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+import orbitflex
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE / "pinocchio_cpp"))
+from chain_urdf import chain  # noqa: E402
+
+
+def arm_for(n: int) -> orbitflex.FlexibleArm:
+    if n == 7:
+        return orbitflex.FlexibleArm(orbitflex.models.space_arm(), orbitflex.models.space_arm_joints())
+    robot = orbitflex.Robot.from_urdf_string(chain(n, 1), ee_link=f"link{n}")
+    return orbitflex.FlexibleArm(robot, orbitflex.FlexibleJoints.defaults_for(robot))
+
+
+def timed(f) -> float:
+    start = time.perf_counter()
+    f()
+    return time.perf_counter() - start
+
+
+def batch_rows(n: int, runs: int, steps: int, rounds: int) -> list[str]:
+    arm = arm_for(n)
+    dt = 0.5 * arm.rk4_stability_limit()
+    x0 = arm.state()
+    u = np.stack([np.full(arm.dof, 0.1 * (b + 1)) for b in range(runs)])
+    one = lambda: orbitflex.simulate_batch(arm, x0, dt, steps, u=u, threads=1, keep_rows=False)  # noqa: E731
+    two = lambda: orbitflex.simulate_batch(arm, x0, dt, steps, u=u, threads=2, keep_rows=False)  # noqa: E731
+    single = lambda: [arm.simulate(x0, dt, steps, u=u[b], record_every=steps) for b in range(runs)]  # noqa: E731
+    times: dict[str, list[float]] = {"batch, 1 thread": [], "batch, 2 threads": [], "simulate, one by one": []}
+    one()  # warm up
+    for _ in range(rounds):
+        times["batch, 1 thread"].append(timed(one))
+        times["batch, 2 threads"].append(timed(two))
+        times["simulate, one by one"].append(timed(single))
+    med = {k: statistics.median(v) for k, v in times.items()}
+    per_step = {k: v / (runs * steps) * 1e6 for k, v in med.items()}
+    return [
+        f"| n = {n} | {runs} runs × {steps} steps | {per_step['simulate, one by one']:.2f} µs | "
+        f"{per_step['batch, 1 thread']:.2f} µs ({per_step['batch, 1 thread'] / per_step['simulate, one by one']:.3f}×) | "
+        f"{per_step['batch, 2 threads']:.2f} µs | **{med['batch, 1 thread'] / med['batch, 2 threads']:.2f}×** |"
+    ]
+
+
+def campaign_row(runs: int, rounds: int) -> list[str]:
+    from dask.distributed import Client, LocalCluster
+
+    from orbitflex.campaign import Campaign
+
+    campaign = Campaign.from_toml(HERE.parent / "examples" / "campaign.toml")
+    campaign.duration, campaign.slew_time = 2.0, 1.0
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
+                      dashboard_address=None) as cluster, Client(cluster) as client:
+        campaign.run(runs=8, client=client)  # warm up the workers (imports)
+        local, dask = [], []
+        for _ in range(rounds):
+            local.append(timed(lambda: campaign.run(runs=runs, threads=2)))
+            dask.append(timed(lambda: campaign.run(runs=runs, client=client)))
+    lm, dm = statistics.median(local), statistics.median(dask)
+    return [f"| {runs} runs × {campaign.steps} steps | {lm:.2f} s | {dm:.2f} s | **{dm / lm:.3f}×** |"]
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser()
+    parser.add_argument("--rounds", type=int, default=5)
+    parser.add_argument("--runs", type=int, default=16)
+    parser.add_argument("--steps", type=int, default=2000)
+    parser.add_argument("--campaign-runs", type=int, default=1000)
+    args = parser.parse_args()
+    print(f"orbitflex {orbitflex.__version__}, Python {platform.python_version()}, "
+          f"{os.cpu_count()} CPUs, {platform.processor() or platform.machine()}")
+    print()
+    print("| model | work | simulate, per step | batch on 1 thread, per step (ratio) | batch on 2 threads, per run-step | 2 threads / 1 |")
+    print("|---|---|---|---|---|---|")
+    for n in (7, 28):
+        for row in batch_rows(n, args.runs, args.steps, args.rounds):
+            print(row, flush=True)
+    print()
+    print("| campaign (examples/campaign.toml, 2 s runs) | local, 2 threads | Dask LocalCluster, 2 workers × 1 thread | Dask / local |")
+    print("|---|---|---|---|")
+    for row in campaign_row(args.campaign_runs, max(1, args.rounds // 2)):
+        print(row, flush=True)
+
+
+if __name__ == "__main__":
+    main()

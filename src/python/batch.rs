@@ -1,0 +1,687 @@
+//! `orbitflex.simulate_batch` and `orbitflex.BatchTrajectory`: many runs over a pool of threads,
+//! without the GIL, honouring Ctrl-C.
+
+use super::arm::PyFlexibleArm;
+use super::control::PyMotorPD;
+use super::convert::{as_float_array, count, positive_count, real};
+use super::errors::ModelError;
+use super::run::Progress;
+use super::trajectory::PyTrajectory;
+use crate::flex::{FlexibleArm, StateLayout};
+use crate::integrate::batch::{
+    simulate_batch, Batch, BatchControl, BatchInput, BatchRecord, BatchSettings, BatchWatch,
+    PerRun, RunRecord, RunStatus,
+};
+use crate::MotorPD;
+use numpy::ndarray::{Array2, Array3};
+use numpy::{PyArray1, PyArray2, PyArray3, PyArrayMethods};
+use pyo3::exceptions::{PyIndexError, PyRuntimeError, PyRuntimeWarning};
+use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyList, PySequence, PySlice, PyTuple};
+use std::ffi::CString;
+use std::sync::atomic::Ordering;
+use std::sync::mpsc;
+use std::time::Duration;
+
+/// An input array of a batch: its shape and its values in C order.
+struct Array {
+    shape: Vec<usize>,
+    values: Vec<f64>,
+}
+
+impl Array {
+    fn parse(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<Self> {
+        let a = as_float_array(obj, what)?;
+        let np = obj.py().import("numpy")?;
+        // the shape before `ascontiguousarray`, which turns a scalar into shape (1,)
+        let shape: Vec<usize> = a.getattr("shape")?.extract()?;
+        let a = np.call_method1("ascontiguousarray", (a,))?;
+        let flat = a.call_method1("reshape", (-1,))?;
+        let values = flat
+            .downcast::<PyArray1<f64>>()?
+            .readonly()
+            .as_slice()?
+            .to_vec();
+        Ok(Self { shape, values })
+    }
+
+    /// The length of the leading run axis, for arrays with one (ndim ≥ `with_run_axis`).
+    fn runs(&self, with_run_axis: usize) -> Option<usize> {
+        (self.shape.len() >= with_run_axis).then(|| self.shape[0])
+    }
+
+    fn input(
+        &self,
+        what: &str,
+        runs: usize,
+        steps: Option<usize>,
+        width: usize,
+    ) -> PyResult<BatchInput<'_>> {
+        Ok(BatchInput::new(
+            what,
+            &self.values,
+            &self.shape,
+            runs,
+            steps,
+            width,
+        )?)
+    }
+}
+
+/// An optional per-step input: None (zeros), a scalar (the same for every element) or an array.
+fn optional(obj: Option<&Bound<'_, PyAny>>, what: &str, width: usize) -> PyResult<Option<Array>> {
+    let Some(obj) = obj.filter(|o| !o.is_none()) else {
+        return Ok(None);
+    };
+    let mut a = Array::parse(obj, what)?;
+    if a.shape.is_empty() {
+        a = Array {
+            shape: vec![width],
+            values: vec![a.values[0]; width],
+        };
+    }
+    Ok(Some(a))
+}
+
+fn input_or_zero<'a>(
+    a: &'a Option<Array>,
+    what: &str,
+    runs: usize,
+    steps: usize,
+    width: usize,
+) -> PyResult<BatchInput<'a>> {
+    match a {
+        None => Ok(BatchInput::zero(width)),
+        Some(a) => a.input(what, runs, Some(steps), width),
+    }
+}
+
+/// A `FlexibleArm`, or a sequence of them.
+fn arms<'py>(obj: &Bound<'py, PyAny>) -> PyResult<Vec<Bound<'py, PyFlexibleArm>>> {
+    if let Ok(arm) = obj.downcast::<PyFlexibleArm>() {
+        return Ok(vec![arm.clone()]);
+    }
+    let wrong = || {
+        ModelError::new_err(format!(
+            "arm_or_arms: expected a FlexibleArm or a sequence of them (one per run), given {}",
+            obj.get_type()
+                .name()
+                .map(|n| n.to_string())
+                .unwrap_or_default()
+        ))
+    };
+    let seq = obj.downcast::<PySequence>().map_err(|_| wrong())?;
+    let mut out = Vec::new();
+    for (k, item) in seq.try_iter()?.enumerate() {
+        let item = item?;
+        out.push(item.downcast::<PyFlexibleArm>().cloned().map_err(|_| {
+            ModelError::new_err(format!(
+                "arm_or_arms[{k}]: expected a FlexibleArm, given {}",
+                item.get_type()
+                    .name()
+                    .map(|n| n.to_string())
+                    .unwrap_or_default()
+            ))
+        })?);
+    }
+    if out.is_empty() {
+        return Err(ModelError::new_err(
+            "arm_or_arms: expected a FlexibleArm or a non-empty sequence of them, given an empty \
+             sequence",
+        ));
+    }
+    Ok(out)
+}
+
+/// The motors' input of a batch, from ``u``.
+enum Control<'py> {
+    Open(Option<Array>),
+    Pd(Vec<Bound<'py, PyMotorPD>>, bool),
+}
+
+impl<'py> Control<'py> {
+    fn parse(u: Option<&Bound<'py, PyAny>>, n: usize) -> PyResult<Self> {
+        let Some(u) = u.filter(|o| !o.is_none()) else {
+            return Ok(Control::Open(None));
+        };
+        if let Ok(pd) = u.downcast::<PyMotorPD>() {
+            return Ok(Control::Pd(vec![pd.clone()], true));
+        }
+        if u.is_callable() {
+            return Err(ModelError::new_err(
+                "u: simulate_batch runs without the GIL, so it cannot call a Python controller; \
+                 give torques (an array) or a MotorPD (one, or one per run), or call \
+                 FlexibleArm.simulate for each run",
+            ));
+        }
+        // a sequence of MotorPD, one per run
+        if let Ok(seq) = u.downcast::<PySequence>() {
+            if seq.len()? > 0 && seq.get_item(0)?.is_instance_of::<PyMotorPD>() {
+                let mut pds = Vec::new();
+                for (k, item) in seq.try_iter()?.enumerate() {
+                    let item = item?;
+                    pds.push(item.downcast::<PyMotorPD>().cloned().map_err(|_| {
+                        ModelError::new_err(format!(
+                            "u[{k}]: expected a MotorPD (u[0] is one), given {}",
+                            item.get_type()
+                                .name()
+                                .map(|n| n.to_string())
+                                .unwrap_or_default()
+                        ))
+                    })?);
+                }
+                return Ok(Control::Pd(pds, false));
+            }
+        }
+        Ok(Control::Open(optional(Some(u), "u", n)?))
+    }
+}
+
+/// The number of runs: the length of every leading run axis that is not 1, which must agree.
+fn count_runs(candidates: &[(&str, Option<usize>)]) -> PyResult<usize> {
+    let mut runs: Option<(&str, usize)> = None;
+    for &(what, r) in candidates {
+        match (r, runs) {
+            (Some(r), None) if r != 1 => runs = Some((what, r)),
+            (Some(r), Some((first, b))) if r != 1 && r != b => {
+                return Err(ModelError::new_err(format!(
+                    "runs: {first} gives {b} runs but {what} gives {r}; every leading run axis \
+                     must have length 1 or the number of runs"
+                )))
+            }
+            _ => {}
+        }
+    }
+    Ok(runs.map_or(1, |(_, b)| b))
+}
+
+/// The warning for runs whose `dt` is past their stability limit.
+fn stability_warning(dt: f64, runs: usize, unstable: &[(usize, f64)]) -> String {
+    let shown: Vec<String> = unstable
+        .iter()
+        .take(10)
+        .map(|(r, _)| r.to_string())
+        .collect();
+    let more = if unstable.len() > 10 { ", …" } else { "" };
+    let smallest = unstable
+        .iter()
+        .map(|(_, l)| *l)
+        .fold(f64::INFINITY, f64::min);
+    format!(
+        "dt = {dt:e} s exceeds the RK4 stability limit of {} of {runs} runs (runs {}{more}; \
+         smallest limit {smallest:.4e} s, linearised at each run's x0); they will likely diverge",
+        unstable.len(),
+        shown.join(", ")
+    )
+}
+
+/// Runs the batch without the GIL on a thread of its own, while this thread looks for Ctrl-C
+/// and reports progress every 0.1 s. A `KeyboardInterrupt` (or an exception from `progress`)
+/// cancels the runs still going and is raised once they stopped.
+fn run_watched(
+    py: Python<'_>,
+    batch: &Batch<'_>,
+    settings: &BatchSettings,
+    progress: &Progress,
+) -> PyResult<BatchRecord> {
+    let watch = BatchWatch::default();
+    let mut raised: Option<PyErr> = None;
+    let outcome = py.allow_threads(|| {
+        std::thread::scope(|scope| {
+            let (done_tx, done_rx) = mpsc::channel::<()>();
+            let watch = &watch;
+            let worker = scope.spawn(move || {
+                let record = simulate_batch(batch, settings, watch);
+                let _ = done_tx.send(());
+                record
+            });
+            loop {
+                match done_rx.recv_timeout(Duration::from_millis(100)) {
+                    Err(mpsc::RecvTimeoutError::Timeout) if raised.is_none() => {
+                        let done = watch.done.load(Ordering::Relaxed);
+                        Python::with_gil(|py| {
+                            if let Err(e) = py
+                                .check_signals()
+                                .and_then(|_| progress.report(py, done, batch.runs))
+                            {
+                                raised = Some(e);
+                                watch.cancel.store(true, Ordering::Relaxed);
+                            }
+                        });
+                    }
+                    Err(mpsc::RecvTimeoutError::Timeout) => {}
+                    _ => break,
+                }
+            }
+            worker.join()
+        })
+    });
+    if let Some(e) = raised {
+        return Err(e);
+    }
+    match outcome {
+        Ok(record) => Ok(record?),
+        Err(_) => Err(PyRuntimeError::new_err(
+            "simulate_batch: a worker thread panicked (a bug in orbitflex; please report it)",
+        )),
+    }
+}
+
+/// Simulates many runs of the flexible arm at once, over a pool of threads, without the GIL.
+///
+/// ``simulate_batch(arm_or_arms, x0s, dt, steps, u=None, base_wrench=None, ee_wrench=None,
+/// threads=None, record_every=1, *, keep_rows=True, progress=None)`` returns a
+/// :class:`BatchTrajectory`. Run ``b`` is exactly ``arm.simulate(x0s[b], dt, steps, u[b],
+/// base_wrench[b], ee_wrench[b], record_every=record_every)``, bit for bit, whatever the number
+/// of threads.
+///
+/// Inputs broadcast over a leading run axis as numpy does (B runs; each leading axis is 1 or B):
+///
+/// - ``arm_or_arms``: one ``FlexibleArm`` for every run, or a sequence of B (dispersed
+///   stiffness, payloads; all with the same number of joints n);
+/// - ``x0s``: (13+4n,) for every run, or (B, 13+4n);
+/// - ``u`` (N·m, link side): None (zero), a scalar, (n,) constant for every run, (B, n) constant
+///   per run, (B, steps, n) or (1, steps, n) tables; or one ``MotorPD`` (each run starts from a
+///   copy) or a sequence of B. A Python callable is refused: the runs go without the GIL;
+/// - ``base_wrench`` (base frame, applied to the base) and ``ee_wrench`` (EE frame, exerted by
+///   the EE): as ``u`` with 6 (``[moment (N·m); force (N)]``) in place of n.
+///
+/// ``threads=None`` uses every core. ``record_every=k`` keeps rows 0, k, 2k, … and the final
+/// row. ``keep_rows=False`` keeps only the per-run summaries and final states (no rows), for
+/// campaigns of 10⁵ runs. ``progress(done, runs)`` is called about every 0.1 s.
+///
+/// One run that fails (a diverged state) never stops the others: its ``failed_step`` is the
+/// ``SimulationError.step`` that ``arm.simulate`` would raise for it, and its rows after the
+/// failure are NaN. Warns once (``RuntimeWarning``) when ``dt`` is past the RK4 stability limit
+/// of some runs, naming how many and which. Ctrl-C stops every run and raises
+/// ``KeyboardInterrupt``. Bad shapes raise ``ModelError`` naming the argument, the shapes
+/// accepted and the shape given (and the run, for a bad row).
+#[pyfunction]
+#[pyo3(name = "simulate_batch", signature = (arm_or_arms, x0s, dt, steps, u=None, base_wrench=None, ee_wrench=None, threads=None, record_every=None, *, keep_rows=true, progress=None))]
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn py_simulate_batch<'py>(
+    py: Python<'py>,
+    arm_or_arms: &Bound<'py, PyAny>,
+    x0s: &Bound<'py, PyAny>,
+    dt: &Bound<'py, PyAny>,
+    steps: &Bound<'py, PyAny>,
+    u: Option<&Bound<'py, PyAny>>,
+    base_wrench: Option<&Bound<'py, PyAny>>,
+    ee_wrench: Option<&Bound<'py, PyAny>>,
+    threads: Option<&Bound<'py, PyAny>>,
+    record_every: Option<&Bound<'py, PyAny>>,
+    keep_rows: bool,
+    progress: Option<&Bound<'py, PyAny>>,
+) -> PyResult<PyBatchTrajectory> {
+    let dt = real(dt, "dt")?;
+    let steps = count(steps, "steps")?;
+    let record_every = match record_every.filter(|o| !o.is_none()) {
+        Some(k) => positive_count(k, "record_every")?,
+        None => 1,
+    };
+    let threads = match threads.filter(|o| !o.is_none()) {
+        Some(t) => Some(positive_count(t, "threads")?),
+        None => None,
+    };
+    let arm_objects = arms(arm_or_arms)?;
+    let arm_refs: Vec<&FlexibleArm> = arm_objects.iter().map(|a| &a.get().arm).collect();
+    let layout = arm_refs[0].layout();
+    let n = layout.n;
+    let x0 = Array::parse(x0s, "x0s")?;
+    let control = Control::parse(u, n)?;
+    let fb = optional(base_wrench, "base_wrench", 6)?;
+    let fee = optional(ee_wrench, "ee_wrench", 6)?;
+    let shared_arm = arm_or_arms.is_instance_of::<PyFlexibleArm>();
+    let runs = count_runs(&[
+        ("arm_or_arms", (!shared_arm).then_some(arm_refs.len())),
+        ("x0s", x0.runs(2)),
+        (
+            "u",
+            match &control {
+                Control::Open(a) => a.as_ref().and_then(|a| a.runs(2)),
+                Control::Pd(pds, false) => Some(pds.len()),
+                Control::Pd(_, true) => None,
+            },
+        ),
+        ("base_wrench", fb.as_ref().and_then(|a| a.runs(2))),
+        ("ee_wrench", fee.as_ref().and_then(|a| a.runs(2))),
+    ])?;
+    let all_arms: Vec<&FlexibleArm> = if arm_refs.len() == runs {
+        arm_refs.clone()
+    } else {
+        vec![arm_refs[0]; runs]
+    };
+    let pd_refs: Vec<&MotorPD> = match &control {
+        Control::Pd(pds, _) => pds.iter().map(|p| &p.get().pd).collect(),
+        Control::Open(_) => Vec::new(),
+    };
+    let all_pds: Vec<&MotorPD> = if pd_refs.len() == runs {
+        pd_refs.clone()
+    } else {
+        pd_refs.first().map(|&p| vec![p; runs]).unwrap_or_default()
+    };
+    let batch = Batch {
+        runs,
+        arms: if arm_refs.len() == 1 {
+            PerRun::All(arm_refs[0])
+        } else {
+            PerRun::Each(&all_arms)
+        },
+        x0: x0.input("x0s", runs, None, layout.len())?,
+        u: match &control {
+            Control::Open(a) => BatchControl::Open(input_or_zero(a, "u", runs, steps, n)?),
+            Control::Pd(..) if pd_refs.len() == 1 => BatchControl::Pd(PerRun::All(pd_refs[0])),
+            Control::Pd(..) => BatchControl::Pd(PerRun::Each(&all_pds)),
+        },
+        base_wrench: input_or_zero(&fb, "base_wrench", runs, steps, 6)?,
+        ee_wrench: input_or_zero(&fee, "ee_wrench", runs, steps, 6)?,
+    };
+    let settings = BatchSettings {
+        dt,
+        steps,
+        record_every,
+        keep_rows,
+        threads,
+    };
+    py.allow_threads(|| batch.check(&settings))?;
+    let unstable = py.allow_threads(|| batch.unstable_runs(dt, threads))?;
+    if !unstable.is_empty() {
+        let message = stability_warning(dt, runs, &unstable);
+        PyErr::warn(
+            py,
+            &py.get_type::<PyRuntimeWarning>(),
+            &CString::new(message).expect("no NUL in the message"),
+            1,
+        )?;
+    }
+    let progress = Progress::new(progress.filter(|p| !p.is_none()).cloned());
+    let record = run_watched(py, &batch, &settings, &progress)?;
+    progress.finish(py, runs, runs)?;
+    let arm_handles = if arm_objects.len() == 1 {
+        vec![arm_objects[0].clone().unbind()]
+    } else {
+        arm_objects.into_iter().map(Bound::unbind).collect()
+    };
+    PyBatchTrajectory::new(py, arm_handles, record)
+}
+
+/// The record of :func:`simulate_batch`: B runs with a leading run axis, read-only arrays.
+///
+/// - ``t`` (rows,) in s, shared by every run; ``x`` (B, rows, 13+4n); ``u`` (B, rows − 1, n),
+///   the motor torques (N·m) held during the step starting at each row;
+/// - views of ``x`` (no copy): ``base_pose`` (B, rows, 7), ``q``, ``theta`` (rad),
+///   ``base_twist`` (B, rows, 6), ``qd``, ``theta_dot`` (rad/s), as in ``Trajectory``;
+/// - ``ok`` (B,) bool; ``failed_step`` (B,) int64, the failing step of each run, −1 for a run
+///   that finished; ``messages``, why each run failed (None if it finished);
+/// - summaries over *every* step (kept or not): ``final_state`` (B, 13+4n), the last (good)
+///   state; ``peak_deflection`` (B, n) ``max |θ − q|`` (rad); ``peak_torque`` (B, n)
+///   ``max |u|`` (N·m);
+/// - ``run(b)``: run b as the ``Trajectory`` that ``arm.simulate`` returns for it (for a failed
+///   run, the trajectory its ``SimulationError`` carries).
+///
+/// Rows after a run's failure are NaN. With ``keep_rows=False`` there are no rows: ``x`` is
+/// (B, 0, 13+4n) and only the summaries are kept.
+#[pyclass(name = "BatchTrajectory", module = "orbitflex", frozen)]
+pub struct PyBatchTrajectory {
+    arms: Vec<Py<PyFlexibleArm>>,
+    layout: StateLayout,
+    runs: usize,
+    rows: usize,
+    steps: usize,
+    record_every: usize,
+    status: Vec<RunStatus>,
+    t: Py<PyArray1<f64>>,
+    x: Py<PyArray3<f64>>,
+    u: Py<PyArray3<f64>>,
+    final_state: Py<PyArray2<f64>>,
+    peak_deflection: Py<PyArray2<f64>>,
+    peak_torque: Py<PyArray2<f64>>,
+}
+
+fn freeze(array: &Bound<'_, PyAny>) -> PyResult<()> {
+    let kwargs = PyDict::new(array.py());
+    kwargs.set_item("write", false)?;
+    array.call_method("setflags", (), Some(&kwargs))?;
+    Ok(())
+}
+
+fn frozen3(
+    py: Python<'_>,
+    shape: (usize, usize, usize),
+    values: Vec<f64>,
+) -> PyResult<Py<PyArray3<f64>>> {
+    let a = PyArray3::from_owned_array(
+        py,
+        Array3::from_shape_vec(shape, values).expect("shape matches the record"),
+    );
+    freeze(a.as_any())?;
+    Ok(a.unbind())
+}
+
+fn frozen2(py: Python<'_>, shape: (usize, usize), values: Vec<f64>) -> PyResult<Py<PyArray2<f64>>> {
+    let a = PyArray2::from_owned_array(
+        py,
+        Array2::from_shape_vec(shape, values).expect("shape matches the record"),
+    );
+    freeze(a.as_any())?;
+    Ok(a.unbind())
+}
+
+impl PyBatchTrajectory {
+    fn new(py: Python<'_>, arms: Vec<Py<PyFlexibleArm>>, record: BatchRecord) -> PyResult<Self> {
+        let (runs, rows, layout) = (record.runs, record.rows, record.layout);
+        let (len, n) = (layout.len(), layout.n);
+        let t = PyArray1::from_vec(py, record.t);
+        freeze(t.as_any())?;
+        Ok(Self {
+            arms,
+            layout,
+            runs,
+            rows,
+            steps: record.steps,
+            record_every: record.record_every,
+            status: record.status,
+            t: t.unbind(),
+            x: frozen3(py, (runs, rows, len), record.x)?,
+            u: frozen3(py, (runs, rows.saturating_sub(1), n), record.u)?,
+            final_state: frozen2(py, (runs, len), record.final_state)?,
+            peak_deflection: frozen2(py, (runs, n), record.peak_deflection)?,
+            peak_torque: frozen2(py, (runs, n), record.peak_torque)?,
+        })
+    }
+
+    fn view(&self, py: Python<'_>, range: std::ops::Range<usize>) -> PyResult<PyObject> {
+        let columns = PySlice::new(py, range.start as isize, range.end as isize, 1);
+        let all = PySlice::full(py);
+        let key = PyTuple::new(
+            py,
+            [all.clone().into_any(), all.into_any(), columns.into_any()],
+        )?;
+        Ok(self.x.bind(py).get_item(key)?.unbind())
+    }
+
+    fn arm(&self, py: Python<'_>, run: usize) -> Py<PyFlexibleArm> {
+        self.arms[if self.arms.len() == 1 { 0 } else { run }].clone_ref(py)
+    }
+}
+
+#[pymethods]
+impl PyBatchTrajectory {
+    /// Number of runs B.
+    #[getter]
+    fn runs(&self) -> usize {
+        self.runs
+    }
+    /// Steps per run.
+    #[getter]
+    fn steps(&self) -> usize {
+        self.steps
+    }
+    /// The ``record_every`` of the batch.
+    #[getter]
+    fn record_every(&self) -> usize {
+        self.record_every
+    }
+    /// Times of the rows (s), (rows,).
+    #[getter]
+    fn t(&self, py: Python<'_>) -> Py<PyArray1<f64>> {
+        self.t.clone_ref(py)
+    }
+    /// States, (B, rows, 13+4n); NaN after a run's failure.
+    #[getter]
+    fn x(&self, py: Python<'_>) -> Py<PyArray3<f64>> {
+        self.x.clone_ref(py)
+    }
+    /// Motor torques (N·m, link side) held during the step starting at each row but the last,
+    /// (B, rows − 1, n); NaN after a run's failure.
+    #[getter]
+    fn u(&self, py: Python<'_>) -> Py<PyArray3<f64>> {
+        self.u.clone_ref(py)
+    }
+    /// ``[r_B (m); quat_B (x, y, z, w)]``, (B, rows, 7); a view of ``x``.
+    #[getter]
+    fn base_pose(&self, py: Python<'_>) -> PyResult<PyObject> {
+        self.view(py, self.layout.base_pose())
+    }
+    /// Link angles (rad), (B, rows, n); a view of ``x``.
+    #[getter]
+    fn q(&self, py: Python<'_>) -> PyResult<PyObject> {
+        self.view(py, self.layout.q())
+    }
+    /// Motor angles, link side (rad), (B, rows, n); a view of ``x``.
+    #[getter]
+    fn theta(&self, py: Python<'_>) -> PyResult<PyObject> {
+        self.view(py, self.layout.theta())
+    }
+    /// ``[ω_B (rad/s); v_B (m/s)]`` in base-frame components, (B, rows, 6); a view of ``x``.
+    #[getter]
+    fn base_twist(&self, py: Python<'_>) -> PyResult<PyObject> {
+        self.view(py, self.layout.base_twist())
+    }
+    /// Link rates (rad/s), (B, rows, n); a view of ``x``.
+    #[getter]
+    fn qd(&self, py: Python<'_>) -> PyResult<PyObject> {
+        self.view(py, self.layout.qd())
+    }
+    /// Motor rates, link side (rad/s), (B, rows, n); a view of ``x``.
+    #[getter]
+    fn theta_dot(&self, py: Python<'_>) -> PyResult<PyObject> {
+        self.view(py, self.layout.theta_dot())
+    }
+    /// Whether each run finished, (B,) bool.
+    #[getter]
+    fn ok<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let values: Vec<bool> = self
+            .status
+            .iter()
+            .map(|s| s.failed_step().is_none())
+            .collect();
+        let a = PyArray1::from_vec(py, values).into_any();
+        freeze(&a)?;
+        Ok(a)
+    }
+    /// The failing step of each run (its ``SimulationError.step``), −1 for a run that
+    /// finished, (B,) int64.
+    #[getter]
+    fn failed_step<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let values: Vec<i64> = self
+            .status
+            .iter()
+            .map(|s| s.failed_step().map_or(-1, |k| k as i64))
+            .collect();
+        let a = PyArray1::from_vec(py, values).into_any();
+        freeze(&a)?;
+        Ok(a)
+    }
+    /// Why each run failed (the message of its ``SimulationError``), or None.
+    #[getter]
+    fn messages<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyList>> {
+        let items: Vec<Option<String>> = self
+            .status
+            .iter()
+            .map(|s| match s {
+                RunStatus::Finished => None,
+                RunStatus::Failed {
+                    step,
+                    time,
+                    message,
+                } => Some(
+                    crate::Error::Simulation {
+                        step: *step,
+                        time: *time,
+                        message: message.clone(),
+                    }
+                    .to_string(),
+                ),
+            })
+            .collect();
+        PyList::new(py, items)
+    }
+    /// The last state of each run (its last good state if it failed), (B, 13+4n).
+    #[getter]
+    fn final_state(&self, py: Python<'_>) -> Py<PyArray2<f64>> {
+        self.final_state.clone_ref(py)
+    }
+    /// ``max |θ_i − q_i|`` (rad) over every state of each run, kept or not, (B, n).
+    #[getter]
+    fn peak_deflection(&self, py: Python<'_>) -> Py<PyArray2<f64>> {
+        self.peak_deflection.clone_ref(py)
+    }
+    /// ``max |u_i|`` (N·m) over every step of each run, kept or not, (B, n).
+    #[getter]
+    fn peak_torque(&self, py: Python<'_>) -> Py<PyArray2<f64>> {
+        self.peak_torque.clone_ref(py)
+    }
+
+    /// Run ``b`` as the ``Trajectory`` that ``arm.simulate`` (same ``record_every``) returns
+    /// for it; for a failed run, the trajectory its ``SimulationError`` carries. Negative ``b``
+    /// counts from the end.
+    fn run(&self, py: Python<'_>, b: isize) -> PyResult<PyTrajectory> {
+        let run = if b < 0 { b + self.runs as isize } else { b };
+        if run < 0 || run >= self.runs as isize {
+            return Err(PyIndexError::new_err(format!(
+                "run: expected an index from {} to {}, given {b}",
+                -(self.runs as isize),
+                self.runs - 1
+            )));
+        }
+        let run = run as usize;
+        if self.rows == 0 {
+            return Err(ModelError::new_err(
+                "run: this batch kept no rows (keep_rows=False); only its summaries and final \
+                 states",
+            ));
+        }
+        let (len, n, rows) = (self.layout.len(), self.layout.n, self.rows);
+        let t = self.t.bind(py).readonly();
+        let x = self.x.bind(py).readonly();
+        let u = self.u.bind(py).readonly();
+        let last = self.final_state.bind(py).readonly();
+        let record = RunRecord {
+            layout: self.layout,
+            record_every: self.record_every,
+            t: t.as_slice()?,
+            x: &x.as_slice()?[run * rows * len..(run + 1) * rows * len],
+            u: &u.as_slice()?[run * (rows - 1) * n..(run + 1) * (rows - 1) * n],
+            final_state: &last.as_slice()?[run * len..(run + 1) * len],
+            status: &self.status[run],
+        };
+        PyTrajectory::from_run(py, self.arm(py, run), record.to_trajectory())
+    }
+
+    fn __len__(&self) -> usize {
+        self.runs
+    }
+
+    fn __repr__(&self) -> String {
+        let failed = self
+            .status
+            .iter()
+            .filter(|s| s.failed_step().is_some())
+            .count();
+        format!(
+            "BatchTrajectory(runs={}, rows={}, steps={}, failed={failed}, dof={})",
+            self.runs, self.rows, self.steps, self.layout.n
+        )
+    }
+}
