@@ -474,14 +474,18 @@ impl<'a> Batch<'a> {
         }
     }
 
-    /// The runs that can differ from run 0 in their arm, start or controller: all of them, or
-    /// only run 0 when everything is shared.
+    /// The runs whose stability limit can differ from run 0's: all of them, or only run 0 when
+    /// every run has the same arm, start and feedback gains (open-loop torques, whatever their
+    /// values, have no feedback).
     fn distinct_starts(&self) -> usize {
         let shared = self.arms.is_shared()
             && self.x0.is_shared()
             && match &self.u {
-                BatchControl::Open(u) => u.is_shared(),
-                BatchControl::Pd(pd) => pd.is_shared(),
+                BatchControl::Open(_) => true,
+                BatchControl::Pd(PerRun::All(_)) => true,
+                BatchControl::Pd(PerRun::Each(pds)) => pds
+                    .iter()
+                    .all(|pd| pd.kp == pds[0].kp && pd.kd == pds[0].kd),
             };
         if shared {
             self.runs.min(1)
@@ -587,7 +591,7 @@ impl<'a> Batch<'a> {
     }
 }
 
-/// Runs `work` on a pool of `threads` threads (`None`: every core; 1: the calling thread).
+/// Runs `work` on a pool of `threads` threads (`None`: every core).
 fn in_pool<R: Send>(threads: Option<usize>, work: impl FnOnce() -> R + Send) -> Result<R> {
     let threads = threads.unwrap_or_else(|| {
         std::thread::available_parallelism()
@@ -600,9 +604,8 @@ fn in_pool<R: Send>(threads: Option<usize>, work: impl FnOnce() -> R + Send) -> 
             message: "expected an integer >= 1 (or None for every core), given 0".into(),
         });
     }
-    if threads == 1 {
-        return Ok(work());
-    }
+    // a pool even for one thread: the parallel iterators inside would otherwise run on rayon's
+    // global pool, on every core
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
         .thread_name(|i| format!("orbitflex-batch-{i}"))
@@ -636,9 +639,14 @@ struct Slot<'a> {
 }
 
 /// Receives every row of a run (`record_every = 1`), keeps the rows of the batch's rule in its
-/// slot and the summaries of all.
+/// slot and the summaries of all. The summaries and the last state are kept in buffers of its
+/// own and written to the slot at [`Recorder::finish`]: written every step, they would share
+/// cache lines with the neighbouring runs' (false sharing between threads).
 struct SlotRecorder<'a> {
     slot: Slot<'a>,
+    deflection: Vec<f64>,
+    torque: Vec<f64>,
+    last: Vec<f64>,
     layout: StateLayout,
     steps: usize,
     every: usize,
@@ -652,10 +660,10 @@ impl Recorder for SlotRecorder<'_> {
         let row = self.next;
         self.next += 1;
         let (q, theta) = (&x[self.layout.q()], &x[self.layout.theta()]);
-        for ((peak, q), theta) in self.slot.deflection.iter_mut().zip(q).zip(theta) {
+        for ((peak, q), theta) in self.deflection.iter_mut().zip(q).zip(theta) {
             *peak = peak.max((theta - q).abs());
         }
-        self.slot.last.copy_from_slice(x);
+        self.last.copy_from_slice(x);
         if self.keep && is_recorded(row, self.steps, self.every) {
             let index = if row % self.every == 0 {
                 row / self.every
@@ -670,7 +678,7 @@ impl Recorder for SlotRecorder<'_> {
 
     fn input(&mut self, u: &[f64]) -> Result<()> {
         let row = self.next - 1;
-        for (peak, u) in self.slot.torque.iter_mut().zip(u) {
+        for (peak, u) in self.torque.iter_mut().zip(u) {
             *peak = peak.max(u.abs());
         }
         if self.keep && row % self.every == 0 {
@@ -678,6 +686,13 @@ impl Recorder for SlotRecorder<'_> {
             let n = u.len();
             self.slot.u[index * n..(index + 1) * n].copy_from_slice(u);
         }
+        Ok(())
+    }
+
+    fn finish(&mut self) -> Result<()> {
+        self.slot.deflection.copy_from_slice(&self.deflection);
+        self.slot.torque.copy_from_slice(&self.torque);
+        self.slot.last.copy_from_slice(&self.last);
         Ok(())
     }
 }
@@ -802,9 +817,13 @@ fn one_run(
     cancel: &AtomicBool,
 ) -> RunStatus {
     let mut inputs = batch.inputs(run, settings.steps);
+    let layout = inputs.arm.layout();
     let mut recorder = SlotRecorder {
+        deflection: vec![0.0; layout.n],
+        torque: vec![0.0; layout.n],
+        last: vec![f64::NAN; layout.len()],
         slot,
-        layout: inputs.arm.layout(),
+        layout,
         steps: settings.steps,
         every: settings.record_every,
         rows,
@@ -879,6 +898,15 @@ mod tests {
         assert!(s(&[4]).is_err());
         assert!(BatchInput::new("x0s", &v[..6], &[2, 3], 2, None, 3).is_ok());
         assert!(BatchInput::new("x0s", &v[..15], &[1, 5, 3], 2, None, 3).is_err());
+    }
+
+    #[test]
+    fn the_pool_has_the_threads_asked_for() {
+        // threads = 1 once ran the parallel loops on rayon's global pool (every core)
+        assert_eq!(in_pool(Some(1), rayon::current_num_threads).unwrap(), 1);
+        assert_eq!(in_pool(Some(3), rayon::current_num_threads).unwrap(), 3);
+        let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+        assert_eq!(in_pool(None, rayon::current_num_threads).unwrap(), cores);
     }
 
     #[test]
