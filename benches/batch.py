@@ -81,21 +81,95 @@ def campaign_row(runs: int, rounds: int) -> list[str]:
     return [f"| {runs} runs × {campaign.steps} steps | {lm:.2f} s | {dm:.2f} s | **{dm / lm:.3f}×** |"]
 
 
+def native_ns(binary: str, calls: str) -> dict[str, float]:
+    """Median ns per native Rust call on the built-in arm (``bench_cpp_match``)."""
+    import subprocess
+    import tempfile
+
+    with tempfile.NamedTemporaryFile("w", suffix=".urdf", delete=False) as f:
+        f.write(orbitflex.SPACE_ARM_URDF)
+    out = subprocess.run([binary, f.name, "-", "--only", calls], capture_output=True, text=True, check=True).stdout
+    os.unlink(f.name)
+    return {line.split()[0]: float(line.split()[1]) for line in out.splitlines()
+            if line.split()[0] in calls.split(",")}
+
+
+BATCH_CALLS = """
+import sys, time, statistics, numpy as np, orbitflex
+robot = orbitflex.models.space_arm(); n = robot.dof; B = int(sys.argv[1]); rounds = int(sys.argv[2])
+rng = np.random.default_rng(0)
+q, v, qd, tau = rng.uniform(-1, 1, (B, n)), rng.normal(size=(B, 6)) * 0.05, rng.normal(size=(B, n)) * 0.2, rng.normal(size=(B, n))
+out = np.empty((B, 6 + n))
+one = (q[0], v[0], qd[0], tau[0]); out1 = np.empty(6 + n)
+def per_call(f, reps):
+    t = []
+    for _ in range(rounds):
+        s = time.perf_counter()
+        for _ in range(reps): f()
+        t.append((time.perf_counter() - s) / reps * 1e9)
+    return statistics.median(t)
+batch = per_call(lambda: robot.forward_dynamics(q, v, qd, tau, out=out), 200)
+single = per_call(lambda: robot.forward_dynamics(*one), 20000)
+single_out = per_call(lambda: robot.forward_dynamics(*one, out=out1), 20000)
+print(batch, single, single_out)
+"""
+
+
+def call_rows(binary: str, rounds: int) -> list[str]:
+    """256 forward-dynamics calls in one batched Python call (on 2 threads and on 1) against 256
+    native calls; one call from Python with and without ``out=`` against one native call."""
+    import subprocess
+
+    rows = []
+    native = native_ns(binary, "aba")["aba"]
+    results = {}
+    for threads in ("2", "1"):
+        env = {**os.environ, "RAYON_NUM_THREADS": threads}
+        out = subprocess.run([sys.executable, "-c", BATCH_CALLS, "256", str(rounds)], capture_output=True,
+                             text=True, check=True, env=env).stdout.split()
+        results[threads] = [float(v) for v in out]
+    native_after = native_ns(binary, "aba")["aba"]
+    native = 0.5 * (native + native_after)
+    for threads in ("2", "1"):
+        batch = results[threads][0]
+        rows.append(f"| 256 × `forward_dynamics`, one batched call, {threads} thread{'s' if threads == '2' else ''} | "
+                    f"{batch / 1e3:.1f} µs | {256 * native / 1e3:.1f} µs | **{batch / (256 * native):.3f}×** |")
+    single, single_out = results["1"][1], results["1"][2]
+    rows.append(f"| one `forward_dynamics` call | {single:.0f} ns | {native:.0f} ns | overhead {single - native:.0f} ns |")
+    rows.append(f"| one call with `out=` | {single_out:.0f} ns | {native:.0f} ns | overhead {single_out - native:.0f} ns |")
+    return rows
+
+
 def main() -> None:
     parser = argparse.ArgumentParser()
     parser.add_argument("--rounds", type=int, default=5)
     parser.add_argument("--runs", type=int, default=16)
     parser.add_argument("--steps", type=int, default=2000)
     parser.add_argument("--campaign-runs", type=int, default=1000)
+    parser.add_argument("--rust-bin", default=str(HERE.parent / "target" / "release" / "examples" / "bench_cpp_match"),
+                        help="bench_cpp_match (cargo build --release --example bench_cpp_match)")
+    parser.add_argument("--only", default="batch,calls,campaign")
     args = parser.parse_args()
+    only = args.only.split(",")
     print(f"orbitflex {orbitflex.__version__}, Python {platform.python_version()}, "
           f"{os.cpu_count()} CPUs, {platform.processor() or platform.machine()}")
-    print()
-    print("| model | work | simulate, per step | batch on 1 thread, per step (ratio) | batch on 2 threads, per run-step | 2 threads / 1 |")
-    print("|---|---|---|---|---|---|")
-    for n in (7, 28):
-        for row in batch_rows(n, args.runs, args.steps, args.rounds):
+    if "calls" in only:
+        print()
+        print("| per-call dynamics, built-in arm | Python | native Rust | ratio |")
+        print("|---|---|---|---|")
+        for row in call_rows(args.rust_bin, max(5, args.rounds)):
             print(row, flush=True)
+    if "batch" not in only:
+        print()
+    else:
+        print()
+        print("| model | work | simulate, per step | batch on 1 thread, per step (ratio) | batch on 2 threads, per run-step | 2 threads / 1 |")
+        print("|---|---|---|---|---|---|")
+        for n in (7, 28):
+            for row in batch_rows(n, args.runs, args.steps, args.rounds):
+                print(row, flush=True)
+    if "campaign" not in only:
+        return
     print()
     print("| campaign (examples/campaign.toml, 2 s runs) | local, 2 threads | Dask LocalCluster, 2 workers × 1 thread | Dask / local |")
     print("|---|---|---|---|")

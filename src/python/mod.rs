@@ -2,18 +2,21 @@
 //! `orbitflex` package re-exports.
 //!
 //! Arrays cross as numpy float64, are converted once to Rust values, the work runs in Rust and
-//! results return as new arrays. Long-running calls (URDF loading, `simulate` without a Python
-//! controller, trajectory diagnostics, planning and tracking slews) release the GIL; per-call
-//! dynamics keep it, as releasing it would cost more than the call.
+//! results return as new arrays (or into the caller's `out=`). Long-running calls (URDF loading,
+//! `simulate` without a Python controller, `simulate_batch`, batched per-call dynamics,
+//! trajectory diagnostics, planning and tracking slews) release the GIL; a single per-call
+//! dynamics call keeps it, as releasing it would cost more than the call.
 //!
 //! One file per class: `robot` (`Robot`), `joints` (`FlexibleJoints`), `control` (`MotorPD`,
 //! input schedules, Python controllers), `arm` (`FlexibleArm`), `trajectory` (`Trajectory`),
-//! `plan` (`Limits`, `Plan`, `plan_slew`), `batch` (`simulate_batch`, `BatchTrajectory`); `run` drives a simulation with or without the GIL;
-//! `errors` maps [`crate::Error`] onto the Python exceptions; `convert` turns numpy arrays into
-//! Rust values.
+//! `plan` (`Limits`, `Plan`, `plan_slew`), `batch` (`simulate_batch`, `BatchTrajectory`);
+//! `batched` gives the per-call dynamics their leading batch axis and `out=`; `run` drives a
+//! simulation with or without the GIL; `errors` maps [`crate::Error`] onto the Python
+//! exceptions; `convert` turns numpy arrays into Rust values.
 
 mod arm;
 mod batch;
+mod batched;
 mod control;
 mod convert;
 mod errors;

@@ -1,5 +1,6 @@
 //! `orbitflex.Robot`.
 
+use super::batched::{batched, evaluate, fill, output, Spares};
 use super::convert::{array1, array2, vector, vector_or};
 use super::errors::ModelError;
 use crate::algorithms::{self, Data};
@@ -19,12 +20,18 @@ use std::sync::Mutex;
 pub struct PyRobot {
     pub(crate) robot: Robot,
     data: Mutex<Data>,
+    /// Workspaces for batched calls.
+    spares: Spares,
 }
 
 impl PyRobot {
     pub(crate) fn wrap(robot: Robot) -> Self {
         let data = Mutex::new(Data::new(&robot));
-        Self { robot, data }
+        Self {
+            robot,
+            data,
+            spares: Spares::default(),
+        }
     }
 
     fn data(&self) -> std::sync::MutexGuard<'_, Data> {
@@ -44,6 +51,32 @@ impl PyRobot {
             base_twist: vector(base_twist, "base_twist", Some(6))?,
             qd: vector(qd, "qd", Some(n))?,
         })
+    }
+}
+
+/// A matrix into row-major order.
+fn row_major_into(m: &nalgebra::DMatrix<f64>, out: &mut [f64]) {
+    let cols = m.ncols();
+    for (r, row) in out.chunks_exact_mut(cols).enumerate() {
+        for (c, v) in row.iter_mut().enumerate() {
+            *v = m[(r, c)];
+        }
+    }
+}
+
+/// A vector result: a new array, or written into ``out``.
+fn vector_result<'py>(
+    py: Python<'py>,
+    out: Option<&Bound<'py, PyAny>>,
+    values: &[f64],
+) -> PyResult<Bound<'py, PyAny>> {
+    match out {
+        Some(out) if !out.is_none() => {
+            let out = output(py, Some(out), &[values.len()])?;
+            fill(&out, values)?;
+            Ok(out.into_any())
+        }
+        _ => Ok(array1(py, values).into_any()),
     }
 }
 
@@ -338,22 +371,61 @@ impl PyRobot {
 
     /// Mass matrix ``[[M_b, M_rb], [M_br, M_r]]``, shape (6+n, 6+n) (A.19). ``method``:
     /// ``"recursive"`` (CRBA, default) or ``"operator"`` (the paper's dense operator form).
-    #[pyo3(signature = (q, method="recursive"))]
+    ///
+    /// **Batches.** Give any argument a leading axis, ``(B, ...)``, to evaluate B calls at once
+    /// in parallel without the GIL (the others, 1-D, are shared by every row); the result has a
+    /// leading axis too. ``out=`` takes a float64 C-contiguous array of the result's shape to
+    /// write into (and returns it), saving the allocation of a new one.
+    #[pyo3(signature = (q, method="recursive", *, out=None))]
     fn mass_matrix<'py>(
         &self,
         py: Python<'py>,
         q: &Bound<'py, PyAny>,
         method: &str,
-    ) -> PyResult<Bound<'py, PyArray2<f64>>> {
-        let q = vector(q, "q", Some(self.robot.dof()))?;
+        out: Option<&Bound<'py, PyAny>>,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let n = self.robot.dof();
         let method = super::convert::method(method)?;
+        let size = 6 + n;
+        if let Some(b) = batched(&[("q", Some(q), n)])? {
+            let out = output(py, out, &[b.rows, size, size])?;
+            let robot = &self.robot;
+            evaluate(
+                py,
+                robot,
+                &self.spares,
+                &out,
+                size * size,
+                |data, r, row| {
+                    row_major_into(method.mass_matrix(robot, data, b.arg(0, r))?, row);
+                    Ok(())
+                },
+            )?;
+            return Ok(out.into_any());
+        }
+        let q = vector(q, "q", Some(n))?;
         let mut data = self.data();
-        Ok(array2(py, method.mass_matrix(&self.robot, &mut data, &q)?))
+        let m = method.mass_matrix(&self.robot, &mut data, &q)?;
+        match out {
+            Some(out) if !out.is_none() => {
+                let out = output(py, Some(out), &[size, size])?;
+                let mut rows = vec![0.0; size * size];
+                row_major_into(m, &mut rows);
+                fill(&out, &rows)?;
+                Ok(out.into_any())
+            }
+            _ => Ok(array2(py, m).into_any()),
+        }
     }
 
     /// Bias ``[C_B; C_r]``, shape (6+n,) (A.19): the generalized force needed for zero
     /// accelerations at this velocity.
-    #[pyo3(signature = (q, base_twist, qd, method="recursive"))]
+    ///
+    /// **Batches.** Give any argument a leading axis, ``(B, ...)``, to evaluate B calls at once
+    /// in parallel without the GIL (the others, 1-D, are shared by every row); the result has a
+    /// leading axis too. ``out=`` takes a float64 C-contiguous array of the result's shape to
+    /// write into (and returns it), saving the allocation of a new one.
+    #[pyo3(signature = (q, base_twist, qd, method="recursive", *, out=None))]
     fn bias_forces<'py>(
         &self,
         py: Python<'py>,
@@ -361,12 +433,29 @@ impl PyRobot {
         base_twist: &Bound<'py, PyAny>,
         qd: &Bound<'py, PyAny>,
         method: &str,
-    ) -> PyResult<Bound<'py, PyArray1<f64>>> {
-        let state = self.state(q, base_twist, qd)?;
+        out: Option<&Bound<'py, PyAny>>,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let n = self.robot.dof();
         let method = super::convert::method(method)?;
+        let args = [
+            ("q", Some(q), n),
+            ("base_twist", Some(base_twist), 6),
+            ("qd", Some(qd), n),
+        ];
+        if let Some(b) = batched(&args)? {
+            let out = output(py, out, &[b.rows, 6 + n])?;
+            let robot = &self.robot;
+            evaluate(py, robot, &self.spares, &out, 6 + n, |data, r, row| {
+                let state = RigidState::new(b.arg(0, r), b.arg(1, r), b.arg(2, r));
+                row.copy_from_slice(method.bias_forces(robot, data, &state)?.as_slice());
+                Ok(())
+            })?;
+            return Ok(out.into_any());
+        }
+        let state = self.state(q, base_twist, qd)?;
         let mut data = self.data();
         let c = method.bias_forces(&self.robot, &mut data, &state.rigid())?;
-        Ok(array1(py, c.as_slice()))
+        vector_result(py, out, c.as_slice())
     }
 
     /// EE Jacobian ``J``, shape (6, n): joint rates to EE twist ``[ω; v]`` in the EE frame,
@@ -396,7 +485,12 @@ impl PyRobot {
     /// ``base_wrench`` ``f_B``: ``[moment; force]`` applied to the base, base frame, about its
     /// origin; ``ee_wrench`` ``f``: ``[moment; force]`` the EE exerts ON its environment, EE frame
     /// (a load applied to the EE is ``-f``). ``α_B`` is the classical base acceleration.
-    #[pyo3(signature = (q, base_twist, qd, tau, base_wrench=None, ee_wrench=None, method="recursive"))]
+    ///
+    /// **Batches.** Give any argument a leading axis, ``(B, ...)``, to evaluate B calls at once
+    /// in parallel without the GIL (the others, 1-D, are shared by every row); the result has a
+    /// leading axis too. ``out=`` takes a float64 C-contiguous array of the result's shape to
+    /// write into (and returns it), saving the allocation of a new one.
+    #[pyo3(signature = (q, base_twist, qd, tau, base_wrench=None, ee_wrench=None, method="recursive", *, out=None))]
     #[allow(clippy::too_many_arguments)]
     fn forward_dynamics<'py>(
         &self,
@@ -408,21 +502,48 @@ impl PyRobot {
         base_wrench: Option<&Bound<'py, PyAny>>,
         ee_wrench: Option<&Bound<'py, PyAny>>,
         method: &str,
-    ) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        out: Option<&Bound<'py, PyAny>>,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let n = self.robot.dof();
+        let method = super::convert::method(method)?;
+        let args = [
+            ("q", Some(q), n),
+            ("base_twist", Some(base_twist), 6),
+            ("qd", Some(qd), n),
+            ("tau", Some(tau), n),
+            ("base_wrench", base_wrench, 6),
+            ("ee_wrench", ee_wrench, 6),
+        ];
+        if let Some(b) = batched(&args)? {
+            let out = output(py, out, &[b.rows, 6 + n])?;
+            let robot = &self.robot;
+            evaluate(py, robot, &self.spares, &out, 6 + n, |data, r, row| {
+                let state = RigidState::new(b.arg(0, r), b.arg(1, r), b.arg(2, r));
+                let loads = Loads::from_slices(Some(b.arg(4, r)), Some(b.arg(5, r)))?;
+                let acc = method.forward_dynamics(robot, data, &state, b.arg(3, r), &loads)?;
+                row.copy_from_slice(acc.as_slice());
+                Ok(())
+            })?;
+            return Ok(out.into_any());
+        }
         let state = self.state(q, base_twist, qd)?;
-        let tau = vector(tau, "tau", Some(self.robot.dof()))?;
+        let tau = vector(tau, "tau", Some(n))?;
         let fb = vector_or(base_wrench, "base_wrench", 6, 0.0)?;
         let f = vector_or(ee_wrench, "ee_wrench", 6, 0.0)?;
         let loads = Loads::from_slices(Some(&fb), Some(&f))?;
-        let method = super::convert::method(method)?;
         let mut data = self.data();
         let acc = method.forward_dynamics(&self.robot, &mut data, &state.rigid(), &tau, &loads)?;
-        Ok(array1(py, acc.as_slice()))
+        vector_result(py, out, acc.as_slice())
     }
 
     /// Inverse dynamics ``[f_B; τ]``, shape (6+n,) (A.19), for classical base acceleration
     /// ``base_acc`` and joint accelerations ``qdd``, with the EE wrench ``ee_wrench``.
-    #[pyo3(signature = (q, base_twist, qd, base_acc, qdd, ee_wrench=None, method="recursive"))]
+    ///
+    /// **Batches.** Give any argument a leading axis, ``(B, ...)``, to evaluate B calls at once
+    /// in parallel without the GIL (the others, 1-D, are shared by every row); the result has a
+    /// leading axis too. ``out=`` takes a float64 C-contiguous array of the result's shape to
+    /// write into (and returns it), saving the allocation of a new one.
+    #[pyo3(signature = (q, base_twist, qd, base_acc, qdd, ee_wrench=None, method="recursive", *, out=None))]
     #[allow(clippy::too_many_arguments)]
     fn inverse_dynamics<'py>(
         &self,
@@ -434,16 +555,44 @@ impl PyRobot {
         qdd: &Bound<'py, PyAny>,
         ee_wrench: Option<&Bound<'py, PyAny>>,
         method: &str,
-    ) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        out: Option<&Bound<'py, PyAny>>,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let n = self.robot.dof();
+        let method = super::convert::method(method)?;
+        let args = [
+            ("q", Some(q), n),
+            ("base_twist", Some(base_twist), 6),
+            ("qd", Some(qd), n),
+            ("base_acc", Some(base_acc), 6),
+            ("qdd", Some(qdd), n),
+            ("ee_wrench", ee_wrench, 6),
+        ];
+        if let Some(b) = batched(&args)? {
+            let out = output(py, out, &[b.rows, 6 + n])?;
+            let robot = &self.robot;
+            evaluate(py, robot, &self.spares, &out, 6 + n, |data, r, row| {
+                let state = RigidState::new(b.arg(0, r), b.arg(1, r), b.arg(2, r));
+                let gen = method.inverse_dynamics(
+                    robot,
+                    data,
+                    &state,
+                    b.arg(3, r),
+                    b.arg(4, r),
+                    b.arg(5, r),
+                )?;
+                row.copy_from_slice(gen.as_slice());
+                Ok(())
+            })?;
+            return Ok(out.into_any());
+        }
         let state = self.state(q, base_twist, qd)?;
         let acc = vector(base_acc, "base_acc", Some(6))?;
-        let qdd = vector(qdd, "qdd", Some(self.robot.dof()))?;
+        let qdd = vector(qdd, "qdd", Some(n))?;
         let f = vector_or(ee_wrench, "ee_wrench", 6, 0.0)?;
-        let method = super::convert::method(method)?;
         let mut data = self.data();
         let gen =
             method.inverse_dynamics(&self.robot, &mut data, &state.rigid(), &acc, &qdd, &f)?;
-        Ok(array1(py, gen.as_slice()))
+        vector_result(py, out, gen.as_slice())
     }
 
     /// The paper's dense operators at this state, as a dict of numpy arrays: ``Phi``, ``H``,

@@ -335,16 +335,22 @@ def robot_call(fn, **override):
     return methodcaller(fn, **kwargs)
 
 
-def bad_arrays(good):
+# Functions that take a leading batch axis: (1, n) is a batch of one row, (1, 1, n) is wrong.
+BATCHED = {"mass_matrix", "bias_forces", "forward_dynamics", "inverse_dynamics"}
+
+
+def bad_arrays(good, batched=False):
     """The ways to get an array argument wrong: (id, bad value, words besides its name)."""
     n = len(good)
+    wrong_rank = (("3d", good[None, None, :], [f"expected shape ({n},) or (1, {n})", f"(1, 1, {n})"])
+                  if batched else ("2d", good[None, :], ["1-D", str(n)]))
     return [
         ("short", np.zeros(n - 1), [f"expected length {n}, given length {n - 1}"]),
         ("long", np.zeros(n + 2), [f"expected length {n}, given length {n + 2}"]),
         ("nan", with_element(good, 1, np.nan), ["element 1", "not finite"]),
         ("inf", with_element(good, 1, np.inf), ["element 1", "not finite"]),
         ("-inf", with_element(good, 1, -np.inf), ["element 1", "not finite"]),
-        ("2d", good[None, :], ["1-D", str(n)]),
+        wrong_rank,
         ("str", "not numbers", ["numbers"]),
     ]
 
@@ -353,7 +359,7 @@ ROBOT_ERRORS = [
     # Every array argument of every method, wrong in every way: the message starts "<arg>:".
     *[case(f"{fn}-{arg}-{id}", robot_call(fn, **{arg: bad}), [f"{arg}:", *words])
       for fn, args in SIGNATURES.items() for arg in args
-      for id, bad, words in bad_arrays(GOOD[arg])],
+      for id, bad, words in bad_arrays(GOOD[arg], fn in BATCHED)],
     case("momentum-zero-quaternion",
          lambda robot: robot.momentum(np.array([1.0, 2.0, 3.0, 0.0, 0.0, 0.0, 0.0]), GOOD["q"],
                                       GOOD["base_twist"], GOOD["qd"]),

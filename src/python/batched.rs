@@ -1,0 +1,296 @@
+//! Per-call dynamics with a leading batch axis, and ``out=``: the arguments of one call as
+//! vectors, or as stacks of rows broadcast over a batch evaluated in parallel without the GIL;
+//! the result written into a new array or into the caller's.
+
+use super::convert::as_float_array;
+use super::errors::ModelError;
+use crate::algorithms::Data;
+use crate::error::Error;
+use crate::model::Robot;
+use numpy::{PyArrayDyn, PyArrayMethods, PyUntypedArrayMethods};
+use pyo3::prelude::*;
+use rayon::prelude::*;
+
+/// One argument of a batched call: a row of `width` numbers shared by every row of the batch,
+/// or one row per batch row.
+struct Column {
+    values: Vec<f64>,
+    stride: usize,
+}
+
+/// The arguments of a call with a leading batch axis of `rows` rows.
+pub(crate) struct Batched {
+    pub rows: usize,
+    columns: Vec<Column>,
+}
+
+impl Batched {
+    /// Row `row` of argument `k` (in the order given to [`batched`]).
+    #[inline]
+    pub fn arg(&self, k: usize, row: usize) -> &[f64] {
+        let c = &self.columns[k];
+        let width = if c.stride == 0 {
+            c.values.len()
+        } else {
+            c.stride
+        };
+        &c.values[row * c.stride..row * c.stride + width]
+    }
+}
+
+/// An argument of a per-call function: its name, the object given (None: zeros), its width.
+pub(crate) type Arg<'a, 'py> = (&'a str, Option<&'a Bound<'py, PyAny>>, usize);
+
+/// `None` when every argument is one vector (a 1-D float64 array, or anything numpy makes 1-D),
+/// for the single-call path. Otherwise the arguments as a batch: each `(width,)` (the same for
+/// every row) or `(B, width)`, with one `B` for all; an error names the argument, the shapes
+/// accepted and the shape given.
+pub(crate) fn batched(args: &[Arg<'_, '_>]) -> PyResult<Option<Batched>> {
+    // the fast test: 1-D numpy arrays are the single call (their dtype is checked there)
+    let single = args.iter().all(|(_, obj, _)| match obj {
+        None => true,
+        Some(o) if o.is_none() => true,
+        Some(o) => match o.downcast::<numpy::PyUntypedArray>() {
+            Ok(a) => a.ndim() == 1,
+            Err(_) => false,
+        },
+    });
+    if single {
+        return Ok(None);
+    }
+    // each argument's shape and values (C order): float64 arrays are read directly, anything
+    // else through numpy.asarray
+    let mut shapes = Vec::with_capacity(args.len());
+    let mut arrays: Vec<Option<Vec<f64>>> = Vec::with_capacity(args.len());
+    for (what, obj, _) in args {
+        match obj.filter(|o| !o.is_none()) {
+            None => {
+                shapes.push(None);
+                arrays.push(None);
+            }
+            Some(o) => {
+                let (shape, values) = shape_and_values(o, what)?;
+                shapes.push(Some(shape));
+                arrays.push(Some(values));
+            }
+        }
+    }
+    if shapes.iter().flatten().all(|s| s.len() <= 1) {
+        return Ok(None);
+    }
+    let mut rows: Option<(&str, usize)> = None;
+    for ((what, _, _), shape) in args.iter().zip(&shapes) {
+        if let Some(shape) = shape {
+            if shape.len() == 2 {
+                match rows {
+                    None => rows = Some((what, shape[0])),
+                    Some((first, b)) if b != shape[0] => {
+                        return Err(ModelError::new_err(format!(
+                            "{what}: expected {b} rows (as {first}) or one vector for every row, \
+                             given shape {}",
+                            shown(shape)
+                        )))
+                    }
+                    _ => {}
+                }
+            }
+        }
+    }
+    let rows = rows.map_or(1, |(_, b)| b);
+    let mut columns = Vec::with_capacity(args.len());
+    for (((what, _, width), shape), array) in args.iter().zip(&shapes).zip(arrays) {
+        let column = match (shape, array) {
+            (None, _) | (_, None) => Column {
+                values: vec![0.0; *width],
+                stride: 0,
+            },
+            (Some(shape), Some(values)) => {
+                let ok = match shape.as_slice() {
+                    [w] => *w == *width,
+                    [b, w] => *b == rows && *w == *width,
+                    _ => false,
+                };
+                if !ok {
+                    return Err(ModelError::new_err(format!(
+                        "{what}: expected shape ({width},) or ({rows}, {width}), given shape {}",
+                        shown(shape)
+                    )));
+                }
+                Column {
+                    values,
+                    stride: if shape.len() == 2 { *width } else { 0 },
+                }
+            }
+        };
+        columns.push(column);
+    }
+    Ok(Some(Batched { rows, columns }))
+}
+
+/// The shape and the values (C order) of an array-like argument.
+fn shape_and_values(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<(Vec<usize>, Vec<f64>)> {
+    if let Ok(a) = obj.downcast::<PyArrayDyn<f64>>() {
+        if a.is_c_contiguous() {
+            // SAFETY: the values are copied at once while this thread holds the GIL, so no
+            // Python code can change the array meanwhile (as `convert::vector` does).
+            if let Ok(values) = unsafe { a.as_slice() } {
+                return Ok((a.shape().to_vec(), values.to_vec()));
+            }
+        }
+    }
+    let a = as_float_array(obj, what)?;
+    let shape: Vec<usize> = a.getattr("shape")?.extract()?;
+    let np = a.py().import("numpy")?;
+    let flat = np
+        .call_method1("ascontiguousarray", (a,))?
+        .call_method1("reshape", (-1,))?;
+    let values = flat
+        .downcast::<numpy::PyArray1<f64>>()?
+        .readonly()
+        .as_slice()?
+        .to_vec();
+    Ok((shape, values))
+}
+
+fn shown(shape: &[usize]) -> String {
+    match shape {
+        [a] => format!("({a},)"),
+        _ => format!(
+            "({})",
+            shape
+                .iter()
+                .map(usize::to_string)
+                .collect::<Vec<_>>()
+                .join(", ")
+        ),
+    }
+}
+
+/// Prefixes an argument error with the batch row it belongs to.
+fn in_row(row: usize, error: Error) -> Error {
+    let tag = |what: String| format!("{what} (row {row})");
+    match error {
+        Error::Dimension {
+            what,
+            expected,
+            given,
+        } => Error::Dimension {
+            what: tag(what),
+            expected,
+            given,
+        },
+        Error::NonFinite { what, index, value } => Error::NonFinite {
+            what: tag(what),
+            index,
+            value,
+        },
+        Error::InvalidArgument { what, message } => Error::InvalidArgument {
+            what: tag(what),
+            message,
+        },
+        other => other,
+    }
+}
+
+/// The array the result goes to: `out` if given (checked: float64, C-contiguous, writeable, of
+/// this shape), else a new one.
+pub(crate) fn output<'py>(
+    py: Python<'py>,
+    out: Option<&Bound<'py, PyAny>>,
+    shape: &[usize],
+) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+    match out.filter(|o| !o.is_none()) {
+        None => Ok(PyArrayDyn::<f64>::zeros(py, shape, false)),
+        Some(o) => {
+            let array = o.downcast::<PyArrayDyn<f64>>().map_err(|_| {
+                ModelError::new_err(format!(
+                    "out: expected a float64 numpy array of shape {}, given {}",
+                    shown(shape),
+                    o.get_type()
+                        .name()
+                        .map(|n| n.to_string())
+                        .unwrap_or_default()
+                ))
+            })?;
+            if array.shape() != shape {
+                return Err(ModelError::new_err(format!(
+                    "out: expected shape {}, given shape {}",
+                    shown(shape),
+                    shown(array.shape())
+                )));
+            }
+            let writeable: bool = array.getattr("flags")?.getattr("writeable")?.extract()?;
+            if !array.is_c_contiguous() || !writeable {
+                return Err(ModelError::new_err(
+                    "out: expected a C-contiguous, writeable array",
+                ));
+            }
+            Ok(array.clone())
+        }
+    }
+}
+
+/// Writes `values` into `out` (of their length).
+pub(crate) fn fill(out: &Bound<'_, PyArrayDyn<f64>>, values: &[f64]) -> PyResult<()> {
+    let mut view = out.try_readwrite()?;
+    view.as_slice_mut()?.copy_from_slice(values);
+    Ok(())
+}
+
+/// Workspaces kept between batched calls, one per piece of a batch in flight, so that a call
+/// allocates none once the pool has grown to its size.
+#[derive(Default)]
+pub(crate) struct Spares(std::sync::Mutex<Vec<Data>>);
+
+impl Spares {
+    fn take(&self, robot: &Robot) -> Data {
+        let spare = self.0.lock().unwrap_or_else(|p| p.into_inner()).pop();
+        spare.unwrap_or_else(|| Data::new(robot))
+    }
+    fn give(&self, data: Data) {
+        self.0.lock().unwrap_or_else(|p| p.into_inner()).push(data);
+    }
+}
+
+/// Evaluates `f(data, row, out_row)` for every row of the batch, in parallel on rayon's pool
+/// without the GIL: the rows are cut into a few contiguous pieces per thread, each run with a
+/// workspace from `spares`. `out` holds `rows × width` numbers. The first error (lowest row) is
+/// raised, naming its row.
+pub(crate) fn evaluate(
+    py: Python<'_>,
+    robot: &Robot,
+    spares: &Spares,
+    out: &Bound<'_, PyArrayDyn<f64>>,
+    width: usize,
+    f: impl Fn(&mut Data, usize, &mut [f64]) -> crate::Result<()> + Sync,
+) -> PyResult<()> {
+    let mut view = out.try_readwrite()?;
+    let values = view.as_slice_mut()?;
+    if values.is_empty() {
+        return Ok(());
+    }
+    let rows = values.len() / width;
+    let per_piece = rows.div_ceil(4 * rayon::current_num_threads()).max(1);
+    let failure = py.allow_threads(|| {
+        values
+            .par_chunks_mut(per_piece * width)
+            .enumerate()
+            .map(|(piece, block)| {
+                let mut data = spares.take(robot);
+                let first = piece * per_piece;
+                let result = block
+                    .chunks_exact_mut(width)
+                    .enumerate()
+                    .try_for_each(|(k, out)| {
+                        f(&mut data, first + k, out).map_err(|e| in_row(first + k, e))
+                    });
+                spares.give(data);
+                result
+            })
+            .find_map_first(Result::err)
+    });
+    match failure {
+        Some(e) => Err(e.into()),
+        None => Ok(()),
+    }
+}
