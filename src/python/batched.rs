@@ -2,7 +2,7 @@
 //! vectors, or as stacks of rows broadcast over a batch evaluated in parallel without the GIL;
 //! the result written into a new array or into the caller's.
 
-use super::convert::as_float_array;
+use super::convert::{as_float_array, vector_or};
 use super::errors::ModelError;
 use crate::algorithms::Data;
 use crate::error::Error;
@@ -41,23 +41,66 @@ impl Batched {
 /// An argument of a per-call function: its name, the object given (None: zeros), its width.
 pub(crate) type Arg<'a, 'py> = (&'a str, Option<&'a Bound<'py, PyAny>>, usize);
 
-/// `None` when every argument is one vector (a 1-D float64 array, or anything numpy makes 1-D),
-/// for the single-call path. Otherwise the arguments as a batch: each `(width,)` (the same for
-/// every row) or `(B, width)`, with one `B` for all; an error names the argument, the shapes
-/// accepted and the shape given.
-pub(crate) fn batched(args: &[Arg<'_, '_>]) -> PyResult<Option<Batched>> {
-    // the fast test: 1-D numpy arrays are the single call (their dtype is checked there)
-    let single = args.iter().all(|(_, obj, _)| match obj {
-        None => true,
-        Some(o) if o.is_none() => true,
-        Some(o) => match o.downcast::<numpy::PyUntypedArray>() {
-            Ok(a) => a.ndim() == 1,
-            Err(_) => false,
-        },
-    });
-    if single {
-        return Ok(None);
+/// The arguments of one per-call function call: one vector each (the single call), or a batch.
+pub(crate) enum Call {
+    /// One vector per argument (zeros for an argument not given), checked: its width, finite.
+    Single(Vec<Vec<f64>>),
+    /// A leading batch axis on at least one argument.
+    Batch(Batched),
+}
+
+/// Reads the arguments of a per-call function: when every given argument is a contiguous 1-D
+/// float64 array (the common case) they are copied at once, in one pass, for the single call;
+/// anything else goes through numpy: all 1-D (or lists) is still the single call, and a leading
+/// axis on any argument makes a batch, each argument `(width,)` (the same for every row) or
+/// `(B, width)` with one `B` for all. An error names the argument, the shape (or length)
+/// expected and the one given.
+pub(crate) fn call_args(args: &[Arg<'_, '_>]) -> PyResult<Call> {
+    let mut fast = Vec::with_capacity(args.len());
+    for (_, obj, width) in args {
+        match obj {
+            None => fast.push(vec![0.0; *width]),
+            Some(o) if o.is_none() => fast.push(vec![0.0; *width]),
+            Some(o) => match o.downcast::<numpy::PyArray1<f64>>() {
+                // SAFETY: copied at once while this thread holds the GIL (as `convert::vector`)
+                Ok(a) => match unsafe { a.as_slice() } {
+                    Ok(values) => fast.push(values.to_vec()),
+                    Err(_) => break,
+                },
+                Err(_) => break,
+            },
+        }
     }
+    if fast.len() == args.len() {
+        for ((what, _, width), values) in args.iter().zip(&fast) {
+            checked(what, values, *width)?;
+        }
+        return Ok(Call::Single(fast));
+    }
+    if let Some(batch) = batched(args)? {
+        return Ok(Call::Batch(batch));
+    }
+    let mut single = Vec::with_capacity(args.len());
+    for (what, obj, width) in args {
+        single.push(vector_or(*obj, what, *width, 0.0)?);
+    }
+    Ok(Call::Single(single))
+}
+
+/// The length and finiteness checks of `convert::vector`, with its messages.
+fn checked(what: &str, values: &[f64], width: usize) -> PyResult<()> {
+    if values.len() != width {
+        return Err(ModelError::new_err(format!(
+            "{what}: expected length {width}, given length {}",
+            values.len()
+        )));
+    }
+    crate::args::check_finite(what, values)?;
+    Ok(())
+}
+
+/// The arguments as a batch, or `None` when none has a leading axis (scalars, lists, 1-D).
+fn batched(args: &[Arg<'_, '_>]) -> PyResult<Option<Batched>> {
     // each argument's shape and values (C order): float64 arrays are read directly, anything
     // else through numpy.asarray
     let mut shapes = Vec::with_capacity(args.len());
@@ -201,40 +244,84 @@ pub(crate) fn output<'py>(
 ) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
     match out.filter(|o| !o.is_none()) {
         None => Ok(PyArrayDyn::<f64>::zeros(py, shape, false)),
+        Some(o) => checked_out(o, shape),
+    }
+}
+
+/// `out`, checked: a float64 numpy array of this shape, C-contiguous and writeable.
+fn checked_out<'py>(
+    o: &Bound<'py, PyAny>,
+    shape: &[usize],
+) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+    let array = o.downcast::<PyArrayDyn<f64>>().map_err(|_| {
+        ModelError::new_err(format!(
+            "out: expected a float64 numpy array of shape {}, given {}",
+            shown(shape),
+            o.get_type()
+                .name()
+                .map(|n| n.to_string())
+                .unwrap_or_default()
+        ))
+    })?;
+    if array.shape() != shape {
+        return Err(ModelError::new_err(format!(
+            "out: expected shape {}, given shape {}",
+            shown(shape),
+            shown(array.shape())
+        )));
+    }
+    // SAFETY: reads the flags of a live array object
+    let flags = unsafe { (*array.as_array_ptr()).flags };
+    let writeable = flags & numpy::npyffi::NPY_ARRAY_WRITEABLE != 0;
+    if !array.is_c_contiguous() || !writeable {
+        return Err(ModelError::new_err(
+            "out: expected a C-contiguous, writeable array",
+        ));
+    }
+    Ok(array.clone())
+}
+
+/// A single call's vector result: a new 1-D array, or written into `out` (checked), which is
+/// returned.
+pub(crate) fn single_vector<'py>(
+    py: Python<'py>,
+    out: Option<&Bound<'py, PyAny>>,
+    values: &[f64],
+) -> PyResult<Bound<'py, PyAny>> {
+    match out.filter(|o| !o.is_none()) {
+        None => Ok(numpy::PyArray1::from_slice(py, values).into_any()),
         Some(o) => {
-            let array = o.downcast::<PyArrayDyn<f64>>().map_err(|_| {
-                ModelError::new_err(format!(
-                    "out: expected a float64 numpy array of shape {}, given {}",
-                    shown(shape),
-                    o.get_type()
-                        .name()
-                        .map(|n| n.to_string())
-                        .unwrap_or_default()
-                ))
-            })?;
-            if array.shape() != shape {
-                return Err(ModelError::new_err(format!(
-                    "out: expected shape {}, given shape {}",
-                    shown(shape),
-                    shown(array.shape())
-                )));
-            }
-            let writeable: bool = array.getattr("flags")?.getattr("writeable")?.extract()?;
-            if !array.is_c_contiguous() || !writeable {
-                return Err(ModelError::new_err(
-                    "out: expected a C-contiguous, writeable array",
-                ));
-            }
-            Ok(array.clone())
+            let array = checked_out(o, &[values.len()])?;
+            // SAFETY: written at once while this thread holds the GIL, so no Python code runs
+            // meanwhile; the array is C-contiguous, writeable and of this length (checked)
+            unsafe { array.as_slice_mut() }?.copy_from_slice(values);
+            Ok(array.into_any())
         }
     }
 }
 
-/// Writes `values` into `out` (of their length).
-pub(crate) fn fill(out: &Bound<'_, PyArrayDyn<f64>>, values: &[f64]) -> PyResult<()> {
-    let mut view = out.try_readwrite()?;
-    view.as_slice_mut()?.copy_from_slice(values);
-    Ok(())
+/// A single call's `size × size` matrix result: `write` fills a new array, or `out` (checked),
+/// which is returned, in row-major order.
+pub(crate) fn single_matrix<'py>(
+    py: Python<'py>,
+    out: Option<&Bound<'py, PyAny>>,
+    size: usize,
+    write: impl FnOnce(&mut [f64]),
+) -> PyResult<Bound<'py, PyAny>> {
+    match out.filter(|o| !o.is_none()) {
+        None => {
+            let array = numpy::PyArray2::<f64>::zeros(py, [size, size], false);
+            // SAFETY: a new array that nothing else refers to
+            write(unsafe { array.as_slice_mut() }?);
+            Ok(array.into_any())
+        }
+        Some(o) => {
+            let array = checked_out(o, &[size, size])?;
+            // SAFETY: as in `single_vector`
+            write(unsafe { array.as_slice_mut() }?);
+            Ok(array.into_any())
+        }
+    }
 }
 
 /// Workspaces kept between batched calls, one per piece of a batch in flight, so that a call

@@ -1,6 +1,6 @@
 //! `orbitflex.Robot`.
 
-use super::batched::{batched, evaluate, fill, output, Spares};
+use super::batched::{call_args, evaluate, output, single_matrix, single_vector, Call, Spares};
 use super::convert::{array1, array2, vector, vector_or};
 use super::errors::ModelError;
 use crate::algorithms::{self, Data};
@@ -61,22 +61,6 @@ fn row_major_into(m: &nalgebra::DMatrix<f64>, out: &mut [f64]) {
         for (c, v) in row.iter_mut().enumerate() {
             *v = m[(r, c)];
         }
-    }
-}
-
-/// A vector result: a new array, or written into ``out``.
-fn vector_result<'py>(
-    py: Python<'py>,
-    out: Option<&Bound<'py, PyAny>>,
-    values: &[f64],
-) -> PyResult<Bound<'py, PyAny>> {
-    match out {
-        Some(out) if !out.is_none() => {
-            let out = output(py, Some(out), &[values.len()])?;
-            fill(&out, values)?;
-            Ok(out.into_any())
-        }
-        _ => Ok(array1(py, values).into_any()),
     }
 }
 
@@ -387,34 +371,28 @@ impl PyRobot {
         let n = self.robot.dof();
         let method = super::convert::method(method)?;
         let size = 6 + n;
-        if let Some(b) = batched(&[("q", Some(q), n)])? {
-            let out = output(py, out, &[b.rows, size, size])?;
-            let robot = &self.robot;
-            evaluate(
-                py,
-                robot,
-                &self.spares,
-                &out,
-                size * size,
-                |data, r, row| {
-                    row_major_into(method.mass_matrix(robot, data, b.arg(0, r))?, row);
-                    Ok(())
-                },
-            )?;
-            return Ok(out.into_any());
-        }
-        let q = vector(q, "q", Some(n))?;
-        let mut data = self.data();
-        let m = method.mass_matrix(&self.robot, &mut data, &q)?;
-        match out {
-            Some(out) if !out.is_none() => {
-                let out = output(py, Some(out), &[size, size])?;
-                let mut rows = vec![0.0; size * size];
-                row_major_into(m, &mut rows);
-                fill(&out, &rows)?;
+        match call_args(&[("q", Some(q), n)])? {
+            Call::Batch(b) => {
+                let out = output(py, out, &[b.rows, size, size])?;
+                let robot = &self.robot;
+                evaluate(
+                    py,
+                    robot,
+                    &self.spares,
+                    &out,
+                    size * size,
+                    |data, r, row| {
+                        row_major_into(method.mass_matrix(robot, data, b.arg(0, r))?, row);
+                        Ok(())
+                    },
+                )?;
                 Ok(out.into_any())
             }
-            _ => Ok(array2(py, m).into_any()),
+            Call::Single(v) => {
+                let mut data = self.data();
+                let m = method.mass_matrix(&self.robot, &mut data, &v[0])?;
+                single_matrix(py, out, size, |row| row_major_into(m, row))
+            }
         }
     }
 
@@ -442,20 +420,24 @@ impl PyRobot {
             ("base_twist", Some(base_twist), 6),
             ("qd", Some(qd), n),
         ];
-        if let Some(b) = batched(&args)? {
-            let out = output(py, out, &[b.rows, 6 + n])?;
-            let robot = &self.robot;
-            evaluate(py, robot, &self.spares, &out, 6 + n, |data, r, row| {
-                let state = RigidState::new(b.arg(0, r), b.arg(1, r), b.arg(2, r));
-                row.copy_from_slice(method.bias_forces(robot, data, &state)?.as_slice());
-                Ok(())
-            })?;
-            return Ok(out.into_any());
+        match call_args(&args)? {
+            Call::Batch(b) => {
+                let out = output(py, out, &[b.rows, 6 + n])?;
+                let robot = &self.robot;
+                evaluate(py, robot, &self.spares, &out, 6 + n, |data, r, row| {
+                    let state = RigidState::new(b.arg(0, r), b.arg(1, r), b.arg(2, r));
+                    row.copy_from_slice(method.bias_forces(robot, data, &state)?.as_slice());
+                    Ok(())
+                })?;
+                Ok(out.into_any())
+            }
+            Call::Single(v) => {
+                let mut data = self.data();
+                let state = RigidState::new(&v[0], &v[1], &v[2]);
+                let c = method.bias_forces(&self.robot, &mut data, &state)?;
+                single_vector(py, out, c.as_slice())
+            }
         }
-        let state = self.state(q, base_twist, qd)?;
-        let mut data = self.data();
-        let c = method.bias_forces(&self.robot, &mut data, &state.rigid())?;
-        vector_result(py, out, c.as_slice())
     }
 
     /// EE Jacobian ``J``, shape (6, n): joint rates to EE twist ``[ω; v]`` in the EE frame,
@@ -514,26 +496,27 @@ impl PyRobot {
             ("base_wrench", base_wrench, 6),
             ("ee_wrench", ee_wrench, 6),
         ];
-        if let Some(b) = batched(&args)? {
-            let out = output(py, out, &[b.rows, 6 + n])?;
-            let robot = &self.robot;
-            evaluate(py, robot, &self.spares, &out, 6 + n, |data, r, row| {
-                let state = RigidState::new(b.arg(0, r), b.arg(1, r), b.arg(2, r));
-                let loads = Loads::from_slices(Some(b.arg(4, r)), Some(b.arg(5, r)))?;
-                let acc = method.forward_dynamics(robot, data, &state, b.arg(3, r), &loads)?;
-                row.copy_from_slice(acc.as_slice());
-                Ok(())
-            })?;
-            return Ok(out.into_any());
+        match call_args(&args)? {
+            Call::Batch(b) => {
+                let out = output(py, out, &[b.rows, 6 + n])?;
+                let robot = &self.robot;
+                evaluate(py, robot, &self.spares, &out, 6 + n, |data, r, row| {
+                    let state = RigidState::new(b.arg(0, r), b.arg(1, r), b.arg(2, r));
+                    let loads = Loads::from_slices(Some(b.arg(4, r)), Some(b.arg(5, r)))?;
+                    let acc = method.forward_dynamics(robot, data, &state, b.arg(3, r), &loads)?;
+                    row.copy_from_slice(acc.as_slice());
+                    Ok(())
+                })?;
+                Ok(out.into_any())
+            }
+            Call::Single(v) => {
+                let loads = Loads::from_slices(Some(&v[4]), Some(&v[5]))?;
+                let mut data = self.data();
+                let state = RigidState::new(&v[0], &v[1], &v[2]);
+                let acc = method.forward_dynamics(&self.robot, &mut data, &state, &v[3], &loads)?;
+                single_vector(py, out, acc.as_slice())
+            }
         }
-        let state = self.state(q, base_twist, qd)?;
-        let tau = vector(tau, "tau", Some(n))?;
-        let fb = vector_or(base_wrench, "base_wrench", 6, 0.0)?;
-        let f = vector_or(ee_wrench, "ee_wrench", 6, 0.0)?;
-        let loads = Loads::from_slices(Some(&fb), Some(&f))?;
-        let mut data = self.data();
-        let acc = method.forward_dynamics(&self.robot, &mut data, &state.rigid(), &tau, &loads)?;
-        vector_result(py, out, acc.as_slice())
     }
 
     /// Inverse dynamics ``[f_B; τ]``, shape (6+n,) (A.19), for classical base acceleration
@@ -567,32 +550,33 @@ impl PyRobot {
             ("qdd", Some(qdd), n),
             ("ee_wrench", ee_wrench, 6),
         ];
-        if let Some(b) = batched(&args)? {
-            let out = output(py, out, &[b.rows, 6 + n])?;
-            let robot = &self.robot;
-            evaluate(py, robot, &self.spares, &out, 6 + n, |data, r, row| {
-                let state = RigidState::new(b.arg(0, r), b.arg(1, r), b.arg(2, r));
-                let gen = method.inverse_dynamics(
-                    robot,
-                    data,
-                    &state,
-                    b.arg(3, r),
-                    b.arg(4, r),
-                    b.arg(5, r),
-                )?;
-                row.copy_from_slice(gen.as_slice());
-                Ok(())
-            })?;
-            return Ok(out.into_any());
+        match call_args(&args)? {
+            Call::Batch(b) => {
+                let out = output(py, out, &[b.rows, 6 + n])?;
+                let robot = &self.robot;
+                evaluate(py, robot, &self.spares, &out, 6 + n, |data, r, row| {
+                    let state = RigidState::new(b.arg(0, r), b.arg(1, r), b.arg(2, r));
+                    let gen = method.inverse_dynamics(
+                        robot,
+                        data,
+                        &state,
+                        b.arg(3, r),
+                        b.arg(4, r),
+                        b.arg(5, r),
+                    )?;
+                    row.copy_from_slice(gen.as_slice());
+                    Ok(())
+                })?;
+                Ok(out.into_any())
+            }
+            Call::Single(v) => {
+                let mut data = self.data();
+                let state = RigidState::new(&v[0], &v[1], &v[2]);
+                let gen =
+                    method.inverse_dynamics(&self.robot, &mut data, &state, &v[3], &v[4], &v[5])?;
+                single_vector(py, out, gen.as_slice())
+            }
         }
-        let state = self.state(q, base_twist, qd)?;
-        let acc = vector(base_acc, "base_acc", Some(6))?;
-        let qdd = vector(qdd, "qdd", Some(n))?;
-        let f = vector_or(ee_wrench, "ee_wrench", 6, 0.0)?;
-        let mut data = self.data();
-        let gen =
-            method.inverse_dynamics(&self.robot, &mut data, &state.rigid(), &acc, &qdd, &f)?;
-        vector_result(py, out, gen.as_slice())
     }
 
     /// The paper's dense operators at this state, as a dict of numpy arrays: ``Phi``, ``H``,
