@@ -258,7 +258,8 @@ fn failing_run_leaves_the_others_complete() {
         base_wrench: BatchInput::zero(6),
         ee_wrench: BatchInput::zero(6),
     };
-    for (every, threads) in [(1, 2), (5, 1), (5, 2)] {
+    // 17 % 5 != 0 ends the record on the last good state; 17 % 17 == 0 on a kept row
+    for (every, threads) in [(1, 2), (5, 1), (5, 2), (17, 2)] {
         let record =
             simulate_batch(&batch, &settings(every, threads), &BatchWatch::default()).unwrap();
         for b in 0..4 {
@@ -410,6 +411,8 @@ fn summaries_only_keeps_no_rows_and_the_same_summaries() {
 
 #[test]
 fn cancelled_batch_stops_every_run() {
+    // one thread, three long runs; the flag is set once the first run is over: the second stops
+    // at its next look (every 1024 steps), the third never starts
     let arm = arm(400.0);
     let len = arm.layout().len();
     let x0 = arm.rest_state();
@@ -422,22 +425,103 @@ fn cancelled_batch_stops_every_run() {
         ee_wrench: BatchInput::zero(6),
     };
     let watch = BatchWatch::default();
-    watch.cancel.store(true, Ordering::Relaxed);
+    let steps = 200_000;
     let settings = BatchSettings {
-        steps: 5000,
-        ..settings(1, 2)
+        steps,
+        keep_rows: false,
+        ..settings(1, 1)
     };
-    let record = simulate_batch(&batch, &settings, &watch).unwrap();
-    for status in &record.status {
-        match status {
-            RunStatus::Failed { step, message, .. } => {
-                assert_eq!(*step, 1024);
-                assert_eq!(message, "interrupted by the caller");
+    let record = std::thread::scope(|scope| {
+        scope.spawn(|| {
+            while watch.done.load(Ordering::Relaxed) == 0 {
+                std::thread::sleep(std::time::Duration::from_micros(200));
             }
-            other => panic!("{other:?}"),
+            watch.cancel.store(true, Ordering::Relaxed);
+        });
+        simulate_batch(&batch, &settings, &watch).unwrap()
+    });
+    assert_eq!(record.status[0], RunStatus::Finished);
+    match &record.status[1] {
+        RunStatus::Failed { step, message, .. } => {
+            assert!(*step > 0 && *step < steps && step % 1024 == 0, "{step}");
+            assert_eq!(message, "interrupted by the caller");
         }
+        other => panic!("{other:?}"),
     }
+    assert_eq!(record.status[2].failed_step(), Some(0));
     assert_eq!(watch.done.load(Ordering::Relaxed), 3);
+}
+
+#[test]
+fn runs_not_started_when_cancelled_end_at_their_start() {
+    // runs shorter than the 1024 steps between two looks at the flag: only the start can stop
+    let arm = arm(400.0);
+    let len = arm.layout().len();
+    let x0 = starts(&arm);
+    let batch = Batch {
+        runs: 4,
+        arms: PerRun::All(&arm),
+        x0: BatchInput::new("x0s", &x0, &[4, len], 4, None, len).unwrap(),
+        u: BatchControl::Open(BatchInput::zero(N)),
+        base_wrench: BatchInput::zero(6),
+        ee_wrench: BatchInput::zero(6),
+    };
+    let watch = BatchWatch::default();
+    watch.cancel.store(true, Ordering::Relaxed);
+    let record = simulate_batch(&batch, &settings(3, 2), &watch).unwrap();
+    for b in 0..4 {
+        assert_eq!(
+            record.status[b],
+            RunStatus::Failed {
+                step: 0,
+                time: 0.0,
+                message: "interrupted by the caller".into()
+            }
+        );
+        assert_eq!(
+            &record.final_state[b * len..(b + 1) * len],
+            &x0[b * len..(b + 1) * len]
+        );
+        let run = record.run(b).unwrap();
+        assert_eq!((run.len(), run.u.len()), (1, 0));
+        assert_eq!(run.state(0), &x0[b * len..(b + 1) * len]);
+        assert!(
+            record.x[b * record.rows * len + len..(b + 1) * record.rows * len]
+                .iter()
+                .all(|v| v.is_nan())
+        );
+    }
+}
+
+#[test]
+fn a_table_for_other_steps_is_refused() {
+    let arm = arm(400.0);
+    let len = arm.layout().len();
+    let x0 = arm.rest_state();
+    let u = vec![0.0; 2 * 10 * N];
+    let batch = Batch {
+        runs: 2,
+        arms: PerRun::All(&arm),
+        x0: BatchInput::new("x0s", &x0, &[len], 2, None, len).unwrap(),
+        u: BatchControl::Open(BatchInput::new("u", &u, &[2, 10, N], 2, Some(10), N).unwrap()),
+        base_wrench: BatchInput::zero(6),
+        ee_wrench: BatchInput::zero(6),
+    };
+    for steps in [5, 20] {
+        let e = simulate_batch(
+            &batch,
+            &BatchSettings {
+                steps,
+                ..settings(1, 2)
+            },
+            &BatchWatch::default(),
+        )
+        .unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            format!("u: expected a table of {steps} rows (one per step), given 10 rows")
+        );
+    }
 }
 
 #[test]

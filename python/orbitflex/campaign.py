@@ -36,10 +36,10 @@ parameter                 shape  what                                    nominal
                                  ``payload_com`` in the EE frame
 ========================= ====== ======================================= =====================
 
-Distributions (``distribution =``): ``normal`` (``std`` absolute, or ``relative``: nominal ×
-(1 + relative × N(0, 1))), ``lognormal`` (nominal × exp(``sigma`` × N(0, 1)), always of the
-nominal's sign), ``uniform`` (``low``/``high`` absolute, or ``relative``: nominal × (1 + U(−r,
-r))). ``per_joint = true`` (default) draws each element on its own; ``false`` draws one number
+Distributions (``distribution =``): ``normal`` (nominal + ``std`` × N(0, 1), or with
+``relative``: nominal × (1 + relative × N(0, 1))), ``lognormal`` (nominal × exp(``sigma`` ×
+N(0, 1)), always of the nominal's sign), ``uniform`` (with ``low``/``high``: U(low, high), the
+values themselves, *not* an offset from the nominal; with ``relative``: nominal × (1 + U(−r, r))). ``per_joint = true`` (default) draws each element on its own; ``false`` draws one number
 for all elements (a common-mode error). ``std``, ``low`` and ``high`` may be per element.
 
 Metrics, one column each (NaN where a run failed before they were defined):
@@ -63,10 +63,12 @@ from __future__ import annotations
 
 import math
 import os
+import re
 import socket
 import sys
 import time
 import uuid
+import warnings
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable, Dict, List, Mapping, Optional, Sequence, Tuple, Union
@@ -119,8 +121,8 @@ class Dispersion:
     """One dispersed parameter: ``parameter`` (see the module docs), ``distribution``
     (``"normal"``, ``"lognormal"`` or ``"uniform"``) and its width: ``std`` (normal, absolute),
     ``relative`` (normal or uniform, a fraction of the nominal), ``sigma`` (lognormal),
-    ``low``/``high`` (uniform, absolute). ``per_joint=False`` draws one number for every
-    element."""
+    ``low``/``high`` (uniform: the drawn values themselves, not offsets from the nominal).
+    ``per_joint=False`` draws one number for every element."""
 
     parameter: str
     distribution: str = "normal"
@@ -261,12 +263,26 @@ class Campaign:
             raise CampaignError(f"{source}: [robot] model: expected \"space_arm\" (or give urdf = PATH), "
                                 f"given {robot_t['model']!r}")
         joints = None
+        model = joints_t.get("model")
         if any(k in joints_t for k in JOINT_PARAMETERS):
+            if model is not None:
+                raise CampaignError(f"{source}: [joints] give model or the parameters "
+                                    f"({', '.join(JOINT_PARAMETERS)}), not both")
             params = {k: joints_t[k] for k in JOINT_PARAMETERS if k in joints_t}
             joints = FlexibleJoints(**params)
-        elif joints_t.get("model", "space_arm" if robot is None else "defaults") not in ("space_arm", "defaults"):
-            raise CampaignError(f"{source}: [joints] model: expected \"space_arm\" or \"defaults\", "
-                                f"given {joints_t['model']!r}")
+        elif model == "space_arm":
+            joints = models.space_arm_joints()
+        elif model == "defaults":
+            kwargs: Dict[str, Any] = {}
+            if robot_t.get("ee_link") is not None:
+                kwargs["ee_link"] = robot_t["ee_link"]
+            if robot_t.get("locked_joints"):
+                kwargs["locked_joints"] = list(robot_t["locked_joints"])
+            loaded = models.space_arm() if robot is None else Robot.from_urdf(robot, **kwargs)
+            joints = FlexibleJoints.defaults_for(loaded)
+        elif model is not None:
+            raise CampaignError(f"{source}: [joints] model: expected \"space_arm\" (the built-in arm's "
+                                f"joints) or \"defaults\" (FlexibleJoints.defaults_for the robot), given {model!r}")
         dispersions = []
         for k, d in enumerate(spec.get("dispersion", [])):
             fields = {"parameter", "distribution", "std", "relative", "sigma", "low", "high", "per_joint"}
@@ -439,9 +455,18 @@ class Campaign:
         values = [self.parameters(i, robot) for i in runs]
         arms: Dict[Tuple[float, ...], FlexibleArm] = {}
         setups = [self._setup(robot, v, arms) for v in values]
-        batch = simulate_batch([s[0] for s in setups], np.stack([s[1] for s in setups]), self.dt, self.steps,
-                               u=[s[2] for s in setups], threads=threads, record_every=self.record_every,
-                               progress=progress)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", RuntimeWarning)
+            batch = simulate_batch([s[0] for s in setups], np.stack([s[1] for s in setups]), self.dt,
+                                   self.steps, u=[s[2] for s in setups], threads=threads,
+                                   record_every=self.record_every, progress=progress)
+        for w in caught:
+            # the batch numbers its runs from 0: name them as the campaign does
+            message = re.sub(r"\(runs ([\d, …]+);",
+                             lambda m: "(runs " + ", ".join(str(int(i) + start) if i.strip().isdigit() else i.strip()
+                                                           for i in m.group(1).split(",")) + ";",
+                             str(w.message))
+            warnings.warn(message.replace(" runs (runs", " runs of this chunk (runs", 1), w.category, stacklevel=2)
         n = robot.dof
         columns: Dict[str, Any] = {"run": np.asarray(runs, dtype=np.int64)}
         for d in self.dispersions:

@@ -21,7 +21,7 @@
 //! is in [`BatchRecord::final_state`], as for a complete run. Every run also keeps a summary
 //! computed from *every* state and input, kept or not: the peak deflection `max |θ − q|` and the
 //! peak torque `max |u|` per joint. With [`BatchSettings::keep_rows`] false only the summaries
-//! and final states are kept, so 10⁵ runs take a few MB.
+//! and final states are kept: 55 numbers per run of a 7-joint arm, 44 MB for 10⁵ runs.
 //!
 //! **Determinism.** Each run is computed on one thread from its own inputs, with the same
 //! arithmetic as [`simulate`](super::simulate()), so a batch equals its runs made one by one,
@@ -108,6 +108,8 @@ pub struct BatchInput<'a> {
     step_stride: usize,
     /// The length of the run axis when it is not broadcast.
     runs: Option<usize>,
+    /// The length of the step axis of a table.
+    steps: Option<usize>,
 }
 
 impl<'a> BatchInput<'a> {
@@ -119,6 +121,7 @@ impl<'a> BatchInput<'a> {
             run_stride: 0,
             step_stride: 0,
             runs: None,
+            steps: None,
         }
     }
 
@@ -180,11 +183,19 @@ impl<'a> BatchInput<'a> {
             run_stride,
             step_stride,
             runs: (run_stride > 0).then_some(runs),
+            steps: (step_stride > 0).then_some(steps).flatten(),
         })
     }
 
-    /// Checks the width and that a run axis has `runs` rows.
-    fn check(&self, what: &str, width: usize, runs: usize) -> Result<()> {
+    /// Checks the width, that a run axis has `runs` rows and a step axis `steps`.
+    fn check(&self, what: &str, width: usize, runs: usize, steps: usize) -> Result<()> {
+        if let Some(s) = self.steps.filter(|&s| s != steps) {
+            return Err(Error::Dimension {
+                what: what.into(),
+                expected: format!("a table of {steps} rows (one per step)"),
+                given: format!("{s} rows"),
+            });
+        }
         if self.width != width {
             return Err(Error::Dimension {
                 what: what.into(),
@@ -496,9 +507,13 @@ impl<'a> Batch<'a> {
 
     /// Checks everything [`simulate_batch`] needs before its first step, run by run as
     /// [`check_run`] does for one run: `dt`, `record_every`, the number of runs, the same number
-    /// of joints in every arm, and each run's start, controller and wrench tables. An error
-    /// names the run.
+    /// of joints in every arm, the shapes, and each run's start, controller and wrench tables,
+    /// on `settings.threads` threads. An error names the run.
     pub fn check(&self, settings: &BatchSettings) -> Result<()> {
+        in_pool(settings.threads, || self.check_runs(settings))?
+    }
+
+    fn check_runs(&self, settings: &BatchSettings) -> Result<()> {
         check_dt(settings.dt)?;
         check_record_every(settings.record_every)?;
         if self.runs == 0 {
@@ -545,10 +560,10 @@ impl<'a> Batch<'a> {
             ("base_wrench", &self.base_wrench, 6),
             ("ee_wrench", &self.ee_wrench, 6),
         ] {
-            input.check(what, w, self.runs)?;
+            input.check(what, w, self.runs, settings.steps)?;
         }
         if let BatchControl::Open(u) = &self.u {
-            u.check("u", n, self.runs)?;
+            u.check("u", n, self.runs, settings.steps)?;
         }
         (0..self.runs).into_par_iter().try_for_each(|run| {
             let mut inputs = self.inputs(run, settings.steps);
@@ -727,7 +742,7 @@ pub fn simulate_batch(
     settings: &BatchSettings,
     watch: &BatchWatch,
 ) -> Result<BatchRecord> {
-    in_pool(settings.threads, || batch.check(settings))??;
+    batch.check(settings)?;
     let layout = batch.arms.get(0).layout();
     let (runs, steps, every) = (batch.runs, settings.steps, settings.record_every);
     let rows = if settings.keep_rows {
@@ -830,6 +845,17 @@ fn one_run(
         keep: settings.keep_rows,
         next: 0,
     };
+    if cancel.load(Ordering::Relaxed) {
+        // cancelled before it started: its start is its last good state
+        let mut x0 = inputs.x0.to_vec();
+        crate::flex::normalise_quaternion(&mut x0[layout.quaternion()]);
+        let _ = recorder.state(0.0, &x0).and_then(|_| recorder.finish());
+        return RunStatus::Failed {
+            step: 0,
+            time: 0.0,
+            message: "interrupted by the caller".into(),
+        };
+    }
     let outcome = simulate_into(
         inputs.arm,
         inputs.x0,

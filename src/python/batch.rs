@@ -270,7 +270,7 @@ fn run_watched(
 /// Simulates many runs of the flexible arm at once, over a pool of threads, without the GIL.
 ///
 /// ``simulate_batch(arm_or_arms, x0s, dt, steps, u=None, base_wrench=None, ee_wrench=None,
-/// threads=None, record_every=1, *, keep_rows=True, progress=None)`` returns a
+/// threads=None, record_every=None, *, keep_rows=True, progress=None)`` returns a
 /// :class:`BatchTrajectory`. Run ``b`` is exactly ``arm.simulate(x0s[b], dt, steps, u[b],
 /// base_wrench[b], ee_wrench[b], record_every=record_every)``, bit for bit, whatever the number
 /// of threads.
@@ -281,13 +281,14 @@ fn run_watched(
 ///   stiffness, payloads; all with the same number of joints n);
 /// - ``x0s``: (13+4n,) for every run, or (B, 13+4n);
 /// - ``u`` (N·m, link side): None (zero), a scalar, (n,) constant for every run, (B, n) constant
-///   per run, (B, steps, n) or (1, steps, n) tables; or one ``MotorPD`` (each run starts from a
-///   copy) or a sequence of B. A Python callable is refused: the runs go without the GIL;
+///   per run, (B, steps, n) or (1, steps, n) tables (a 2-D ``u`` is always one row per run: one
+///   table for every run is (1, steps, n)); or one ``MotorPD`` (each run starts from a copy) or
+///   a sequence of B. A Python callable is refused: the runs go without the GIL;
 /// - ``base_wrench`` (base frame, applied to the base) and ``ee_wrench`` (EE frame, exerted by
 ///   the EE): as ``u`` with 6 (``[moment (N·m); force (N)]``) in place of n.
 ///
-/// ``threads=None`` uses every core. ``record_every=k`` keeps rows 0, k, 2k, … and the final
-/// row. ``keep_rows=False`` keeps only the per-run summaries and final states (no rows), for
+/// ``threads=None`` uses every core. ``record_every=k`` (None: 1) keeps rows 0, k, 2k, … and
+/// the final row. ``keep_rows=False`` keeps only the per-run summaries and final states (no rows), for
 /// campaigns of 10⁵ runs. ``progress(done, runs)`` is called about every 0.1 s.
 ///
 /// One run that fails (a diverged state) never stops the others: its ``failed_step`` is the

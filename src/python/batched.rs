@@ -2,7 +2,7 @@
 //! vectors, or as stacks of rows broadcast over a batch evaluated in parallel without the GIL;
 //! the result written into a new array or into the caller's.
 
-use super::convert::{as_float_array, vector_or};
+use super::convert::{aligned_copy, as_float_array, direct_values, vector_or};
 use super::errors::ModelError;
 use crate::algorithms::Data;
 use crate::error::Error;
@@ -61,13 +61,13 @@ pub(crate) fn call_args(args: &[Arg<'_, '_>]) -> PyResult<Call> {
         match obj {
             None => fast.push(vec![0.0; *width]),
             Some(o) if o.is_none() => fast.push(vec![0.0; *width]),
-            Some(o) => match o.downcast::<numpy::PyArray1<f64>>() {
-                // SAFETY: copied at once while this thread holds the GIL (as `convert::vector`)
-                Ok(a) => match unsafe { a.as_slice() } {
-                    Ok(values) => fast.push(values.to_vec()),
-                    Err(_) => break,
-                },
-                Err(_) => break,
+            Some(o) => match o
+                .downcast::<numpy::PyArray1<f64>>()
+                .ok()
+                .and_then(direct_values)
+            {
+                Some(values) => fast.push(values),
+                None => break,
             },
         }
     }
@@ -173,26 +173,13 @@ fn batched(args: &[Arg<'_, '_>]) -> PyResult<Option<Batched>> {
 /// The shape and the values (C order) of an array-like argument.
 fn shape_and_values(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<(Vec<usize>, Vec<f64>)> {
     if let Ok(a) = obj.downcast::<PyArrayDyn<f64>>() {
-        if a.is_c_contiguous() {
-            // SAFETY: the values are copied at once while this thread holds the GIL, so no
-            // Python code can change the array meanwhile (as `convert::vector` does).
-            if let Ok(values) = unsafe { a.as_slice() } {
-                return Ok((a.shape().to_vec(), values.to_vec()));
-            }
+        if let Some(values) = direct_values(a) {
+            return Ok((a.shape().to_vec(), values));
         }
     }
     let a = as_float_array(obj, what)?;
     let shape: Vec<usize> = a.getattr("shape")?.extract()?;
-    let np = a.py().import("numpy")?;
-    let flat = np
-        .call_method1("ascontiguousarray", (a,))?
-        .call_method1("reshape", (-1,))?;
-    let values = flat
-        .downcast::<numpy::PyArray1<f64>>()?
-        .readonly()
-        .as_slice()?
-        .to_vec();
-    Ok((shape, values))
+    Ok((shape, aligned_copy(&a)?))
 }
 
 fn shown(shape: &[usize]) -> String {
@@ -235,19 +222,6 @@ fn in_row(row: usize, error: Error) -> Error {
     }
 }
 
-/// The array the result goes to: `out` if given (checked: float64, C-contiguous, writeable, of
-/// this shape), else a new one.
-pub(crate) fn output<'py>(
-    py: Python<'py>,
-    out: Option<&Bound<'py, PyAny>>,
-    shape: &[usize],
-) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
-    match out.filter(|o| !o.is_none()) {
-        None => Ok(PyArrayDyn::<f64>::zeros(py, shape, false)),
-        Some(o) => checked_out(o, shape),
-    }
-}
-
 /// `out`, checked: a float64 numpy array of this shape, C-contiguous and writeable.
 fn checked_out<'py>(
     o: &Bound<'py, PyAny>,
@@ -272,10 +246,12 @@ fn checked_out<'py>(
     }
     // SAFETY: reads the flags of a live array object
     let flags = unsafe { (*array.as_array_ptr()).flags };
-    let writeable = flags & numpy::npyffi::NPY_ARRAY_WRITEABLE != 0;
-    if !array.is_c_contiguous() || !writeable {
+    let wanted = numpy::npyffi::NPY_ARRAY_C_CONTIGUOUS
+        | numpy::npyffi::NPY_ARRAY_ALIGNED
+        | numpy::npyffi::NPY_ARRAY_WRITEABLE;
+    if flags & wanted != wanted {
         return Err(ModelError::new_err(
-            "out: expected a C-contiguous, writeable array",
+            "out: expected a C-contiguous, aligned, writeable array",
         ));
     }
     Ok(array.clone())
@@ -339,45 +315,62 @@ impl Spares {
     }
 }
 
-/// Evaluates `f(data, row, out_row)` for every row of the batch, in parallel on rayon's pool
-/// without the GIL: the rows are cut into a few contiguous pieces per thread, each run with a
-/// workspace from `spares`. `out` holds `rows × width` numbers. The first error (lowest row) is
-/// raised, naming its row.
-pub(crate) fn evaluate(
-    py: Python<'_>,
+/// Evaluates `f(data, row, out_row)` for every row of a batch of `rows` rows of `width`
+/// numbers, in parallel on rayon's pool without the GIL, into a buffer of its own: the rows are
+/// cut into a few contiguous pieces per thread, each run with a workspace from `spares`. The
+/// result goes to a new array of `shape`, or is copied into `out` (checked first) once the GIL
+/// is back, so no numpy array is touched without it. The first error (lowest row) is raised,
+/// naming its row.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn evaluate<'py>(
+    py: Python<'py>,
     robot: &Robot,
     spares: &Spares,
-    out: &Bound<'_, PyArrayDyn<f64>>,
+    out: Option<&Bound<'py, PyAny>>,
+    shape: &[usize],
+    rows: usize,
     width: usize,
     f: impl Fn(&mut Data, usize, &mut [f64]) -> crate::Result<()> + Sync,
-) -> PyResult<()> {
-    let mut view = out.try_readwrite()?;
-    let values = view.as_slice_mut()?;
-    if values.is_empty() {
-        return Ok(());
+) -> PyResult<Bound<'py, PyAny>> {
+    let out = out
+        .filter(|o| !o.is_none())
+        .map(|o| checked_out(o, shape))
+        .transpose()?;
+    let mut values = vec![0.0; rows * width];
+    if rows > 0 {
+        let per_piece = rows.div_ceil(4 * rayon::current_num_threads()).max(1);
+        let failure = py.allow_threads(|| {
+            values
+                .par_chunks_mut(per_piece * width)
+                .enumerate()
+                .map(|(piece, block)| {
+                    let mut data = spares.take(robot);
+                    let first = piece * per_piece;
+                    let result =
+                        block
+                            .chunks_exact_mut(width)
+                            .enumerate()
+                            .try_for_each(|(k, out)| {
+                                f(&mut data, first + k, out).map_err(|e| in_row(first + k, e))
+                            });
+                    spares.give(data);
+                    result
+                })
+                .find_map_first(Result::err)
+        });
+        if let Some(e) = failure {
+            return Err(e.into());
+        }
     }
-    let rows = values.len() / width;
-    let per_piece = rows.div_ceil(4 * rayon::current_num_threads()).max(1);
-    let failure = py.allow_threads(|| {
-        values
-            .par_chunks_mut(per_piece * width)
-            .enumerate()
-            .map(|(piece, block)| {
-                let mut data = spares.take(robot);
-                let first = piece * per_piece;
-                let result = block
-                    .chunks_exact_mut(width)
-                    .enumerate()
-                    .try_for_each(|(k, out)| {
-                        f(&mut data, first + k, out).map_err(|e| in_row(first + k, e))
-                    });
-                spares.give(data);
-                result
-            })
-            .find_map_first(Result::err)
-    });
-    match failure {
-        Some(e) => Err(e.into()),
-        None => Ok(()),
+    match out {
+        Some(array) => {
+            // SAFETY: written at once while this thread holds the GIL; C-contiguous, aligned,
+            // writeable and of this shape (checked)
+            unsafe { array.as_slice_mut() }?.copy_from_slice(&values);
+            Ok(array.into_any())
+        }
+        None => Ok(numpy::PyArray1::from_vec(py, values)
+            .reshape(shape)?
+            .into_any()),
     }
 }

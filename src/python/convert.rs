@@ -2,21 +2,16 @@
 
 use super::errors::ModelError;
 use crate::args::check_finite;
-use numpy::{
-    PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2, PyUntypedArrayMethods,
-};
+use numpy::{PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray2, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 
 /// Any 1-D float array-like (numpy array, list, tuple) as a `Vec<f64>` of `expected` length
 /// (`None`: any length), all finite.
 pub fn vector(obj: &Bound<'_, PyAny>, what: &str, expected: Option<usize>) -> PyResult<Vec<f64>> {
     let values = if let Ok(a) = obj.downcast::<PyArray1<f64>>() {
-        // SAFETY: the values are copied out at once while this thread holds the GIL, so no
-        // Python code can mutate the array meanwhile; this skips rust-numpy's borrow tracking,
-        // which is most of the per-call cost of a small array.
-        match unsafe { a.as_slice() } {
-            Ok(s) => s.to_vec(),
-            Err(_) => a.readonly().as_array().to_vec(), // strided: the checked, slower view
+        match direct_values(a) {
+            Some(values) => values,
+            None => aligned_copy(a.as_any())?, // strided or misaligned
         }
     } else {
         let a = as_float_array(obj, what)?;
@@ -27,7 +22,7 @@ pub fn vector(obj: &Bound<'_, PyAny>, what: &str, expected: Option<usize>) -> Py
                 expected.map_or(String::new(), |n| format!(" of length {n}"))
             )));
         }
-        a.extract::<PyReadonlyArray1<f64>>()?.as_array().to_vec()
+        aligned_copy(&a)?
     };
     if let Some(n) = expected {
         if values.len() != n {
@@ -39,6 +34,37 @@ pub fn vector(obj: &Bound<'_, PyAny>, what: &str, expected: Option<usize>) -> Py
     }
     check_finite(what, &values)?;
     Ok(values)
+}
+
+/// The values of a C-contiguous, aligned float64 array, copied at once; `None` for any other
+/// layout (see [`aligned_copy`]).
+///
+/// No Rust code in orbitflex holds a reference into a numpy array while the GIL is released
+/// (batched calls compute into their own buffer and copy into `out=` under the GIL), so a copy
+/// made while this thread holds the GIL cannot race with a write; this skips rust-numpy's borrow
+/// tracking, which is most of the per-call cost of a small array.
+pub fn direct_values<D: numpy::ndarray::Dimension>(
+    a: &Bound<'_, numpy::PyArray<f64, D>>,
+) -> Option<Vec<f64>> {
+    let wanted = numpy::npyffi::NPY_ARRAY_C_CONTIGUOUS | numpy::npyffi::NPY_ARRAY_ALIGNED;
+    // SAFETY: reads the flags of a live array object
+    let flags = unsafe { (*a.as_array_ptr()).flags };
+    if flags & wanted != wanted {
+        return None;
+    }
+    // SAFETY: contiguous and aligned (checked), read while this thread holds the GIL (above)
+    unsafe { a.as_slice() }.ok().map(<[f64]>::to_vec)
+}
+
+/// The values of any float array-like in C order, through a C-contiguous, aligned float64 copy
+/// that numpy makes (`numpy.require`).
+pub fn aligned_copy(obj: &Bound<'_, PyAny>) -> PyResult<Vec<f64>> {
+    let np = obj.py().import("numpy")?;
+    let a = np
+        .call_method1("require", (obj, np.getattr("float64")?, "CA"))?
+        .call_method1("reshape", (-1,))?;
+    let a = a.downcast::<PyArray1<f64>>()?;
+    direct_values(a).ok_or_else(|| ModelError::new_err("numpy.require gave an unaligned copy"))
 }
 
 /// Like [`vector`] but `None` gives `default`.

@@ -1,6 +1,6 @@
 //! `orbitflex.Robot`.
 
-use super::batched::{call_args, evaluate, output, single_matrix, single_vector, Call, Spares};
+use super::batched::{call_args, evaluate, single_matrix, single_vector, Call, Spares};
 use super::convert::{array1, array2, vector, vector_or};
 use super::errors::ModelError;
 use crate::algorithms::{self, Data};
@@ -373,20 +373,22 @@ impl PyRobot {
         let size = 6 + n;
         match call_args(&[("q", Some(q), n)])? {
             Call::Batch(b) => {
-                let out = output(py, out, &[b.rows, size, size])?;
                 let robot = &self.robot;
+                let shape = [b.rows, size, size];
+                let each = |data: &mut Data, r: usize, row: &mut [f64]| {
+                    row_major_into(method.mass_matrix(robot, data, b.arg(0, r))?, row);
+                    Ok(())
+                };
                 evaluate(
                     py,
                     robot,
                     &self.spares,
-                    &out,
+                    out,
+                    &shape,
+                    b.rows,
                     size * size,
-                    |data, r, row| {
-                        row_major_into(method.mass_matrix(robot, data, b.arg(0, r))?, row);
-                        Ok(())
-                    },
-                )?;
-                Ok(out.into_any())
+                    each,
+                )
             }
             Call::Single(v) => {
                 let mut data = self.data();
@@ -422,14 +424,22 @@ impl PyRobot {
         ];
         match call_args(&args)? {
             Call::Batch(b) => {
-                let out = output(py, out, &[b.rows, 6 + n])?;
                 let robot = &self.robot;
-                evaluate(py, robot, &self.spares, &out, 6 + n, |data, r, row| {
-                    let state = RigidState::new(b.arg(0, r), b.arg(1, r), b.arg(2, r));
-                    row.copy_from_slice(method.bias_forces(robot, data, &state)?.as_slice());
-                    Ok(())
-                })?;
-                Ok(out.into_any())
+                let shape = [b.rows, 6 + n];
+                evaluate(
+                    py,
+                    robot,
+                    &self.spares,
+                    out,
+                    &shape,
+                    b.rows,
+                    6 + n,
+                    |data, r, row| {
+                        let state = RigidState::new(b.arg(0, r), b.arg(1, r), b.arg(2, r));
+                        row.copy_from_slice(method.bias_forces(robot, data, &state)?.as_slice());
+                        Ok(())
+                    },
+                )
             }
             Call::Single(v) => {
                 let mut data = self.data();
@@ -498,16 +508,25 @@ impl PyRobot {
         ];
         match call_args(&args)? {
             Call::Batch(b) => {
-                let out = output(py, out, &[b.rows, 6 + n])?;
                 let robot = &self.robot;
-                evaluate(py, robot, &self.spares, &out, 6 + n, |data, r, row| {
-                    let state = RigidState::new(b.arg(0, r), b.arg(1, r), b.arg(2, r));
-                    let loads = Loads::from_slices(Some(b.arg(4, r)), Some(b.arg(5, r)))?;
-                    let acc = method.forward_dynamics(robot, data, &state, b.arg(3, r), &loads)?;
-                    row.copy_from_slice(acc.as_slice());
-                    Ok(())
-                })?;
-                Ok(out.into_any())
+                let shape = [b.rows, 6 + n];
+                evaluate(
+                    py,
+                    robot,
+                    &self.spares,
+                    out,
+                    &shape,
+                    b.rows,
+                    6 + n,
+                    |data, r, row| {
+                        let state = RigidState::new(b.arg(0, r), b.arg(1, r), b.arg(2, r));
+                        let loads = Loads::from_slices(Some(b.arg(4, r)), Some(b.arg(5, r)))?;
+                        let acc =
+                            method.forward_dynamics(robot, data, &state, b.arg(3, r), &loads)?;
+                        row.copy_from_slice(acc.as_slice());
+                        Ok(())
+                    },
+                )
             }
             Call::Single(v) => {
                 let loads = Loads::from_slices(Some(&v[4]), Some(&v[5]))?;
@@ -552,22 +571,30 @@ impl PyRobot {
         ];
         match call_args(&args)? {
             Call::Batch(b) => {
-                let out = output(py, out, &[b.rows, 6 + n])?;
                 let robot = &self.robot;
-                evaluate(py, robot, &self.spares, &out, 6 + n, |data, r, row| {
-                    let state = RigidState::new(b.arg(0, r), b.arg(1, r), b.arg(2, r));
-                    let gen = method.inverse_dynamics(
-                        robot,
-                        data,
-                        &state,
-                        b.arg(3, r),
-                        b.arg(4, r),
-                        b.arg(5, r),
-                    )?;
-                    row.copy_from_slice(gen.as_slice());
-                    Ok(())
-                })?;
-                Ok(out.into_any())
+                let shape = [b.rows, 6 + n];
+                evaluate(
+                    py,
+                    robot,
+                    &self.spares,
+                    out,
+                    &shape,
+                    b.rows,
+                    6 + n,
+                    |data, r, row| {
+                        let state = RigidState::new(b.arg(0, r), b.arg(1, r), b.arg(2, r));
+                        let gen = method.inverse_dynamics(
+                            robot,
+                            data,
+                            &state,
+                            b.arg(3, r),
+                            b.arg(4, r),
+                            b.arg(5, r),
+                        )?;
+                        row.copy_from_slice(gen.as_slice());
+                        Ok(())
+                    },
+                )
             }
             Call::Single(v) => {
                 let mut data = self.data();

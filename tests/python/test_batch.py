@@ -105,7 +105,7 @@ def test_dispersed_arms_and_controllers(arm, x0s):
     assert_same(same, 2, arm.simulate(x0s[1], DT, STEPS, u=pds[0], base_wrench=np.ones(6)))
 
 
-@pytest.mark.parametrize("every", [1, 7])
+@pytest.mark.parametrize("every", [1, 7, 23])  # 23: the failing step is a kept row
 def test_failing_run_leaves_the_others_complete(arm, x0s, every):
     u = np.stack([torques(b) for b in range(B)])
     u[2, 23] = 1e308  # overflows run 2's state during step 23
@@ -236,6 +236,18 @@ def test_progress_and_gil_release(arm, x0s):
     assert len(reports) >= 2
     # the Python thread ran while the batch computed
     assert len(ticks) > 50
+
+
+def test_ctrl_c_stops_a_batch_of_short_runs(arm):
+    # runs of 500 steps never look at Ctrl-C themselves: the runs not yet started must not start
+    x0 = arm.state()
+    timer = threading.Timer(0.5, lambda: os.kill(os.getpid(), signal.SIGINT))
+    start = time.perf_counter()
+    timer.start()
+    with pytest.raises(KeyboardInterrupt):
+        # 20,000 runs: over a minute of work on one core if it were not stopped
+        orbitflex.simulate_batch(arm, x0, 1e-3, 500, u=np.zeros((20000, N)), threads=1, keep_rows=False)
+    assert time.perf_counter() - start < 5
 
 
 def test_ctrl_c_stops_the_batch(arm, x0s):

@@ -90,7 +90,7 @@ def test_out_is_written_and_returned(robot, rows):
 @pytest.mark.parametrize("out,message", [
     (np.empty((B, 12)), r"out: expected shape \(9, 13\), given shape \(9, 12\)"),
     (np.empty((B, 13), dtype=np.float32), r"out: expected a float64 numpy array of shape \(9, 13\), given ndarray"),
-    (np.empty((13, B)).T, r"out: expected a C-contiguous, writeable array"),
+    (np.empty((13, B)).T, r"out: expected a C-contiguous, aligned, writeable array"),
     ([0.0] * 13, r"out: expected a float64 numpy array of shape \(9, 13\), given list"),
 ])
 def test_bad_out_is_refused(robot, rows, out, message):
@@ -98,8 +98,38 @@ def test_bad_out_is_refused(robot, rows, out, message):
         robot.bias_forces(rows["q"], rows["base_twist"], rows["qd"], out=out)
     readonly = np.empty(13)
     readonly.flags.writeable = False
-    with pytest.raises(ModelError, match=r"out: expected a C-contiguous, writeable array"):
+    with pytest.raises(ModelError, match=r"out: expected a C-contiguous, aligned, writeable array"):
         robot.bias_forces(rows["q"][0], rows["base_twist"][0], rows["qd"][0], out=readonly)
+
+
+def misaligned(shape):
+    """A C-contiguous float64 array whose data starts one byte off an 8-byte boundary."""
+    raw = np.zeros(int(np.prod(shape)) * 8 + 8, dtype=np.uint8)
+    start = 1 if raw.ctypes.data % 8 == 0 else 9 - raw.ctypes.data % 8
+    a = raw[start:start + int(np.prod(shape)) * 8].view(np.float64).reshape(shape)
+    assert not a.flags.aligned and a.flags.c_contiguous
+    return a
+
+
+def test_misaligned_arrays_are_read_safely_and_refused_as_out(robot, rows):
+    q = misaligned((B, 7))
+    q[...] = rows["q"]
+    np.testing.assert_array_equal(robot.mass_matrix(q), robot.mass_matrix(rows["q"]))
+    q1 = misaligned((7,))
+    q1[...] = rows["q"][0]
+    np.testing.assert_array_equal(robot.mass_matrix(q1), robot.mass_matrix(rows["q"][0]))
+    with pytest.raises(ModelError, match=r"out: expected a C-contiguous, aligned, writeable array"):
+        robot.bias_forces(rows["q"], rows["base_twist"], rows["qd"], out=misaligned((B, 13)))
+
+
+def test_an_input_given_as_out_too(robot, rows):
+    """The arguments are read before the result is written."""
+    buf = np.zeros((B, 13))
+    buf[:, :7] = rows["q"]
+    expected = robot.bias_forces(buf[:, :7].copy(), rows["base_twist"], rows["qd"])
+    q_view = buf[:, :7].copy()
+    robot.bias_forces(q_view, rows["base_twist"], rows["qd"], out=buf)
+    np.testing.assert_array_equal(buf, expected)
 
 
 def test_bad_rows_and_shapes_name_themselves(robot, rows):

@@ -90,8 +90,9 @@ def test_columns_and_a_row_made_by_hand(reference):
     assert row["peak_torque"] == np.abs(traj.u).max()
     assert row["final_error"] == np.abs(traj.q[-1] - p["goal"]).max()
     err = np.abs(traj.q[::c.record_every] - p["goal"]).max(axis=1)
-    settled = np.nonzero(err > c.settle_tolerance)[0]
-    expected = traj.t[::c.record_every][settled[-1] + 1] if err[-1] <= c.settle_tolerance else np.nan
+    outside = np.nonzero(err > c.settle_tolerance)[0]
+    first_settled = outside[-1] + 1 if outside.size else 0
+    expected = traj.t[::c.record_every][first_settled] if err[-1] <= c.settle_tolerance else np.nan
     assert row["settling_time"] == pytest.approx(expected, abs=0, nan_ok=True)
     q0, q1 = traj.base_pose[0, 3:], traj.base_pose[-1, 3:]
     assert row["base_attitude_change"] == pytest.approx(2 * np.arccos(min(1.0, abs(q0 @ q1))), rel=1e-12)
@@ -99,10 +100,16 @@ def test_columns_and_a_row_made_by_hand(reference):
 
 
 def test_a_failing_run_is_a_row_not_a_crash():
-    # run 1 of this seed draws a stiffness high enough to diverge at this dt
+    # some runs of this seed draw a stiffness high enough to diverge at this dt
     c = small(dt=4e-3, dispersions=[Dispersion("stiffness", "lognormal", sigma=4.0)], runs=6)
-    with pytest.warns(RuntimeWarning, match="exceeds the RK4 stability limit of"):
-        table = c.run()
+    with pytest.warns(RuntimeWarning, match="exceeds the RK4 stability limit of") as caught:
+        table = c.run(chunk_runs=3)
+    # the warnings name the campaign's runs, not the chunk's
+    named = set()
+    for w in caught:
+        listed = str(w.message).split("(runs ")[1].split(";")[0]
+        named |= {int(i) for i in listed.split(", ")}
+    assert named == set(table.loc[~table["ok"], "run"]), (named, table[["run", "ok"]])
     assert not table["ok"].all() and table["ok"].any()
     failed = table[~table["ok"]]
     assert (failed["failed_step"] >= 0).all()
@@ -187,6 +194,19 @@ def test_toml_file_and_its_errors(tmp_path):
     assert c.robot == str(urdf)
     assert isinstance(c._portable().robot, orbitflex.Robot)
     assert len(c.run()) == 2
+
+
+def test_joints_model_in_the_file(tmp_path):
+    text = EXAMPLE.read_text()
+    spec = tmp_path / "c.toml"
+    spec.write_text(text.replace('[joints]\nmodel = "space_arm"', '[joints]\nmodel = "defaults"'))
+    defaults = FlexibleJoints.defaults_for(orbitflex.models.space_arm())
+    assert Campaign.from_toml(spec).joints.stiffness.tolist() == np.broadcast_to(defaults.stiffness, 7).tolist()
+    assert Campaign.from_toml(EXAMPLE).joints.stiffness.tolist() == \
+        np.broadcast_to(orbitflex.models.space_arm_joints().stiffness, 7).tolist()
+    spec.write_text(text.replace('[joints]\nmodel = "space_arm"', '[joints]\nmodel = "stiff"'))
+    with pytest.raises(CampaignError, match=r"\[joints\] model: expected \"space_arm\""):
+        Campaign.from_toml(spec)
 
 
 def test_payload_equals_a_merged_fixed_link():
