@@ -8,7 +8,7 @@ use orbitflex::integrate::batch::{
 use orbitflex::integrate::{is_recorded, Controller, Schedule, Wrenches};
 use orbitflex::testing::random_chain;
 use orbitflex::{Error, FlexibleArm, FlexibleJoints, MotorPD, Trajectory};
-use std::sync::atomic::Ordering;
+use std::sync::atomic::{AtomicBool, Ordering};
 
 const N: usize = 3;
 const STEPS: usize = 40;
@@ -431,13 +431,22 @@ fn cancelled_batch_stops_every_run() {
         keep_rows: false,
         ..settings(1, 1)
     };
+    // set when the batch returns or panics, so that the watcher never outlives it
+    struct Over<'a>(&'a AtomicBool);
+    impl Drop for Over<'_> {
+        fn drop(&mut self) {
+            self.0.store(true, Ordering::Relaxed);
+        }
+    }
+    let over = AtomicBool::new(false);
     let record = std::thread::scope(|scope| {
         scope.spawn(|| {
-            while watch.done.load(Ordering::Relaxed) == 0 {
+            while watch.done.load(Ordering::Relaxed) == 0 && !over.load(Ordering::Relaxed) {
                 std::thread::sleep(std::time::Duration::from_micros(200));
             }
             watch.cancel.store(true, Ordering::Relaxed);
         });
+        let _over = Over(&over);
         simulate_batch(&batch, &settings, &watch).unwrap()
     });
     assert_eq!(record.status[0], RunStatus::Finished);
@@ -524,6 +533,142 @@ fn a_table_for_other_steps_is_refused() {
     }
 }
 
+/// `unstable_runs` names each run whose `dt` is past the limit of its own arm, start and
+/// feedback gains, with that limit, whether the runs share them or not.
+#[test]
+fn unstable_runs_are_named_with_their_own_limits() {
+    let (soft, stiff) = (arm(400.0), arm(4e6));
+    let len = soft.layout().len();
+    let rest = soft.rest_state();
+    let limit = |arm: &FlexibleArm, x0: &[f64], u: &dyn Controller| {
+        arm.rk4_stability_limit(x0, u).unwrap().dt
+    };
+    let (l_soft, l_stiff) = (
+        limit(&soft, &rest, &Schedule::Zero),
+        limit(&stiff, &rest, &Schedule::Zero),
+    );
+    assert!(l_stiff < 0.5 * l_soft, "{l_stiff} {l_soft}");
+    let zero = BatchControl::Open(BatchInput::zero(N));
+    let shared_x0 = BatchInput::new("x0s", &rest, &[len], 3, None, len).unwrap();
+    let batch = |arms, x0, u| Batch {
+        runs: 3,
+        arms,
+        x0,
+        u,
+        base_wrench: BatchInput::zero(6),
+        ee_wrench: BatchInput::zero(6),
+    };
+    // arms per run: only the stiff one
+    let arms = [&soft, &stiff, &soft];
+    let dt = (l_stiff * l_soft).sqrt();
+    let b = batch(PerRun::Each(&arms), shared_x0, zero);
+    assert_eq!(b.unstable_runs(dt, Some(2)).unwrap(), [(1, l_stiff)]);
+    assert_eq!(b.unstable_runs(0.5 * l_stiff, Some(2)).unwrap(), []);
+    assert_eq!(b.unstable_runs(l_stiff, Some(2)).unwrap(), []); // at the limit: stable
+                                                                // everything shared (open-loop torques differ per run, but have no feedback): every run
+    let u = vec![0.5; 3 * N];
+    let open = BatchControl::Open(BatchInput::new("u", &u, &[3, N], 3, Some(10), N).unwrap());
+    let b = batch(PerRun::All(&soft), shared_x0, open);
+    assert_eq!(
+        b.unstable_runs(1.5 * l_soft, Some(1)).unwrap(),
+        [(0, l_soft), (1, l_soft), (2, l_soft)]
+    );
+    // starts per run: a fast-spinning bus limits run 2 alone (the quaternion's own mode)
+    let mut x0s = [rest.clone(), rest.clone(), rest.clone()].concat();
+    x0s[2 * len + soft.layout().base_twist().start + 2] = 1000.0;
+    let l_spin = limit(&soft, &x0s[2 * len..], &Schedule::Zero);
+    assert!(l_spin < 0.5 * l_soft, "{l_spin}");
+    let starts = BatchInput::new("x0s", &x0s, &[3, len], 3, None, len).unwrap();
+    let b = batch(PerRun::All(&soft), starts, zero);
+    assert_eq!(
+        b.unstable_runs(0.5 * l_soft, Some(2)).unwrap(),
+        [(2, l_spin)]
+    );
+    // gains per run: the stiff derivative gain of run 0 alone
+    let pd = |kd: f64| {
+        MotorPD::new(
+            vec![50.0; N],
+            vec![kd; N],
+            Schedule::Zero,
+            Schedule::Zero,
+            Schedule::Zero,
+        )
+        .unwrap()
+    };
+    let (firm, gentle) = (pd(400.0), pd(1.0));
+    let l_firm = limit(&soft, &rest, &firm);
+    assert!(l_firm < 0.5 * l_soft, "{l_firm}");
+    let pds = [&firm, &gentle, &gentle];
+    let b = batch(
+        PerRun::All(&soft),
+        shared_x0,
+        BatchControl::Pd(PerRun::Each(&pds)),
+    );
+    assert_eq!(
+        b.unstable_runs(0.5 * l_soft, Some(2)).unwrap(),
+        [(0, l_firm)]
+    );
+    // the same gains in every run: one limit for all
+    let same = [&firm, &firm, &firm];
+    let b = batch(
+        PerRun::All(&soft),
+        shared_x0,
+        BatchControl::Pd(PerRun::Each(&same)),
+    );
+    assert_eq!(
+        b.unstable_runs(0.5 * l_soft, Some(2)).unwrap(),
+        [(0, l_firm), (1, l_firm), (2, l_firm)]
+    );
+}
+
+/// A record that cannot fit is refused before anything is allocated, with what it needs.
+#[test]
+fn a_record_too_big_for_memory_is_refused() {
+    let arm = arm(400.0);
+    let len = arm.layout().len();
+    let x0 = arm.rest_state();
+    let batch = Batch {
+        runs: 1000,
+        arms: PerRun::All(&arm),
+        x0: BatchInput::new("x0s", &x0, &[len], 1000, None, len).unwrap(),
+        u: BatchControl::Open(BatchInput::zero(N)),
+        base_wrench: BatchInput::zero(6),
+        ee_wrench: BatchInput::zero(6),
+    };
+    // per run: 10⁷ + 1 rows of 25, 10⁷ torque rows of 3, the final state (25) and the two
+    // summaries (3 each): 280,000,056 numbers; × 1000 runs × 8 bytes
+    let e = simulate_batch(
+        &batch,
+        &BatchSettings {
+            steps: 10_000_000,
+            ..settings(1, 1)
+        },
+        &BatchWatch::default(),
+    )
+    .unwrap_err();
+    assert_eq!(
+        e.to_string(),
+        "runs: the record of 1000 runs of 10000001 rows of 25 numbers needs 2240.0 GB, more than \
+         the memory available; keep fewer rows (record_every), keep only the summaries \
+         (keep_rows = false) or split the runs"
+    );
+    // more numbers than an address can hold
+    let e = simulate_batch(
+        &batch,
+        &BatchSettings {
+            steps: usize::MAX / 8,
+            ..settings(1, 1)
+        },
+        &BatchWatch::default(),
+    )
+    .unwrap_err();
+    assert!(
+        e.to_string()
+            .contains("needs more bytes than an address can hold"),
+        "{e}"
+    );
+}
+
 #[test]
 fn argument_errors_name_the_run_and_the_shapes() {
     let arm = arm(400.0);
@@ -534,11 +679,11 @@ fn argument_errors_name_the_run_and_the_shapes() {
     .unwrap();
     let len = arm.layout().len();
     let x0 = arm.rest_state();
-    let arms = [arm.clone(), other];
+    let arms = [arm.clone(), arm.clone(), other];
     let batch = Batch {
-        runs: 2,
+        runs: 3,
         arms: PerRun::Each(&arms.iter().collect::<Vec<_>>()),
-        x0: BatchInput::new("x0s", &x0, &[len], 2, None, len).unwrap(),
+        x0: BatchInput::new("x0s", &x0, &[len], 3, None, len).unwrap(),
         u: BatchControl::Open(BatchInput::zero(N)),
         base_wrench: BatchInput::zero(6),
         ee_wrench: BatchInput::zero(6),
@@ -546,12 +691,14 @@ fn argument_errors_name_the_run_and_the_shapes() {
     let e = simulate_batch(&batch, &settings(1, 1), &BatchWatch::default()).unwrap_err();
     assert_eq!(
         e.to_string(),
-        "arms[1]: expected an arm with 3 joints (as run 0's), given one with 2 joints"
+        "arms[2]: expected an arm with 3 joints (as run 0's), given one with 2 joints"
     );
     let u = vec![0.0; 2 * N];
     let short_table = [0.0, 0.0, 0.0, f64::NAN, 0.0, 0.0];
     let nan = Batch {
+        runs: 2,
         arms: PerRun::All(&arm),
+        x0: BatchInput::new("x0s", &x0, &[len], 2, None, len).unwrap(),
         u: BatchControl::Open(
             BatchInput::new("u", &short_table, &[2, N], 2, Some(STEPS), N).unwrap(),
         ),

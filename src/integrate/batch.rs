@@ -541,17 +541,13 @@ impl<'a> Batch<'a> {
             }
         }
         let n = self.arms.get(0).dof();
-        for run in 0..self.runs {
-            let arm = self.arms.get(run);
-            if arm.dof() != n {
+        if let PerRun::Each(arms) = &self.arms {
+            if let Some((run, arm)) = arms.iter().enumerate().find(|(_, a)| a.dof() != n) {
                 return Err(Error::Dimension {
                     what: format!("arms[{run}]"),
                     expected: format!("an arm with {n} joints (as run 0's)"),
                     given: format!("one with {} joints", arm.dof()),
                 });
-            }
-            if self.arms.is_shared() && run > 0 {
-                break;
             }
         }
         let width = self.arms.get(0).layout().len();
