@@ -411,8 +411,8 @@ fn summaries_only_keeps_no_rows_and_the_same_summaries() {
 
 #[test]
 fn cancelled_batch_stops_every_run() {
-    // one thread, three long runs; the flag is set once the first run is over: the second stops
-    // at its next look (every 1024 steps), the third never starts
+    // one thread, three long runs; the flag is set 50 ms after the first run is over: the second
+    // stops at its next look (every 1024 steps), the third never starts
     let arm = arm(400.0);
     let len = arm.layout().len();
     let x0 = arm.rest_state();
@@ -444,6 +444,9 @@ fn cancelled_batch_stops_every_run() {
             while watch.done.load(Ordering::Relaxed) == 0 && !over.load(Ordering::Relaxed) {
                 std::thread::sleep(std::time::Duration::from_micros(200));
             }
+            // the one thread went straight on to the second run, which takes over a second:
+            // let it get going before the flag is set
+            std::thread::sleep(std::time::Duration::from_millis(50));
             watch.cancel.store(true, Ordering::Relaxed);
         });
         let _over = Over(&over);
