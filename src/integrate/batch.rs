@@ -279,7 +279,8 @@ pub struct BatchSettings {
     pub record_every: usize,
     /// False keeps only the summaries and final states (no rows).
     pub keep_rows: bool,
-    /// Worker threads; `None` uses every core. The results do not depend on it.
+    /// Worker threads, 1 to [`MAX_THREADS`]; `None` uses every core. The results do not depend
+    /// on it.
     pub threads: Option<usize>,
 }
 
@@ -602,17 +603,24 @@ impl<'a> Batch<'a> {
     }
 }
 
-/// Runs `work` on a pool of `threads` threads (`None`: every core).
+/// The most threads a batch starts: more only spends time and memory starting them (20,000
+/// threads once took over a minute to start, three pools per batch).
+pub const MAX_THREADS: usize = 1024;
+
+/// Runs `work` on a pool of `threads` threads (`None`: every core; at most [`MAX_THREADS`]).
 fn in_pool<R: Send>(threads: Option<usize>, work: impl FnOnce() -> R + Send) -> Result<R> {
     let threads = threads.unwrap_or_else(|| {
         std::thread::available_parallelism()
             .map(|n| n.get())
             .unwrap_or(1)
     });
-    if threads == 0 {
+    if threads == 0 || threads > MAX_THREADS {
         return Err(Error::InvalidArgument {
             what: "threads".into(),
-            message: "expected an integer >= 1 (or None for every core), given 0".into(),
+            message: format!(
+                "expected an integer from 1 to {MAX_THREADS} (or None for every core), given \
+                 {threads}"
+            ),
         });
     }
     // a pool even for one thread: the parallel iterators inside would otherwise run on rayon's
@@ -933,10 +941,19 @@ mod tests {
 
     #[test]
     fn zero_threads_is_refused() {
-        let e = in_pool(Some(0), || ()).unwrap_err().to_string();
+        for (threads, given) in [(0, "0"), (MAX_THREADS + 1, "1025")] {
+            let e = in_pool(Some(threads), || ()).unwrap_err().to_string();
+            assert_eq!(
+                e,
+                format!(
+                    "threads: expected an integer from 1 to 1024 (or None for every core), \
+                     given {given}"
+                )
+            );
+        }
         assert_eq!(
-            e,
-            "threads: expected an integer >= 1 (or None for every core), given 0"
+            in_pool(Some(MAX_THREADS), rayon::current_num_threads).unwrap(),
+            1024
         );
     }
 

@@ -287,7 +287,7 @@ fn run_watched(
 /// - ``base_wrench`` (base frame, applied to the base) and ``ee_wrench`` (EE frame, exerted by
 ///   the EE): as ``u`` with 6 (``[moment (N·m); force (N)]``) in place of n.
 ///
-/// ``threads=None`` uses every core. ``record_every=k`` (None: 1) keeps rows 0, k, 2k, … and
+/// ``threads=None`` uses every core (at most 1024 threads). ``record_every=k`` (None: 1) keeps rows 0, k, 2k, … and
 /// the final row. ``keep_rows=False`` keeps only the per-run summaries and final states (no rows), for
 /// campaigns of 10⁵ runs. ``progress(done, runs)`` is called about every 0.1 s.
 ///

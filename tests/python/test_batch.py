@@ -165,6 +165,7 @@ def test_views_and_read_only_arrays(arm, x0s):
     (dict(ee_wrench=np.zeros((4, 7))), "ee_wrench: expected shape (6,), (4, 6), (1, 6), (4, 60, 6) or (1, 60, 6), given shape (4, 7)"),
     (dict(u=lambda k, t, x: np.zeros(N)), "u: simulate_batch runs without the GIL, so it cannot call a Python controller"),
     (dict(threads=0), "threads: expected an integer >= 1, given int (0)"),
+    (dict(threads=20000), "threads: expected an integer from 1 to 1024 (or None for every core), given 20000"),
     (dict(record_every=0), "record_every: expected an integer >= 1, given int (0)"),
     (dict(u=np.full(N, np.nan)), "u (run 0): element 0 is not finite (NaN)"),
 ])
