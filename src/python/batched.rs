@@ -66,7 +66,7 @@ pub(crate) fn call_args(args: &[Arg<'_, '_>]) -> PyResult<Call> {
                 .ok()
                 .and_then(direct_values)
             {
-                Some(values) => fast.push(values),
+                Some(values) => fast.push(values?),
                 None => break,
             },
         }
@@ -174,7 +174,7 @@ fn batched(args: &[Arg<'_, '_>]) -> PyResult<Option<Batched>> {
 fn shape_and_values(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<(Vec<usize>, Vec<f64>)> {
     if let Ok(a) = obj.downcast::<PyArrayDyn<f64>>() {
         if let Some(values) = direct_values(a) {
-            return Ok((a.shape().to_vec(), values));
+            return Ok((a.shape().to_vec(), values?));
         }
     }
     let a = as_float_array(obj, what)?;
@@ -336,7 +336,16 @@ pub(crate) fn evaluate<'py>(
         .filter(|o| !o.is_none())
         .map(|o| checked_out(o, shape))
         .transpose()?;
-    let mut values = vec![0.0; rows * width];
+    let too_big = || {
+        ModelError::new_err(format!(
+            "the result of {rows} rows of {width} numbers does not fit in memory; give fewer rows \
+             per call"
+        ))
+    };
+    let len = rows.checked_mul(width).ok_or_else(too_big)?;
+    let mut values = Vec::new();
+    values.try_reserve_exact(len).map_err(|_| too_big())?;
+    values.resize(len, 0.0);
     if rows > 0 {
         let per_piece = rows.div_ceil(4 * rayon::current_num_threads()).max(1);
         let failure = py.allow_threads(|| {

@@ -10,7 +10,7 @@ use pyo3::prelude::*;
 pub fn vector(obj: &Bound<'_, PyAny>, what: &str, expected: Option<usize>) -> PyResult<Vec<f64>> {
     let values = if let Ok(a) = obj.downcast::<PyArray1<f64>>() {
         match direct_values(a) {
-            Some(values) => values,
+            Some(values) => values?,
             None => aligned_copy(a.as_any())?, // strided or misaligned
         }
     } else {
@@ -43,9 +43,10 @@ pub fn vector(obj: &Bound<'_, PyAny>, what: &str, expected: Option<usize>) -> Py
 /// (batched calls compute into their own buffer and copy into `out=` under the GIL), so a copy
 /// made while this thread holds the GIL cannot race with a write; this skips rust-numpy's borrow
 /// tracking, which is most of the per-call cost of a small array.
+/// The copy is fallible: an array too large to copy is a `MemoryError`, not an abort.
 pub fn direct_values<D: numpy::ndarray::Dimension>(
     a: &Bound<'_, numpy::PyArray<f64, D>>,
-) -> Option<Vec<f64>> {
+) -> Option<PyResult<Vec<f64>>> {
     let wanted = numpy::npyffi::NPY_ARRAY_C_CONTIGUOUS | numpy::npyffi::NPY_ARRAY_ALIGNED;
     // SAFETY: reads the flags of a live array object
     let flags = unsafe { (*a.as_array_ptr()).flags };
@@ -53,7 +54,16 @@ pub fn direct_values<D: numpy::ndarray::Dimension>(
         return None;
     }
     // SAFETY: contiguous and aligned (checked), read while this thread holds the GIL (above)
-    unsafe { a.as_slice() }.ok().map(<[f64]>::to_vec)
+    let values = unsafe { a.as_slice() }.ok()?;
+    let mut copy = Vec::new();
+    if copy.try_reserve_exact(values.len()).is_err() {
+        return Some(Err(pyo3::exceptions::PyMemoryError::new_err(format!(
+            "a copy of {} numbers does not fit in memory",
+            values.len()
+        ))));
+    }
+    copy.extend_from_slice(values);
+    Some(Ok(copy))
 }
 
 /// The values of any float array-like in C order, through a C-contiguous, aligned float64 copy
@@ -64,7 +74,8 @@ pub fn aligned_copy(obj: &Bound<'_, PyAny>) -> PyResult<Vec<f64>> {
         .call_method1("require", (obj, np.getattr("float64")?, "CA"))?
         .call_method1("reshape", (-1,))?;
     let a = a.downcast::<PyArray1<f64>>()?;
-    direct_values(a).ok_or_else(|| ModelError::new_err("numpy.require gave an unaligned copy"))
+    direct_values(a)
+        .unwrap_or_else(|| Err(ModelError::new_err("numpy.require gave an unaligned copy")))
 }
 
 /// Like [`vector`] but `None` gives `default`.
