@@ -222,6 +222,21 @@ pub fn describe_bytes(bytes: Option<usize>) -> String {
     }
 }
 
+/// An array shape as numpy prints it: `(7,)`, `(4, 60, 7)`.
+pub fn describe_shape(shape: &[usize]) -> String {
+    match shape {
+        [a] => format!("({a},)"),
+        _ => format!(
+            "({})",
+            shape
+                .iter()
+                .map(usize::to_string)
+                .collect::<Vec<_>>()
+                .join(", ")
+        ),
+    }
+}
+
 /// Checks a time step: finite and `> 0` (s).
 pub fn check_dt(dt: f64) -> Result<()> {
     if !(dt.is_finite() && dt > 0.0) {

@@ -145,6 +145,35 @@ pub enum Error {
     },
 }
 
+impl Error {
+    /// This error with `context` appended to the argument it names (`x0` becomes
+    /// `x0 (run 3)`), for an argument of one run or row among many; other errors as they are.
+    pub fn in_context(self, context: &str) -> Error {
+        let tag = |what: String| format!("{what} ({context})");
+        match self {
+            Error::Dimension {
+                what,
+                expected,
+                given,
+            } => Error::Dimension {
+                what: tag(what),
+                expected,
+                given,
+            },
+            Error::NonFinite { what, index, value } => Error::NonFinite {
+                what: tag(what),
+                index,
+                value,
+            },
+            Error::InvalidArgument { what, message } => Error::InvalidArgument {
+                what: tag(what),
+                message,
+            },
+            other => other,
+        }
+    }
+}
+
 /// Shorthand used throughout the crate.
 pub type Result<T> = std::result::Result<T, Error>;
 

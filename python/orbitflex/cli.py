@@ -1715,14 +1715,14 @@ def build_parser() -> Parser:
                                       "same, bit for bit, wherever it runs.",
                           epilog=CAMPAIGN_EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
     camp.add_argument("file", metavar="FILE", help="the campaign file (TOML)")
-    camp.add_argument("--runs", type=count_arg, default=None, help="number of runs (default: the file's)")
+    camp.add_argument("--runs", type=at_least_one, default=None, help="number of runs (default: the file's)")
     camp.add_argument("--scheduler", metavar="ADDRESS", default=None,
                       help="a Dask scheduler (tcp://host:8786); default: run here on every core")
     camp.add_argument("--out", metavar="DIR", default="campaign_out",
                       help="output folder, created if missing (default %(default)s)")
-    camp.add_argument("--chunk-runs", type=count_arg, default=None, metavar="K",
+    camp.add_argument("--chunk-runs", type=at_least_one, default=None, metavar="K",
                       help="runs per batch (per Dask task); default 256 here, about 4 tasks per worker thread on Dask")
-    camp.add_argument("--threads", type=count_arg, default=None,
+    camp.add_argument("--threads", type=at_least_one, default=None,
                       help="threads per batch (default: every core here, 1 per Dask task)")
     camp.add_argument("--no-plots", action="store_true", help="skip histograms.png")
     camp.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -1737,16 +1737,6 @@ examples:
 Start a local Dask cluster in another shell with:
   dask scheduler --host 127.0.0.1 &  dask worker tcp://127.0.0.1:8786 --nworkers 2 --nthreads 1
 """
-
-
-def count_arg(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected an integer >= 1, given {text!r}") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"expected an integer >= 1, given {text}")
-    return value
 
 
 def campaign_command(args: argparse.Namespace) -> int:

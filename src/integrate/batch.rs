@@ -136,13 +136,7 @@ impl<'a> BatchInput<'a> {
         steps: Option<usize>,
         width: usize,
     ) -> Result<Self> {
-        let shown = |s: &[usize]| {
-            let items: Vec<String> = s.iter().map(usize::to_string).collect();
-            match items.len() {
-                1 => format!("({},)", items[0]),
-                _ => format!("({})", items.join(", ")),
-            }
-        };
+        let shown = crate::args::describe_shape;
         let expected = match steps {
             Some(s) => format!(
                 "shape ({width},), ({runs}, {width}), (1, {width}), ({runs}, {s}, {width}) or \
@@ -422,30 +416,9 @@ impl RunRecord<'_> {
     }
 }
 
-/// Prefixes an argument error with the run it belongs to.
+/// Names the run an argument error belongs to.
 fn in_run(run: usize, error: Error) -> Error {
-    let tag = |what: String| format!("{what} (run {run})");
-    match error {
-        Error::Dimension {
-            what,
-            expected,
-            given,
-        } => Error::Dimension {
-            what: tag(what),
-            expected,
-            given,
-        },
-        Error::NonFinite { what, index, value } => Error::NonFinite {
-            what: tag(what),
-            index,
-            value,
-        },
-        Error::InvalidArgument { what, message } => Error::InvalidArgument {
-            what: tag(what),
-            message,
-        },
-        other => other,
-    }
+    error.in_context(&format!("run {run}"))
 }
 
 /// The owned inputs of run `run`: its controller and wrenches.

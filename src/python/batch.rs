@@ -2,22 +2,23 @@
 //! without the GIL, honouring Ctrl-C.
 
 use super::arm::PyFlexibleArm;
+use super::batched::shape_and_values;
 use super::control::PyMotorPD;
-use super::convert::{as_float_array, count, positive_count, real};
+use super::convert::{count, positive_count, real};
 use super::errors::ModelError;
 use super::run::Progress;
-use super::trajectory::PyTrajectory;
+use super::trajectory::{freeze, frozen_rows, PyTrajectory};
 use crate::flex::{FlexibleArm, StateLayout};
 use crate::integrate::batch::{
     simulate_batch, Batch, BatchControl, BatchInput, BatchRecord, BatchSettings, BatchWatch,
     PerRun, RunRecord, RunStatus,
 };
 use crate::MotorPD;
-use numpy::ndarray::{Array2, Array3};
+use numpy::ndarray::Array3;
 use numpy::{PyArray1, PyArray2, PyArray3, PyArrayMethods};
 use pyo3::exceptions::{PyIndexError, PyRuntimeError, PyRuntimeWarning};
 use pyo3::prelude::*;
-use pyo3::types::{PyDict, PyList, PySequence, PySlice, PyTuple};
+use pyo3::types::{PyList, PySequence, PySlice, PyTuple};
 use std::ffi::CString;
 use std::sync::atomic::Ordering;
 use std::sync::mpsc;
@@ -31,17 +32,7 @@ struct Array {
 
 impl Array {
     fn parse(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<Self> {
-        let a = as_float_array(obj, what)?;
-        let np = obj.py().import("numpy")?;
-        // the shape before `ascontiguousarray`, which turns a scalar into shape (1,)
-        let shape: Vec<usize> = a.getattr("shape")?.extract()?;
-        let a = np.call_method1("ascontiguousarray", (a,))?;
-        let flat = a.call_method1("reshape", (-1,))?;
-        let values = flat
-            .downcast::<PyArray1<f64>>()?
-            .readonly()
-            .as_slice()?
-            .to_vec();
+        let (shape, values) = shape_and_values(obj, what)?;
         Ok(Self { shape, values })
     }
 
@@ -439,13 +430,6 @@ pub struct PyBatchTrajectory {
     peak_torque: Py<PyArray2<f64>>,
 }
 
-fn freeze(array: &Bound<'_, PyAny>) -> PyResult<()> {
-    let kwargs = PyDict::new(array.py());
-    kwargs.set_item("write", false)?;
-    array.call_method("setflags", (), Some(&kwargs))?;
-    Ok(())
-}
-
 fn frozen3(
     py: Python<'_>,
     shape: (usize, usize, usize),
@@ -454,15 +438,6 @@ fn frozen3(
     let a = PyArray3::from_owned_array(
         py,
         Array3::from_shape_vec(shape, values).expect("shape matches the record"),
-    );
-    freeze(a.as_any())?;
-    Ok(a.unbind())
-}
-
-fn frozen2(py: Python<'_>, shape: (usize, usize), values: Vec<f64>) -> PyResult<Py<PyArray2<f64>>> {
-    let a = PyArray2::from_owned_array(
-        py,
-        Array2::from_shape_vec(shape, values).expect("shape matches the record"),
     );
     freeze(a.as_any())?;
     Ok(a.unbind())
@@ -485,9 +460,9 @@ impl PyBatchTrajectory {
             t: t.unbind(),
             x: frozen3(py, (runs, rows, len), record.x)?,
             u: frozen3(py, (runs, rows.saturating_sub(1), n), record.u)?,
-            final_state: frozen2(py, (runs, len), record.final_state)?,
-            peak_deflection: frozen2(py, (runs, n), record.peak_deflection)?,
-            peak_torque: frozen2(py, (runs, n), record.peak_torque)?,
+            final_state: frozen_rows(py, runs, len, record.final_state)?,
+            peak_deflection: frozen_rows(py, runs, n, record.peak_deflection)?,
+            peak_torque: frozen_rows(py, runs, n, record.peak_torque)?,
         })
     }
 

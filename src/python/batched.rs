@@ -171,7 +171,10 @@ fn batched(args: &[Arg<'_, '_>]) -> PyResult<Option<Batched>> {
 }
 
 /// The shape and the values (C order) of an array-like argument.
-fn shape_and_values(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<(Vec<usize>, Vec<f64>)> {
+pub(crate) fn shape_and_values(
+    obj: &Bound<'_, PyAny>,
+    what: &str,
+) -> PyResult<(Vec<usize>, Vec<f64>)> {
     if let Ok(a) = obj.downcast::<PyArrayDyn<f64>>() {
         if let Some(values) = direct_values(a) {
             return Ok((a.shape().to_vec(), values?));
@@ -182,44 +185,11 @@ fn shape_and_values(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<(Vec<usize>,
     Ok((shape, aligned_copy(&a)?))
 }
 
-fn shown(shape: &[usize]) -> String {
-    match shape {
-        [a] => format!("({a},)"),
-        _ => format!(
-            "({})",
-            shape
-                .iter()
-                .map(usize::to_string)
-                .collect::<Vec<_>>()
-                .join(", ")
-        ),
-    }
-}
+use crate::args::describe_shape as shown;
 
-/// Prefixes an argument error with the batch row it belongs to.
+/// Names the batch row an argument error belongs to.
 fn in_row(row: usize, error: Error) -> Error {
-    let tag = |what: String| format!("{what} (row {row})");
-    match error {
-        Error::Dimension {
-            what,
-            expected,
-            given,
-        } => Error::Dimension {
-            what: tag(what),
-            expected,
-            given,
-        },
-        Error::NonFinite { what, index, value } => Error::NonFinite {
-            what: tag(what),
-            index,
-            value,
-        },
-        Error::InvalidArgument { what, message } => Error::InvalidArgument {
-            what: tag(what),
-            message,
-        },
-        other => other,
-    }
+    error.in_context(&format!("row {row}"))
 }
 
 /// `out`, checked: a float64 numpy array of this shape, C-contiguous and writeable.

@@ -6,7 +6,7 @@ use super::convert::{array1, as_float_array, count, matrix, real, row_major, vec
 use super::errors::{simulation_error, ModelError};
 use super::joints::Param;
 use super::run::{run_releasing_gil, Progress};
-use super::trajectory::PyTrajectory;
+use super::trajectory::{freeze, PyTrajectory};
 use crate::args::number;
 use crate::error::Error;
 use crate::planning::{
@@ -186,13 +186,6 @@ const SAMPLE_NAMES: [&str; 10] = [
     "base_twist",
     "base_pose",
 ];
-
-fn freeze(array: &Bound<'_, PyAny>) -> PyResult<()> {
-    let kwargs = PyDict::new(array.py());
-    kwargs.set_item("write", false)?;
-    array.call_method("setflags", (), Some(&kwargs))?;
-    Ok(())
-}
 
 impl SampleArrays {
     fn new(py: Python<'_>, n: usize, s: Samples) -> PyResult<Self> {

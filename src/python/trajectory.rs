@@ -36,7 +36,7 @@ pub struct PyTrajectory {
 }
 
 /// A read-only 2-D array that takes over `values` (no copy).
-fn frozen_rows(
+pub(crate) fn frozen_rows(
     py: Python<'_>,
     rows: usize,
     cols: usize,
@@ -47,7 +47,8 @@ fn frozen_rows(
     Ok(array.unbind())
 }
 
-fn freeze(array: &Bound<'_, PyAny>) -> PyResult<()> {
+/// Makes a numpy array read-only.
+pub(crate) fn freeze(array: &Bound<'_, PyAny>) -> PyResult<()> {
     let kwargs = PyDict::new(array.py());
     kwargs.set_item("write", false)?;
     array.call_method("setflags", (), Some(&kwargs))?;
