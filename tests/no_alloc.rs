@@ -55,6 +55,15 @@ fn hot_paths_do_not_allocate() {
     let state = RigidState::new(&q, &v, &qd);
     let loads = Loads::from_slices(Some(&w), Some(&w)).unwrap();
     let mut data = Data::new(&robot);
+    let mut poses = vec![0.0; 7 * robot.frames().len()];
+    let base = [0.1, 0.2, 0.3, 0.0, 0.6, 0.0, 0.8];
+    assert_eq!(
+        allocations(|| {
+            algorithms::frame_poses(&robot, &mut data, &base, &q, &mut poses).unwrap();
+        }),
+        0,
+        "frame_poses"
+    );
     assert_eq!(
         allocations(|| {
             algorithms::aba(&robot, &mut data, &state, &tau, &loads).unwrap();

@@ -65,6 +65,7 @@ OUTPUTS = {
     "base_attitude.png": "bus yaw, pitch, roll (z-y'-x'') and total rotation since t = 0",
     "ee_path.png": "EE path in 3-D (equal axes) with the arm and bus at the start and end; zoomed",
     "momentum_drift.png": "drift of angular (N·m·s) and linear (N·s) momentum",
+    "animation.html": "3-D animation, opens offline in a browser: bus, arm, EE trail, motor-side ghost",
 }
 
 SIMULATE_EPILOG = """\
@@ -406,6 +407,32 @@ def print_demo_comparison(c: Comparison, note: Optional[str]) -> None:
     print_comparison(c)
 
 
+def animation(traj: Trajectory, out: Path, args: argparse.Namespace) -> List[Path]:
+    """``animation.html`` (:func:`orbitflex.viz.write_animation`, 30 frames per simulated second,
+    with the motor-side ghost), or nothing, with a note, when meshcat is not installed."""
+    try:
+        from . import viz
+
+        viz._meshcat()
+    except ImportError:
+        print("note: animation.html not written: the 3-D view needs pip install 'orbitflex[viz]'")
+        return []
+    path = out / "animation.html"
+    packages = dict(getattr(args, "package", None) or [])
+    viz.write_animation(traj, path, fps=viz.DEFAULT_FPS, ghost=True, packages=packages)
+    return [path]
+
+
+def package_dir(text: str) -> Tuple[str, str]:
+    """``--package NAME=DIR``."""
+    name, sep, folder = text.partition("=")
+    if not sep or not name or not folder:
+        raise argparse.ArgumentTypeError(f"expected NAME=DIR (a ROS package and its folder), given {text}")
+    if not Path(folder).is_dir():
+        raise argparse.ArgumentTypeError(f"package '{name}': {folder} is not a folder")
+    return name, folder
+
+
 def output_folder(path: str) -> Path:
     out = Path(path)
     if out.exists() and not out.is_dir():
@@ -434,6 +461,8 @@ def write_outputs(job: Job, outcome: Outcome, summary: Dict[str, Any], out: Path
                 figures = Figures(out, plan_caption(comparison))
                 plot_plan_vs_rigid(figures, comparison)
                 files += figures.files
+        if not args.no_animation:
+            files += animation(traj, out, args)
     except OSError as e:
         raise CliError("--out", f"cannot write {files[-1]}: {e.strerror or e}") from None
     return files
@@ -1597,6 +1626,8 @@ def common_options(p: argparse.ArgumentParser, duration: float) -> None:
                    help="output folder, created if missing (default %(default)s)")
     p.add_argument("--csv", action="store_true", help="also write trajectory.csv (t and x, named columns)")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
+    p.add_argument("--no-animation", action="store_true",
+                   help="skip animation.html (the 3-D view; written when orbitflex[viz] is installed)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.add_argument("--record-every", metavar="K", type=at_least_one, default=1,
                    help="keep every K-th step's state and the last (rows at t = 0, K·dt, 2K·dt, ..., "
@@ -1620,6 +1651,9 @@ def model_options(p: argparse.ArgumentParser, verb: str) -> None:
     p.add_argument("--params", metavar="TOML", default=None,
                    help="joint parameters keyed by joint name (keys below; default: scaled to the links)")
     p.add_argument("--ee-link", metavar="LINK", default=None, help="EE link (default: the unique leaf)")
+    p.add_argument("--package", metavar="NAME=DIR", type=package_dir, action="append", default=None,
+                   help="where the ROS package NAME of package:// meshes is (for animation.html); "
+                        "repeatable; ROS_PACKAGE_PATH and the folders above the URDF are searched too")
     p.add_argument("--locked-joints", metavar="NAMES", action="append", default=None,
                    help="joints held at zero (e.g. fingers): a comma-separated list; repeatable")
     if verb == "simulate":

@@ -2,7 +2,7 @@
 
 use super::derivatives::Derivatives;
 use crate::model::Robot;
-use crate::spatial::{ArticulatedInertia, Force, Inertia, Mat6, Motion, Transform};
+use crate::spatial::{ArticulatedInertia, Force, Inertia, Mat3, Mat6, Motion, Transform, Vec3};
 use nalgebra::{DMatrix, DVector};
 
 /// Per-body scratch buffers for one [`Robot`], allocated by [`Data::new`].
@@ -54,6 +54,9 @@ pub struct Data {
     pub jacobian: DMatrix<f64>,
     /// `Φ_{n+1,B}` (6×6).
     pub ee_base: Mat6,
+    /// Inertial placements of the bodies from the last [`crate::algorithms::frame_poses`]: the
+    /// axes (joint-frame components to inertial components) and the origin (m, inertial).
+    pub placements: Vec<(Mat3, Vec3)>,
     /// The derivatives of the dynamics ([`crate::algorithms::aba_derivatives`],
     /// [`crate::algorithms::rnea_derivatives`]); empty until the first of them runs.
     pub derivatives: Derivatives,
@@ -81,6 +84,7 @@ impl Data {
             mass_matrix: DMatrix::zeros(0, 0),
             jacobian: DMatrix::zeros(6, bodies - 1),
             ee_base: Mat6::identity(),
+            placements: vec![(Mat3::identity(), Vec3::zeros()); bodies],
             derivatives: Derivatives::default(),
         }
     }

@@ -125,6 +125,68 @@ pub fn body_poses(robot: &Robot, base_pose: &[f64], q: &[f64]) -> Result<Vec<[f6
     Ok(poses)
 }
 
+/// Writes the inertial pose `[position (m); quaternion (x, y, z, w), w ≥ 0]` of every named
+/// frame ([`Robot::frames`]: every URDF link, merged ones included) into `out`, 7 numbers per
+/// frame in frame order, for the base pose `[r_B; quat_B (x, y, z, w)]` and joint angles `q`.
+///
+/// Body `i` is placed from its parent, base to tips: origin `o_i = o_λ + E_λ p_{λ,i}`, axes
+/// `E_i = E_λ R_{i,λ}(q)ᵀ` (kept in `data.placements`); a frame on body `b` with placement
+/// `Φ_{f,b}` is at `o_b + E_b p_{b,f}` with axes `E_b R_{f,b}ᵀ`. Links behind a locked joint
+/// sit at the locked value (zero). Checks its arguments, then allocates nothing.
+///
+/// ```
+/// use orbitflex::{algorithms::{self, Data}, Robot};
+/// let robot = Robot::space_arm();
+/// let mut data = Data::new(&robot);
+/// let mut poses = vec![0.0; 7 * robot.frames().len()];
+/// let base = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0];
+/// algorithms::frame_poses(&robot, &mut data, &base, &[0.0; 7], &mut poses)?;
+/// assert_eq!(&poses[..7], &base); // the bus frame is the base
+/// # Ok::<(), orbitflex::Error>(())
+/// ```
+pub fn frame_poses(
+    robot: &Robot,
+    data: &mut Data,
+    base_pose: &[f64],
+    q: &[f64],
+    out: &mut [f64],
+) -> Result<()> {
+    check_data(robot, data)?;
+    crate::args::check_base_pose(base_pose)?;
+    check_vector("q", q, robot.dof())?;
+    check_vector("frame poses (out)", out, 7 * robot.frames().len())?;
+    frame_poses_unchecked(robot, data, base_pose, q, out);
+    Ok(())
+}
+
+/// [`frame_poses`] after its checks.
+pub(crate) fn frame_poses_unchecked(
+    robot: &Robot,
+    data: &mut Data,
+    base_pose: &[f64],
+    q: &[f64],
+    out: &mut [f64],
+) {
+    data.placements[0] = (
+        crate::spatial::quaternion_to_rotation(&base_pose[3..7]),
+        Vec3::new(base_pose[0], base_pose[1], base_pose[2]),
+    );
+    for i in 1..=robot.dof() {
+        let x = robot.joint_transform(i, q[i - 1]);
+        let (e, o) = data.placements[robot.parents()[i]];
+        data.placements[i] = (e * x.rotation.transpose(), o + e * x.translation);
+    }
+    let frames = robot.frames().iter().zip(robot.frame_link_transforms());
+    for ((frame, placement), out) in frames.zip(out.chunks_exact_mut(7)) {
+        let (e, o) = data.placements[frame.body];
+        let pose = pose(
+            &(o + e * placement.translation),
+            &(e * placement.rotation.transpose()),
+        );
+        out.copy_from_slice(&pose);
+    }
+}
+
 /// Total spatial momentum of base and links about the base origin, in the base frame:
 /// `Σ_i Φ_{iB}ᵀ M_i V_i` (model §6.1), accumulated from the tips towards the base. Use
 /// [`crate::dynamics::momentum_in_inertial_frame`] to express it about the inertial origin.

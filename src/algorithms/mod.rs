@@ -35,12 +35,15 @@ pub use aba::aba;
 pub use crba::crba;
 pub use data::Data;
 pub use derivatives::{aba_derivatives, rnea_derivatives, Derivatives};
-pub use kinematics::{body_poses, ee_jacobian, kinetic_energy, momentum, pose, velocities};
+pub use kinematics::{
+    body_poses, ee_jacobian, frame_poses, kinetic_energy, momentum, pose, velocities,
+};
 pub use rnea::{bias_forces, rnea};
 
 pub(crate) use aba::aba_unchecked;
 pub(crate) use data::check_data;
 pub(crate) use derivatives::fd_directional;
 pub(crate) use kinematics::{
-    ee_from_base, kinetic_energy_from_velocities, momentum_from_velocities, velocities_unchecked,
+    ee_from_base, frame_poses_unchecked, kinetic_energy_from_velocities, momentum_from_velocities,
+    velocities_unchecked,
 };

@@ -193,4 +193,34 @@ impl<'a> StateRows<'a> {
     pub fn ee_pose(&self, arm: &FlexibleArm) -> Vec<f64> {
         self.iter().flat_map(|x| arm.ee_pose(x)).collect()
     }
+
+    /// The inertial pose `[p (m); quat (x, y, z, w), w ≥ 0]` of every named frame
+    /// ([`crate::Robot::frames`]) at every row, row-major `len × frames × 7`
+    /// ([`crate::algorithms::frame_poses`]). `motor_side = None` poses the links at `q`;
+    /// `Some(s)` poses them at `q + s (θ − q)`: the motor side for `s = 1`, the deflection
+    /// exaggerated `s` times beyond it. One workspace for all rows.
+    pub fn frame_poses(&self, arm: &FlexibleArm, motor_side: Option<f64>) -> Vec<f64> {
+        let robot = arm.robot();
+        let width = 7 * robot.frames().len();
+        let mut out = vec![0.0; self.len() * width];
+        let mut data = crate::algorithms::Data::new(robot);
+        let mut angles = vec![0.0; self.layout.n];
+        for (x, out) in self.iter().zip(out.chunks_exact_mut(width)) {
+            let s = self.layout.split(x);
+            let q = match motor_side {
+                None => s.q,
+                Some(scale) => {
+                    for ((a, q), theta) in angles.iter_mut().zip(s.q).zip(s.theta) {
+                        *a = q + scale * (theta - q);
+                    }
+                    &angles
+                }
+            };
+            let mut base = [0.0; 7];
+            base[..3].copy_from_slice(s.position);
+            base[3..].copy_from_slice(s.quaternion);
+            crate::algorithms::frame_poses_unchecked(robot, &mut data, &base, q, out);
+        }
+        out
+    }
 }

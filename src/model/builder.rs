@@ -37,6 +37,9 @@ impl RobotBuilder {
                 ee_link: base_name.to_string(),
                 ee_transform: Transform::identity(),
                 frames: Default::default(),
+                link_frames: Vec::new(),
+                visuals: Vec::new(),
+                urdf_dir: None,
             },
         }
     }
@@ -72,6 +75,26 @@ impl RobotBuilder {
     pub fn ee(mut self, name: &str, transform: Transform) -> Self {
         self.robot.ee_link = name.to_string();
         self.robot.ee_transform = transform;
+        self
+    }
+
+    /// Names the frames of the model's links, for viewers and [`crate::algorithms::frame_poses`]
+    /// (the URDF loader gives one per URDF link, merged links included). Without it, `build`
+    /// makes one per body and one for the EE frame if it names a link of its own.
+    pub fn frames(mut self, frames: Vec<super::LinkFrame>) -> Self {
+        self.robot.link_frames = frames;
+        self
+    }
+
+    /// The shapes that draw the links ([`Robot::scene`]); `Visual::frame` indexes the frames.
+    pub fn visuals(mut self, visuals: Vec<super::Visual>) -> Self {
+        self.robot.visuals = visuals;
+        self
+    }
+
+    /// The directory relative mesh file names start from (the URDF file's).
+    pub fn urdf_dir(mut self, dir: impl Into<std::path::PathBuf>) -> Self {
+        self.robot.urdf_dir = Some(dir.into());
         self
     }
 
@@ -111,10 +134,58 @@ impl RobotBuilder {
                 },
             )?;
         }
+        if self.robot.link_frames.is_empty() {
+            self.robot.link_frames = super::visual::body_frames(&self.robot);
+        }
+        check_frames(&self.robot).map_err(invalid)?;
         self.robot.frames = super::JointFrames::new(&self.robot);
         check_mass_matrix(&self.robot)?;
         Ok(self.robot)
     }
+}
+
+/// The named frames and visuals refer to bodies and frames that exist, parents first, with
+/// valid placements and unique names.
+fn check_frames(robot: &Robot) -> std::result::Result<(), String> {
+    let mut names = std::collections::HashSet::new();
+    for (k, frame) in robot.link_frames.iter().enumerate() {
+        if !names.insert(frame.name.as_str()) {
+            return Err(format!("frame '{}' is named twice", frame.name));
+        }
+        if frame.body > robot.joints.len() {
+            return Err(format!(
+                "frame '{}': body {} does not exist (the model has {} bodies)",
+                frame.name,
+                frame.body,
+                robot.joints.len() + 1
+            ));
+        }
+        if frame.parent.is_some_and(|p| p >= k) {
+            return Err(format!(
+                "frame '{}': its parent frame must come before it",
+                frame.name
+            ));
+        }
+        check_transform(&frame.placement)
+            .and_then(|_| check_transform(&frame.joint_origin))
+            .map_err(|m| format!("frame '{}': {m}", frame.name))?;
+    }
+    for visual in &robot.visuals {
+        if visual.frame >= robot.link_frames.len() {
+            return Err(format!(
+                "a visual names frame {}; the model has {} frames",
+                visual.frame,
+                robot.link_frames.len()
+            ));
+        }
+        check_transform(&visual.origin).map_err(|m| {
+            format!(
+                "visual of '{}': origin {m}",
+                robot.link_frames[visual.frame].name
+            )
+        })?;
+    }
+    Ok(())
 }
 
 /// The largest mass accepted (kg). Beyond it, with distances up to [`MAX_LENGTH`], products in
@@ -162,7 +233,7 @@ pub(crate) fn check_length(value: &Vec3) -> std::result::Result<(), String> {
     Ok(())
 }
 
-fn check_transform(t: &Transform) -> std::result::Result<(), String> {
+pub(crate) fn check_transform(t: &Transform) -> std::result::Result<(), String> {
     if !t.rotation.iter().all(|v| v.is_finite()) {
         return Err("rotation has non-finite numbers".into());
     }

@@ -30,6 +30,8 @@ pub(crate) struct JointFrames {
     pub(crate) ee_transform: Transform,
     /// `Q_i`: link-frame components to joint-frame components (index 0 is the base, `𝟙`).
     pub(crate) rotations: Vec<Mat3>,
+    /// Per named frame ([`Robot::frames`]): its placement from the joint frame of its body.
+    pub(crate) link_frames: Vec<Transform>,
 }
 
 /// `(γ, cos α, sin α)` of a tilted joint.
@@ -88,7 +90,13 @@ impl JointFrames {
             .collect::<Vec<_>>();
         let articulated = inertias.iter().map(ArticulatedInertia::from).collect();
         let ee_transform = robot.ee_transform.compose(&back(robot.ee_body));
+        let link_frames = robot
+            .link_frames
+            .iter()
+            .map(|f| f.placement.compose(&back(f.body)))
+            .collect();
         Self {
+            link_frames,
             origins,
             tilts,
             inertias,
@@ -181,6 +189,12 @@ impl Robot {
     #[inline(always)]
     pub(crate) fn frame_ee_transform(&self) -> &Transform {
         &self.frames.ee_transform
+    }
+
+    /// Each named frame's placement from the joint frame of its body.
+    #[inline(always)]
+    pub(crate) fn frame_link_transforms(&self) -> &[Transform] {
+        &self.frames.link_frames
     }
 }
 

@@ -8,11 +8,16 @@ mod builder;
 mod frames;
 mod robot;
 mod urdf;
+mod visual;
 
 pub use builder::{check_inertia, RobotBuilder, MAX_INERTIA, MAX_LENGTH, MAX_MASS, MIN_MASS};
 pub(crate) use frames::JointFrames;
 pub use robot::{JointModel, Robot};
 pub use urdf::UrdfOptions;
+pub use visual::{
+    check_mesh_bytes, check_mesh_file, Geometry, LinkFrame, MeshFormat, MeshSearch, Scene, Shape,
+    Visual, MAX_MESH_BYTES,
+};
 
 /// The built-in default model: a 500 kg, 1.5 m spacecraft bus carrying a 7-joint space arm
 /// (see `models/README.md`). The URDF text is embedded in the crate.

@@ -48,6 +48,12 @@ pub struct Robot {
     pub(crate) ee_transform: Transform,
     /// The same model in joint frames (`super::frames`), derived by [`crate::RobotBuilder::build`].
     pub(crate) frames: super::JointFrames,
+    /// One named frame per URDF link, depth-first (`super::visual`).
+    pub(crate) link_frames: Vec<super::LinkFrame>,
+    /// The URDF's `<visual>`s.
+    pub(crate) visuals: Vec<super::Visual>,
+    /// The URDF file's directory, where relative mesh paths start.
+    pub(crate) urdf_dir: Option<std::path::PathBuf>,
 }
 
 impl Robot {

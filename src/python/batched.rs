@@ -246,6 +246,27 @@ pub(crate) fn single_vector<'py>(
     }
 }
 
+/// A single call's result of any `shape` (`values` in C order): a new array, or written into
+/// `out` (checked), which is returned.
+pub(crate) fn single_array<'py>(
+    py: Python<'py>,
+    out: Option<&Bound<'py, PyAny>>,
+    shape: &[usize],
+    values: &[f64],
+) -> PyResult<Bound<'py, PyAny>> {
+    match out.filter(|o| !o.is_none()) {
+        None => Ok(numpy::PyArray1::from_slice(py, values)
+            .reshape(shape)?
+            .into_any()),
+        Some(o) => {
+            let array = checked_out(o, shape)?;
+            // SAFETY: as in `single_vector`
+            unsafe { array.as_slice_mut() }?.copy_from_slice(values);
+            Ok(array.into_any())
+        }
+    }
+}
+
 /// A single call's `size × size` matrix result: `write` fills a new array, or `out` (checked),
 /// which is returned, in row-major order.
 pub(crate) fn single_matrix<'py>(

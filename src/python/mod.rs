@@ -14,6 +14,7 @@
 //! simulation with or without the GIL; `errors` maps [`crate::Error`] onto the Python
 //! exceptions; `convert` turns numpy arrays into Rust values.
 
+mod appearance;
 mod arm;
 mod batch;
 mod batched;

@@ -1,6 +1,8 @@
 //! `orbitflex.Robot`.
 
-use super::batched::{call_args, evaluate, single_matrix, single_vector, Call, Spares};
+use super::batched::{
+    call_args, evaluate, single_array, single_matrix, single_vector, Call, Spares,
+};
 use super::convert::{array1, array2, vector, vector_or};
 use super::errors::ModelError;
 use crate::algorithms::{self, Data};
@@ -142,12 +144,14 @@ impl PyRobot {
     /// Rebuilds a model from :meth:`__reduce__`'s parts (for pickling).
     #[staticmethod]
     #[allow(clippy::type_complexity)]
+    #[pyo3(signature = (name, source, bodies, joints, ee, appearance=None))]
     fn _from_parts(
         name: String,
         source: String,
         bodies: Vec<(String, f64, [f64; 3], [f64; 9])>,
         joints: Vec<(String, [f64; 3], [f64; 9], [f64; 3])>,
         ee: (String, [f64; 9], [f64; 3]),
+        appearance: Option<super::appearance::Appearance>,
     ) -> PyResult<Self> {
         use crate::spatial::{Inertia, Mat3, Transform, Vec3};
         let transform =
@@ -175,9 +179,11 @@ impl PyRobot {
                 inertia(*m, c, i),
             );
         }
-        Ok(Self::wrap(
-            builder.ee(&ee.0, transform(&ee.1, &ee.2)).build()?,
-        ))
+        builder = builder.ee(&ee.0, transform(&ee.1, &ee.2));
+        if let Some(appearance) = appearance {
+            builder = super::appearance::rebuild(builder, appearance)?;
+        }
+        Ok(Self::wrap(builder.build()?))
     }
 
     /// Pickle support: the model's parts (bodies, joints, EE frame), rebuilt and re-validated
@@ -218,6 +224,7 @@ impl PyRobot {
             bodies,
             joints,
             ee,
+            super::appearance::parts(robot),
         );
         let constructor = slf.get_type().getattr("_from_parts")?;
         Ok((
@@ -344,6 +351,90 @@ impl PyRobot {
             7,
             poses.concat(),
         ))
+    }
+
+    /// The names of the model's frames: every URDF link, links merged by fixed or locked joints
+    /// included, in depth-first tree order from the root link (children in file order). A
+    /// model not read from URDF has one frame per body, and one for its EE frame.
+    #[getter]
+    fn frame_names(&self) -> Vec<String> {
+        self.robot
+            .frame_names()
+            .iter()
+            .map(|s| s.to_string())
+            .collect()
+    }
+
+    /// Inertial poses of every frame of :attr:`frame_names`, shape ``(len(frame_names), 7)``:
+    /// ``[position (m); quaternion (x, y, z, w), w ≥ 0]``, the frame's origin and the rotation
+    /// taking its components to inertial ones, for the base pose ``[r_B (m); quat_B (x, y, z,
+    /// w)]`` and joint angles ``q`` (rad). Links behind a locked joint are posed at the locked
+    /// value (zero).
+    ///
+    /// **Batches.** ``base_pose`` (B, 7) and/or ``q`` (B, n) give a result (B, frames, 7),
+    /// evaluated in parallel without the GIL. ``out=`` takes a float64 C-contiguous array of
+    /// the result's shape to write into (and returns it).
+    #[pyo3(signature = (base_pose, q, *, out=None))]
+    fn frame_poses<'py>(
+        &self,
+        py: Python<'py>,
+        base_pose: &Bound<'py, PyAny>,
+        q: &Bound<'py, PyAny>,
+        out: Option<&Bound<'py, PyAny>>,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let n = self.robot.dof();
+        let frames = self.robot.frames().len();
+        let robot = &self.robot;
+        match call_args(&[("base_pose", Some(base_pose), 7), ("q", Some(q), n)])? {
+            Call::Batch(b) => {
+                let each = |data: &mut Data, r: usize, row: &mut [f64]| {
+                    algorithms::frame_poses(robot, data, b.arg(0, r), b.arg(1, r), row)
+                };
+                let shape = [b.rows, frames, 7];
+                evaluate(
+                    py,
+                    robot,
+                    &self.spares,
+                    out,
+                    &shape,
+                    b.rows,
+                    7 * frames,
+                    each,
+                )
+            }
+            Call::Single(v) => {
+                let mut values = vec![0.0; 7 * frames];
+                algorithms::frame_poses(robot, &mut self.data(), &v[0], &v[1], &mut values)?;
+                single_array(py, out, &[frames, 7], &values)
+            }
+        }
+    }
+
+    /// What to draw, for viewers (:mod:`orbitflex.viz`): ``(shapes, warnings)``. ``shapes`` is
+    /// a list of dicts, one per shape, with ``frame`` (index into :attr:`frame_names`),
+    /// ``origin`` (the shape's pose in its frame, ``[position (m); quat (x, y, z, w)]``),
+    /// ``kind`` (``"box"``, ``"cylinder"``, ``"sphere"``, ``"capsule"`` or ``"mesh"``), its
+    /// sizes (``size``, ``radius``, ``length``, m; cylinders and capsules along their z axis),
+    /// for a mesh ``path`` (the file found), ``format`` (``"stl"``, ``"dae"``, ``"obj"``) and
+    /// ``scale``, ``color`` (RGBA 0..1, or None) and ``stand_in``. ``warnings`` has one line per
+    /// missing or bad visual, naming the link and the file: such a visual is drawn as a
+    /// stand-in (the link's capsule), and a link without visuals as a capsule from its joint to
+    /// each child's joint.
+    ///
+    /// Mesh files named ``package://pkg/…`` are looked for in ``packages`` (a dict from package
+    /// name to its directory), then in each directory of ``ROS_PACKAGE_PATH``, then in the
+    /// directories above the URDF file; relative names start at the URDF file's directory.
+    ///
+    /// ``skeleton=True`` gives the model as a stick figure instead, ignoring its visuals: for
+    /// every frame a capsule to each child's joint (a sphere for a leaf), with ``color`` None.
+    #[pyo3(signature = (packages=None, skeleton=false))]
+    fn scene<'py>(
+        &self,
+        py: Python<'py>,
+        packages: Option<std::collections::BTreeMap<String, std::path::PathBuf>>,
+        skeleton: bool,
+    ) -> PyResult<(Vec<Bound<'py, PyDict>>, Vec<String>)> {
+        super::appearance::scene(py, &self.robot, packages.unwrap_or_default(), skeleton)
     }
 
     /// Body masses (kg), base first, after merging fixed links.

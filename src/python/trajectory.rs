@@ -242,6 +242,59 @@ impl PyTrajectory {
             .map(|a| a.clone_ref(py))
     }
 
+    /// Inertial poses of every frame of ``arm.robot.frame_names`` at every row, shape
+    /// ``(k, len(frame_names), 7)``: ``[position (m); quat (x, y, z, w), w ≥ 0]``, computed in
+    /// Rust without the GIL (one workspace for all rows).
+    ///
+    /// ``motor_side=None`` poses the links at ``q``; ``motor_side=s`` poses them at
+    /// ``q + s (θ − q)``: the motor side (the "ghost" arm) for ``s = 1``, the deflection drawn
+    /// ``s`` times larger beyond it.
+    #[pyo3(signature = (motor_side=None))]
+    fn frame_poses<'py>(
+        &self,
+        py: Python<'py>,
+        motor_side: Option<f64>,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        if let Some(s) = motor_side {
+            crate::args::check_finite("motor_side", &[s])?;
+        }
+        let frames = self.arm.get().arm.robot().frames().len();
+        let values = self.along(py, |arm, rows| rows.frame_poses(arm, motor_side))?;
+        let rows = self.rows(py);
+        Ok(numpy::PyArray1::from_vec(py, values)
+            .reshape([rows, frames, 7])?
+            .into_any())
+    }
+
+    /// Writes this run as one self-contained HTML animation (``orbitflex.viz.write_animation``)
+    /// and returns its path: the bus, the links, the EE trail and the inertial axes, played
+    /// with play/pause, a time slider and speeds; offline, paused at ``t = 0`` (``#t=SECONDS``
+    /// in the URL opens it at that time). ``fps`` frames per second of simulated time are kept;
+    /// ``ghost=True`` (or a factor) also draws the motor-side arm, its deflection exaggerated;
+    /// ``packages`` maps ROS package names to directories for ``package://`` meshes. Needs
+    /// ``pip install 'orbitflex[viz]'``.
+    #[pyo3(signature = (path, fps=30.0, ghost=None, packages=None, title=None))]
+    fn animate<'py>(
+        slf: &Bound<'py, Self>,
+        path: &Bound<'py, PyAny>,
+        fps: f64,
+        ghost: Option<&Bound<'py, PyAny>>,
+        packages: Option<&Bound<'py, PyAny>>,
+        title: Option<&str>,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let py = slf.py();
+        let kwargs = PyDict::new(py);
+        kwargs.set_item("fps", fps)?;
+        if let Some(ghost) = ghost {
+            kwargs.set_item("ghost", ghost)?;
+        }
+        kwargs.set_item("packages", packages)?;
+        kwargs.set_item("title", title)?;
+        py.import("orbitflex.viz")?
+            .getattr("write_animation")?
+            .call((slf, path), Some(&kwargs))
+    }
+
     /// Names of the columns of ``x``, in order (``r_x``, …, ``q[joint]``, …, ``theta_dot[joint]``).
     fn column_names(&self) -> Vec<String> {
         let arm = &self.arm.get().arm;

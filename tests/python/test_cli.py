@@ -156,7 +156,7 @@ def test_demo_lists_every_file_it_wrote(demo_run):
     result, out = demo_run
     assert result.returncode == 0, result.stderr[-2000:]
     written = {p.name for p in out.iterdir()}
-    assert written == DEMO_PNGS | {"trajectory.npz", "trajectory.csv", "summary.json"}
+    assert written == DEMO_PNGS | {"trajectory.npz", "trajectory.csv", "summary.json", "animation.html"}
     listed = [line.split() for line in result.stdout.splitlines() if str(out) in line]
     assert {Path(words[0]).name for words in listed} == written
     assert all(len(words) > 2 for words in listed)  # a description follows each path
@@ -666,7 +666,7 @@ def test_diverged_run_summary_describes_the_finite_part(tmp_path):
     assert "finite part before the failure" in text
     assert "RK4 truncation" not in text  # the drift of a diverging run is no truncation error
     # the outputs of the finite part are written all the same
-    assert {p.name for p in out.iterdir()} == DEMO_PNGS | {"trajectory.npz", "summary.json"}
+    assert {p.name for p in out.iterdir()} == DEMO_PNGS | {"trajectory.npz", "summary.json", "animation.html"}
 
 
 # ---------------------------------------------------------------------------------------------

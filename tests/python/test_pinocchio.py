@@ -243,3 +243,50 @@ def test_kinetic_energy(loaded):
         e = robot.kinetic_energy(s["q"], s["base_twist"], s["qd"])
         ref = pr.kinetic_energy(s["q"], s["base_twist"], s["qd"])
         assert abs(e - ref) / max(1.0, abs(ref)) <= TOL, (e, ref)
+
+
+# ------------------------------------------------------------------------------- frames
+
+
+def _urdf_links_depth_first(case) -> list:
+    """Every <link> of the case's URDF, depth-first from the root, children in file order
+    (read here with ElementTree, independently of orbitflex)."""
+    import xml.etree.ElementTree as ET
+
+    text = open(case.path).read() if case.path is not None else case.xml
+    root = ET.fromstring(text)
+    links = [link.get("name") for link in root.findall("link")]
+    children: dict = {}
+    parent_of = {}
+    for joint in root.findall("joint"):
+        parent, child = joint.find("parent").get("link"), joint.find("child").get("link")
+        children.setdefault(parent, []).append(child)
+        parent_of[child] = parent
+    (top,) = [link for link in links if link not in parent_of]
+    order, stack = [], [top]
+    while stack:
+        link = stack.pop()
+        order.append(link)
+        stack.extend(reversed(children.get(link, [])))
+    return order
+
+
+def test_frame_poses_match_frames_forward_kinematics(loaded):
+    """Every URDF link's inertial pose equals Pinocchio's BODY frame of that name after
+    ``framesForwardKinematics`` (free-flyer at a random base pose; locked joints at zero)."""
+    case, robot, pr = loaded
+    assert list(robot.frame_names) == _urdf_links_depth_first(case)
+    rng = case.rng("frames")
+    model, data = pr.model, pr.data
+    for _ in range(3):
+        base = np.concatenate([rng.normal(size=3), random_quaternion(rng)])
+        q = rng.uniform(-np.pi, np.pi, robot.dof)
+        pin.framesForwardKinematics(model, data, pr.q_pin(q, base))
+        poses = robot.frame_poses(base, q)
+        assert poses.shape == (len(robot.frame_names), 7)
+        assert np.all(poses[:, 6] >= 0)
+        for name, pose in zip(robot.frame_names, poses):
+            placement = data.oMf[model.getFrameId(name, pin.BODY)]
+            assert np.abs(pose[:3] - placement.translation).max() < 1e-12, name
+            assert np.abs(quat_to_matrix(pose[3:]) - placement.rotation).max() < 1e-12, name
+            assert abs(np.linalg.norm(pose[3:]) - 1) < 1e-14

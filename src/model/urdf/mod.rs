@@ -7,12 +7,15 @@
 //!    error;
 //! 4. [`merge`]: fixed and locked joints merged away, so each link belongs to a body with its
 //!    inertia added in;
-//! 5. the model: the bodies and joints handed to [`RobotBuilder`], which validates the result.
+//! 5. [`frames`]: one named frame per link, depth-first, placed on its body, and the visuals;
+//! 6. the model: the bodies, joints and frames handed to [`RobotBuilder`], which validates the
+//!    result.
 //!
 //! The root link is the base `B`. Revolute and continuous joints on the chain are the degrees of
 //! freedom; fixed joints, and joints named in `locked_joints` (held at zero), are merged.
 
 mod chain;
+mod frames;
 mod merge;
 mod parse;
 mod tree;
@@ -44,7 +47,20 @@ impl Robot {
     pub fn from_urdf(path: impl AsRef<Path>, options: &UrdfOptions) -> Result<Robot> {
         let path = path.as_ref();
         let text = crate::io::read_text(path, "URDF")?;
-        load(&text, &path.display().to_string(), options)
+        let robot = load(&text, &path.display().to_string(), options)?;
+        // absolute, so that a model pickled elsewhere or used after a `chdir` still finds them
+        let dir = path.parent().map(|d| {
+            let cwd = std::env::current_dir().unwrap_or_default();
+            if d.is_absolute() {
+                d.to_path_buf()
+            } else {
+                cwd.join(d)
+            }
+        });
+        Ok(Robot {
+            urdf_dir: dir,
+            ..robot
+        })
     }
 
     /// Loads a URDF from its XML text (model §7).
@@ -76,5 +92,10 @@ fn load(xml: &str, source: &str, options: &UrdfOptions) -> Result<Robot> {
     }
     let (ee_body, ee_in_body) = bodies.placement[ee_link];
     debug_assert_eq!(ee_body, bodies.bodies.len() - 1);
-    builder.ee(ee_link, ee_in_body).build()
+    let (frames, visuals) = frames::frames(&tree, &bodies);
+    builder
+        .ee(ee_link, ee_in_body)
+        .frames(frames)
+        .visuals(visuals)
+        .build()
 }

@@ -3,15 +3,19 @@
 //!
 //! The reader keeps what the dynamics need: the robot's name, each `<link>` with its
 //! `<inertial>` (origin, mass, inertia), and each `<joint>` with its type, parent, child, origin
-//! and axis. Everything else (visuals, collisions, limits, transmissions, simulator extensions)
-//! is skipped. It reads the text once, in time linear in its size, and refuses what no URDF
+//! and axis. It also keeps each link's `<visual>`s (origin, shape, material colour) and the
+//! top-level `<material>` colours, for viewers; a visual it cannot read is kept as
+//! [`Geometry::Malformed`] with the reason, never an error, since the dynamics do not need it.
+//! Everything else (collisions, limits, transmissions, simulator extensions) is skipped. It reads the text once, in time linear in its size, and refuses what no URDF
 //! needs: nesting deeper than [`MAX_DEPTH`], more than [`MAX_ELEMENTS`] elements, more than
 //! [`crate::io::MAX_FILE_BYTES`] of text. Errors say what is wrong and on which line. Entities
 //! other than XML's five are not expanded (no "billion laughs").
 
 use crate::error::{Error, Result};
+use crate::model::visual::Geometry;
 use crate::spatial::{Inertia, Mat3, Transform};
 use quick_xml::events::{BytesStart, Event};
+use std::collections::HashMap;
 
 /// The deepest element nesting accepted. A URDF needs about 6 (`robot/link/visual/geometry/mesh`),
 /// a few more with simulator extensions.
@@ -26,6 +30,8 @@ pub(super) struct Urdf {
     pub name: String,
     pub links: Vec<Link>,
     pub joints: Vec<Joint>,
+    /// Top-level `<material name><color rgba/></material>` colours.
+    pub materials: HashMap<String, [f64; 4]>,
 }
 
 /// A `<link>`.
@@ -34,6 +40,28 @@ pub(super) struct Link {
     pub name: String,
     /// Zero mass and inertia when the link has no `<inertial>`.
     pub inertial: Inertial,
+    /// The link's `<visual>`s, in file order.
+    pub visuals: Vec<RawVisual>,
+}
+
+/// A `<visual>` as written: its origin, shape (or why it is malformed), and material.
+#[derive(Debug, Clone)]
+pub(super) struct RawVisual {
+    pub origin: Pose,
+    pub geometry: Geometry,
+    /// `<material name>`, looked up among the top-level materials when there is no colour.
+    pub material: Option<String>,
+    pub color: Option<[f64; 4]>,
+}
+
+/// A visual being read: the first problem met wins.
+#[derive(Debug, Default)]
+struct PartialVisual {
+    origin: Pose,
+    geometry: Option<Geometry>,
+    material: Option<String>,
+    color: Option<[f64; 4]>,
+    problem: Option<String>,
 }
 
 /// An `<inertial>`: the COM frame, the mass (kg) and the inertia about the COM in that frame's
@@ -125,6 +153,11 @@ enum Scope {
     Link,
     Inertial,
     Joint,
+    Visual,
+    Geometry,
+    VisualMaterial,
+    /// A top-level `<material>`, with its name.
+    Material,
     /// Any element the reader skips, with everything inside it.
     Other,
 }
@@ -139,6 +172,8 @@ struct Reader<'a> {
     robot: Option<Urdf>,
     link: Option<Link>,
     joint: Option<PartialJoint>,
+    visual: Option<PartialVisual>,
+    material: Option<String>,
 }
 
 /// A joint being read: its parent and child may not have come yet.
@@ -164,6 +199,8 @@ impl<'a> Reader<'a> {
             robot: None,
             link: None,
             joint: None,
+            visual: None,
+            material: None,
         }
     }
 
@@ -264,8 +301,58 @@ impl<'a> Reader<'a> {
                 self.link = Some(Link {
                     name: self.required(e, "link", "name")?,
                     inertial: Inertial::default(),
+                    visuals: Vec::new(),
                 });
                 Scope::Link
+            }
+            (Some(Scope::Link), b"visual") => {
+                self.visual = Some(PartialVisual::default());
+                Scope::Visual
+            }
+            (Some(Scope::Visual), b"origin") => {
+                match self.pose(e).and_then(|p| finite_pose(p, line)) {
+                    Ok(pose) => self.visual_mut().origin = pose,
+                    Err(message) => self.visual_problem(message),
+                }
+                Scope::Other
+            }
+            (Some(Scope::Visual), b"geometry") => Scope::Geometry,
+            (Some(Scope::Geometry), b"box" | b"cylinder" | b"sphere" | b"mesh") => {
+                let shape = self.shape(e, name);
+                if self.visual_mut().geometry.is_some() {
+                    self.visual_problem(format!(
+                        "line {line}: <geometry> holds more than one shape"
+                    ));
+                }
+                match shape {
+                    Ok(shape) => self.visual_mut().geometry = Some(shape),
+                    Err(message) => self.visual_problem(message),
+                }
+                Scope::Other
+            }
+            (Some(Scope::Visual), b"material") => {
+                let name = self.attribute(e, "name").ok().flatten();
+                self.visual_mut().material = name;
+                Scope::VisualMaterial
+            }
+            (Some(Scope::VisualMaterial), b"color") => {
+                match self.rgba(e) {
+                    Ok(rgba) => self.visual_mut().color = Some(rgba),
+                    Err(message) => self.visual_problem(message),
+                }
+                Scope::Other
+            }
+            (Some(Scope::Robot), b"material") => {
+                self.material = self.attribute(e, "name").ok().flatten();
+                Scope::Material
+            }
+            (Some(Scope::Material), b"color") => {
+                // a bad colour of a named material leaves it without colour
+                if let (Some(name), Ok(rgba)) = (self.material.clone(), self.rgba(e)) {
+                    let robot = self.robot.as_mut().expect("inside the robot");
+                    robot.materials.insert(name, rgba);
+                }
+                Scope::Other
             }
             (Some(Scope::Link), b"inertial") => Scope::Inertial,
             (Some(Scope::Inertial), b"origin") => {
@@ -342,6 +429,28 @@ impl<'a> Reader<'a> {
     /// Finishes the element that closes.
     fn close(&mut self, scope: Scope) -> std::result::Result<(), Message> {
         match scope {
+            Scope::Visual => {
+                let v = self.visual.take().expect("a visual is open");
+                let geometry = match (v.problem, v.geometry) {
+                    (Some(message), _) => Geometry::Malformed { message },
+                    (None, Some(shape)) => shape,
+                    (None, None) => Geometry::Malformed {
+                        message: "no shape in <geometry> (box, cylinder, sphere or mesh)".into(),
+                    },
+                };
+                let visual = RawVisual {
+                    origin: v.origin,
+                    geometry,
+                    material: v.material,
+                    color: v.color,
+                };
+                self.link
+                    .as_mut()
+                    .expect("inside a link")
+                    .visuals
+                    .push(visual);
+            }
+            Scope::Material => self.material = None,
             Scope::Link => {
                 let link = self.link.take().expect("a link is open");
                 self.robot
@@ -375,6 +484,81 @@ impl<'a> Reader<'a> {
             _ => {}
         }
         Ok(())
+    }
+
+    fn visual_mut(&mut self) -> &mut PartialVisual {
+        self.visual.as_mut().expect("inside a visual")
+    }
+
+    /// Records the first problem of the visual being read.
+    fn visual_problem(&mut self, message: Message) {
+        self.visual_mut().problem.get_or_insert(message);
+    }
+
+    /// A `<box>`, `<cylinder>`, `<sphere>` or `<mesh>` of a visual, checked: positive finite
+    /// sizes, a file name, a finite non-zero scale.
+    fn shape(&self, e: &BytesStart, tag: &[u8]) -> std::result::Result<Geometry, Message> {
+        let line = self.line();
+        let positive = |element: &str, key: &str, value: f64| {
+            if value.is_finite() && value > 0.0 {
+                Ok(value)
+            } else {
+                Err(format!(
+                    "line {line}: <{element} {key}=\"{value}\">: expected a positive length (m)"
+                ))
+            }
+        };
+        Ok(match tag {
+            b"box" => {
+                let size = self
+                    .triple(e, "box", "size")?
+                    .ok_or_else(|| format!("line {line}: <box> has no size=\"x y z\" attribute"))?;
+                for value in size {
+                    positive("box", "size", value)?;
+                }
+                Geometry::Box { size }
+            }
+            b"cylinder" => Geometry::Cylinder {
+                radius: positive("cylinder", "radius", self.number(e, "cylinder", "radius")?)?,
+                length: positive("cylinder", "length", self.number(e, "cylinder", "length")?)?,
+            },
+            b"sphere" => Geometry::Sphere {
+                radius: positive("sphere", "radius", self.number(e, "sphere", "radius")?)?,
+            },
+            _ => {
+                let filename = self.required(e, "mesh", "filename")?;
+                if filename.trim().is_empty() {
+                    return Err(format!(
+                        "line {line}: <mesh filename=\"\">: the file name is empty"
+                    ));
+                }
+                let scale = self.triple(e, "mesh", "scale")?.unwrap_or([1.0; 3]);
+                if scale.iter().any(|s| !s.is_finite() || *s == 0.0) {
+                    return Err(format!(
+                        "line {line}: <mesh scale=\"{} {} {}\">: expected three finite non-zero \
+                         numbers",
+                        scale[0], scale[1], scale[2]
+                    ));
+                }
+                Geometry::Mesh { filename, scale }
+            }
+        })
+    }
+
+    /// A `<color rgba>`: four numbers in [0, 1].
+    fn rgba(&self, e: &BytesStart) -> std::result::Result<[f64; 4], Message> {
+        let line = self.line();
+        let text = self.required(e, "color", "rgba")?;
+        let values: Vec<f64> = text
+            .split_whitespace()
+            .filter_map(|v| v.parse().ok())
+            .collect();
+        match <[f64; 4]>::try_from(values) {
+            Ok(rgba) if rgba.iter().all(|v| (0.0..=1.0).contains(v)) => Ok(rgba),
+            _ => Err(format!(
+                "line {line}: <color rgba=\"{text}\">: expected four numbers between 0 and 1"
+            )),
+        }
     }
 
     fn inertial(&mut self) -> std::result::Result<&mut Inertial, Message> {
@@ -455,6 +639,15 @@ impl<'a> Reader<'a> {
             xyz: self.triple(e, "origin", "xyz")?.unwrap_or_default(),
             rpy: self.triple(e, "origin", "rpy")?.unwrap_or_default(),
         })
+    }
+}
+
+/// The pose if its six numbers are finite.
+fn finite_pose(pose: Pose, line: usize) -> std::result::Result<Pose, Message> {
+    if pose.xyz.iter().chain(&pose.rpy).all(|v| v.is_finite()) {
+        Ok(pose)
+    } else {
+        Err(format!("line {line}: <origin>: expected finite numbers"))
     }
 }
 

@@ -1,0 +1,468 @@
+//! What a model looks like: the named frames of every URDF link (merged ones included) and the
+//! `<visual>` shapes attached to them, with mesh files found on disk. The dynamics never read
+//! any of this; viewers do ([`Robot::scene`]).
+//!
+//! Frames follow the joint-origin convention of the rest of the model: a frame's `placement` is
+//! `Φ_{frame,body}`, the frame seen from the body that carries it (rotation `R_{frame,body}`,
+//! translation `p_{body,frame}` in body components, m).
+
+use super::Robot;
+use crate::spatial::{Transform, Vec3};
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+/// A named frame rigidly attached to a body: one per URDF link, in depth-first tree order.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LinkFrame {
+    /// The URDF link's name.
+    pub name: String,
+    /// The body that carries the frame (0 is the base).
+    pub body: usize,
+    /// `Φ_{frame,body}`: the frame in the carrying body's frame (constant; links behind a
+    /// locked joint are placed at the locked value, zero).
+    pub placement: Transform,
+    /// The frame of the parent link in the URDF tree (`None` for the root link).
+    pub parent: Option<usize>,
+    /// `Φ_{frame,parent}` at `q = 0`: the URDF joint origin from the parent link.
+    pub joint_origin: Transform,
+}
+
+/// The shape of a `<visual>`, in its own frame (m). Cylinders and capsules run along their
+/// `z` axis, centred on the origin (URDF's convention).
+#[derive(Debug, Clone, PartialEq)]
+pub enum Geometry {
+    /// `<box size>`: full side lengths along x, y, z.
+    Box {
+        /// Side lengths (m).
+        size: [f64; 3],
+    },
+    /// `<cylinder radius length>`.
+    Cylinder {
+        /// Radius (m).
+        radius: f64,
+        /// Length along `z` (m).
+        length: f64,
+    },
+    /// `<sphere radius>`.
+    Sphere {
+        /// Radius (m).
+        radius: f64,
+    },
+    /// A cylinder of `length` capped by two half-spheres (not a URDF shape: the stand-in
+    /// drawn for links without visuals).
+    Capsule {
+        /// Radius of the cylinder and caps (m).
+        radius: f64,
+        /// Length of the cylinder along `z`, between the caps' centres (m).
+        length: f64,
+    },
+    /// `<mesh filename scale>`: the file as the URDF names it, and its scale per axis.
+    Mesh {
+        /// As the URDF writes it (`package://…`, relative, absolute or `file://…`).
+        filename: String,
+        /// Scale per axis.
+        scale: [f64; 3],
+    },
+    /// A `<visual>` that could not be read, and why; [`Robot::scene`] draws a stand-in.
+    Malformed {
+        /// What is wrong, with the URDF line.
+        message: String,
+    },
+}
+
+/// One `<visual>` of a link.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Visual {
+    /// Index into [`Robot::frames`] of the link it belongs to.
+    pub frame: usize,
+    /// `Φ_{visual,link}`: the `<origin>` of the visual in its link's frame.
+    pub origin: Transform,
+    /// The shape.
+    pub geometry: Geometry,
+    /// RGBA in 0..1, from the visual's `<material>` (inline or named at the top level).
+    pub color: Option<[f64; 4]>,
+}
+
+/// A mesh file format a viewer can read.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum MeshFormat {
+    /// STL, binary or ASCII.
+    Stl,
+    /// COLLADA (`.dae`).
+    Dae,
+    /// Wavefront OBJ.
+    Obj,
+}
+
+impl MeshFormat {
+    /// The lower-case file extension.
+    pub fn extension(self) -> &'static str {
+        match self {
+            MeshFormat::Stl => "stl",
+            MeshFormat::Dae => "dae",
+            MeshFormat::Obj => "obj",
+        }
+    }
+}
+
+/// A shape ready to draw: what [`Robot::scene`] returns for every visual, with mesh files found
+/// and checked, and stand-ins where a visual is missing or bad.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Shape {
+    /// Index into [`Robot::frames`].
+    pub frame: usize,
+    /// `Φ_{shape,frame}`: the shape in its frame.
+    pub origin: Transform,
+    /// Never [`Geometry::Malformed`]; a mesh here has a readable file at `mesh`.
+    pub geometry: Geometry,
+    /// For a mesh: the file found and its format.
+    pub mesh: Option<(PathBuf, MeshFormat)>,
+    /// RGBA in 0..1 (`None`: the mesh's own colours, or the viewer's default).
+    pub color: Option<[f64; 4]>,
+    /// Drawn in place of a missing or bad visual, or for a link without visuals.
+    pub stand_in: bool,
+}
+
+/// Every shape of a model and the warnings met while finding them.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Scene {
+    /// The shapes, in frame order.
+    pub shapes: Vec<Shape>,
+    /// One line per missing or bad visual: the link, the file or element, and what is wrong.
+    pub warnings: Vec<String>,
+}
+
+/// The largest mesh file read (bytes): 64 MB.
+pub const MAX_MESH_BYTES: u64 = 64_000_000;
+
+/// Where `package://` mesh paths are looked up, in order: an explicit map from package name to
+/// its directory, then each directory of `ROS_PACKAGE_PATH`, then the directories above the
+/// URDF file (one named as the package, or holding it).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct MeshSearch {
+    /// Package name → the package's directory.
+    pub packages: BTreeMap<String, PathBuf>,
+    /// `ROS_PACKAGE_PATH`'s value (`None`: read from the environment).
+    pub ros_package_path: Option<String>,
+}
+
+impl MeshSearch {
+    /// Finds the file a URDF `filename` names: `package://pkg/rest`, `file://path`, an absolute
+    /// path, or a path relative to `urdf_dir`. The error says where it looked.
+    pub fn resolve(&self, filename: &str, urdf_dir: Option<&Path>) -> Result<PathBuf, String> {
+        let found = |p: PathBuf| p.is_file().then_some(p);
+        if let Some(rest) = filename.strip_prefix("package://") {
+            let (package, inner) = rest.split_once('/').unwrap_or((rest, ""));
+            // the package's candidate directories, in order
+            let mut dirs: Vec<PathBuf> = Vec::new();
+            if let Some(dir) = self.packages.get(package) {
+                dirs.push(dir.clone());
+            }
+            let env = self
+                .ros_package_path
+                .clone()
+                .or_else(|| std::env::var("ROS_PACKAGE_PATH").ok())
+                .unwrap_or_default();
+            for entry in env.split(':').filter(|e| !e.is_empty()) {
+                let entry = Path::new(entry);
+                if entry.file_name().is_some_and(|n| n == package) {
+                    dirs.push(entry.to_path_buf());
+                }
+                dirs.push(entry.join(package));
+            }
+            for dir in urdf_dir.into_iter().flat_map(Path::ancestors) {
+                if dir.file_name().is_some_and(|n| n == package) {
+                    dirs.push(dir.to_path_buf());
+                }
+                dirs.push(dir.join(package));
+            }
+            if let Some(file) = dirs.iter().find_map(|d| found(d.join(inner))) {
+                return Ok(file);
+            }
+            if let Some(dir) = dirs.iter().find(|d| d.is_dir()) {
+                return Err(format!(
+                    "no file at {} (package '{package}' is {})",
+                    dir.join(inner).display(),
+                    dir.display()
+                ));
+            }
+            return Err(format!(
+                "package '{package}' not found: give its directory in the package map, add its \
+                 parent to ROS_PACKAGE_PATH, or keep the URDF inside the package"
+            ));
+        }
+        let path = filename.strip_prefix("file://").unwrap_or(filename);
+        let path = Path::new(path);
+        let path = match urdf_dir {
+            Some(dir) if path.is_relative() => dir.join(path),
+            _ => path.to_path_buf(),
+        };
+        found(path.clone()).ok_or_else(|| format!("no file at {}", path.display()))
+    }
+}
+
+/// The format of a mesh file from its extension, and a check of its first bytes.
+pub fn check_mesh_file(path: &Path) -> Result<MeshFormat, String> {
+    let extension = path
+        .extension()
+        .map(|e| e.to_string_lossy().to_lowercase())
+        .unwrap_or_default();
+    let format = match extension.as_str() {
+        "stl" => MeshFormat::Stl,
+        "dae" => MeshFormat::Dae,
+        "obj" => MeshFormat::Obj,
+        other => {
+            return Err(format!(
+                "unsupported mesh format '.{other}'; expected .stl, .dae or .obj"
+            ))
+        }
+    };
+    let size = std::fs::metadata(path)
+        .map_err(|e| format!("cannot read: {e}"))?
+        .len();
+    if size > MAX_MESH_BYTES {
+        return Err(format!("{size} bytes, more than the {MAX_MESH_BYTES} read"));
+    }
+    let bytes = std::fs::read(path).map_err(|e| format!("cannot read: {e}"))?;
+    check_mesh_bytes(format, &bytes)?;
+    Ok(format)
+}
+
+/// Whether `bytes` look like a mesh of `format`: an STL whose size matches its triangle count
+/// (binary) or that starts with `solid` and has a `facet` (ASCII); a COLLADA document; an OBJ
+/// with at least one vertex (`v`) and one face (`f`).
+pub fn check_mesh_bytes(format: MeshFormat, bytes: &[u8]) -> Result<(), String> {
+    let text = || String::from_utf8_lossy(&bytes[..bytes.len().min(1 << 20)]).into_owned();
+    match format {
+        MeshFormat::Stl => {
+            let start = bytes.iter().position(|b| !b.is_ascii_whitespace());
+            let ascii =
+                start.is_some_and(|k| bytes[k..].starts_with(b"solid")) && text().contains("facet");
+            let binary = bytes.len() >= 84 && {
+                let count = u32::from_le_bytes([bytes[80], bytes[81], bytes[82], bytes[83]]);
+                84 + 50 * count as u64 == bytes.len() as u64 && count > 0
+            };
+            if ascii || binary {
+                Ok(())
+            } else {
+                Err(format!(
+                    "not an STL file: {} bytes, neither ASCII ('solid … facet') nor binary (84 + \
+                     50 bytes per triangle)",
+                    bytes.len()
+                ))
+            }
+        }
+        MeshFormat::Dae => {
+            if text().contains("<COLLADA") {
+                Ok(())
+            } else {
+                Err("not a COLLADA file: no <COLLADA> element".into())
+            }
+        }
+        MeshFormat::Obj => {
+            let text = String::from_utf8_lossy(bytes);
+            let has = |tag: &str| {
+                text.lines()
+                    .any(|l| l.split_whitespace().next() == Some(tag))
+            };
+            if has("v") && has("f") {
+                Ok(())
+            } else {
+                Err("not an OBJ file: no vertex ('v') and face ('f') lines".into())
+            }
+        }
+    }
+}
+
+/// Grey for links drawn from their joints, orange for stand-ins of bad visuals.
+const LINK_GREY: [f64; 4] = [0.62, 0.64, 0.68, 1.0];
+const STAND_IN_ORANGE: [f64; 4] = [1.0, 0.55, 0.1, 0.8];
+
+impl Robot {
+    /// The named frames, one per URDF link (merged links included), in depth-first tree order
+    /// from the root (children in file order). A model built in code has one per body, and
+    /// one more for the EE frame when it names a link of its own.
+    pub fn frames(&self) -> &[LinkFrame] {
+        &self.link_frames
+    }
+
+    /// The names of [`Robot::frames`], in order.
+    pub fn frame_names(&self) -> Vec<&str> {
+        self.link_frames.iter().map(|f| f.name.as_str()).collect()
+    }
+
+    /// The index of the frame named `name`.
+    pub fn frame_index(&self, name: &str) -> Option<usize> {
+        self.link_frames.iter().position(|f| f.name == name)
+    }
+
+    /// The URDF's `<visual>` elements, as written (malformed ones included).
+    pub fn visuals(&self) -> &[Visual] {
+        &self.visuals
+    }
+
+    /// The directory of the URDF file the model was read from (relative mesh paths start
+    /// there); `None` for a URDF string or a model built in code.
+    pub fn urdf_dir(&self) -> Option<&Path> {
+        self.urdf_dir.as_deref()
+    }
+
+    /// Every shape to draw, with its mesh file found (`search`) and checked:
+    /// - each readable `<visual>`;
+    /// - for a link without visuals, a capsule from its origin (its joint) to each child
+    ///   link's origin, or a small sphere for a leaf;
+    /// - for a missing or bad mesh, or a malformed visual, the link's capsules as a stand-in
+    ///   (orange) and a warning naming the link and the file.
+    ///
+    /// Never fails: a viewer shows what it can.
+    pub fn scene(&self, search: &MeshSearch) -> Scene {
+        let mut scene = Scene::default();
+        let mut has_visual = vec![false; self.link_frames.len()];
+        let mut stand_in = vec![false; self.link_frames.len()];
+        for (k, visual) in self.visuals.iter().enumerate() {
+            let link = &self.link_frames[visual.frame].name;
+            has_visual[visual.frame] = true;
+            let number = 1 + self.visuals[..k]
+                .iter()
+                .filter(|v| v.frame == visual.frame)
+                .count();
+            let mut shape = Shape {
+                frame: visual.frame,
+                origin: visual.origin,
+                geometry: visual.geometry.clone(),
+                mesh: None,
+                color: visual.color,
+                stand_in: false,
+            };
+            match &visual.geometry {
+                Geometry::Malformed { message } => {
+                    scene.warnings.push(format!(
+                        "link '{link}', visual {number}: {message}; drawn as a stand-in"
+                    ));
+                    stand_in[visual.frame] = true;
+                    continue;
+                }
+                Geometry::Mesh { filename, .. } => {
+                    let found = search
+                        .resolve(filename, self.urdf_dir())
+                        .and_then(|path| check_mesh_file(&path).map(|format| (path, format)));
+                    match found {
+                        Ok(mesh) => shape.mesh = Some(mesh),
+                        Err(message) => {
+                            scene.warnings.push(format!(
+                                "link '{link}', mesh '{filename}': {message}; drawn as a \
+                                 stand-in"
+                            ));
+                            stand_in[visual.frame] = true;
+                            continue;
+                        }
+                    }
+                }
+                _ => {}
+            }
+            scene.shapes.push(shape);
+        }
+        for (frame, _) in self.link_frames.iter().enumerate() {
+            if !has_visual[frame] || stand_in[frame] {
+                let color = if stand_in[frame] {
+                    STAND_IN_ORANGE
+                } else {
+                    LINK_GREY
+                };
+                for (origin, geometry) in self.default_shapes(frame) {
+                    scene.shapes.push(Shape {
+                        frame,
+                        origin,
+                        geometry,
+                        mesh: None,
+                        color: Some(color),
+                        stand_in: stand_in[frame],
+                    });
+                }
+            }
+        }
+        scene.shapes.sort_by_key(|s| s.frame);
+        scene
+    }
+
+    /// The model as a stick figure: for every frame, a capsule from its origin to each child
+    /// link's origin (a sphere for a leaf), whatever its visuals. Viewers draw the motor-side
+    /// "ghost" arm with it.
+    pub fn skeleton(&self) -> Vec<Shape> {
+        (0..self.link_frames.len())
+            .flat_map(|frame| {
+                self.default_shapes(frame)
+                    .into_iter()
+                    .map(move |(origin, geometry)| Shape {
+                        frame,
+                        origin,
+                        geometry,
+                        mesh: None,
+                        color: None,
+                        stand_in: false,
+                    })
+            })
+            .collect()
+    }
+
+    /// A capsule from frame `frame`'s origin to each child link's origin, or a sphere for a
+    /// leaf (or children all at the origin). The radius is a tenth of the segment, between 1
+    /// and 6 cm.
+    fn default_shapes(&self, frame: usize) -> Vec<(Transform, Geometry)> {
+        let mut shapes = Vec::new();
+        for child in self.link_frames.iter().filter(|f| f.parent == Some(frame)) {
+            let end = child.joint_origin.translation;
+            let length = end.norm();
+            if length < 1e-6 {
+                continue;
+            }
+            let radius = (0.1 * length).clamp(0.01, 0.06);
+            // the capsule's z axis along `end`, its centre half-way
+            let rotation = z_onto(&(end / length));
+            let origin = Transform::new(rotation.transpose(), end * 0.5);
+            shapes.push((origin, Geometry::Capsule { radius, length }));
+        }
+        if shapes.is_empty() {
+            shapes.push((Transform::identity(), Geometry::Sphere { radius: 0.04 }));
+        }
+        shapes
+    }
+}
+
+/// The default frames of a model built in code: one per body at its origin, and the EE frame
+/// when its name is not a body's.
+pub(crate) fn body_frames(robot: &Robot) -> Vec<LinkFrame> {
+    let mut frames: Vec<LinkFrame> = robot
+        .link_names
+        .iter()
+        .enumerate()
+        .map(|(i, name)| LinkFrame {
+            name: name.clone(),
+            body: i,
+            placement: Transform::identity(),
+            parent: (i > 0).then(|| robot.parents[i]),
+            joint_origin: if i > 0 {
+                robot.joints[i - 1].origin
+            } else {
+                Transform::identity()
+            },
+        })
+        .collect();
+    if !robot.link_names.contains(&robot.ee_link) {
+        frames.push(LinkFrame {
+            name: robot.ee_link.clone(),
+            body: robot.ee_body,
+            placement: robot.ee_transform,
+            parent: Some(robot.ee_body),
+            joint_origin: robot.ee_transform,
+        });
+    }
+    frames
+}
+
+/// A rotation taking `e_z` onto the unit vector `d` (a half turn about `x` when `d = −e_z`).
+fn z_onto(d: &Vec3) -> crate::spatial::Mat3 {
+    nalgebra::Rotation3::rotation_between(&Vec3::z(), d)
+        .map(|r| r.into_inner())
+        .unwrap_or_else(|| crate::spatial::Mat3::from_diagonal(&Vec3::new(1.0, -1.0, -1.0)))
+}
