@@ -161,6 +161,14 @@ pub fn check_finite(what: &str, values: &[f64]) -> Result<()> {
 pub fn check_base_pose(base_pose: &[f64]) -> Result<()> {
     check_vector("base_pose", base_pose, 7)?;
     let norm = base_pose[3..7].iter().map(|v| v * v).sum::<f64>().sqrt();
+    if !norm.is_finite() {
+        return Err(Error::InvalidArgument {
+            what: "base_pose".into(),
+            message: "the quaternion (elements 3..7, x y z w) is too large to normalise; expected \
+                      a unit quaternion"
+                .into(),
+        });
+    }
     if norm < 1e-9 {
         return Err(Error::InvalidArgument {
             what: "base_pose".into(),

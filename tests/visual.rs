@@ -267,6 +267,13 @@ fn frame_poses_check_their_arguments() {
     assert!(bad.unwrap_err().to_string().contains("zero norm"));
     let bad_q = algorithms::frame_poses(&robot, &mut data, &base, &[0.0; 3], &mut poses);
     assert!(bad_q.unwrap_err().to_string().contains("q"));
+    // a quaternion whose norm overflows is refused, not normalised to a wrong rotation
+    let huge = [0.0, 0.0, 0.0, 1e200, 0.0, 0.0, 0.0];
+    let overflow = algorithms::frame_poses(&robot, &mut data, &huge, &[0.0; 2], &mut poses);
+    assert!(overflow
+        .unwrap_err()
+        .to_string()
+        .contains("too large to normalise"));
 }
 
 #[test]
@@ -315,6 +322,30 @@ fn visuals_are_read_with_their_colours_and_bad_ones_kept_as_malformed() {
                 "{message}"
             );
         }
+        other => panic!("{other:?}"),
+    }
+}
+
+#[test]
+fn a_material_given_its_colour_in_one_visual_colours_the_others() {
+    let xml = r#"<robot name="r"><link name="a">
+      <inertial><mass value="1"/><inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="1"/></inertial>
+      <visual><geometry><box size="1 1 1"/></geometry><material name="blue"><color rgba="0 0 1 1"/></material></visual>
+      <visual><geometry><sphere radius="1"/></geometry><material name="blue"/></visual>
+      <visual><geometry><sphere radius="1"/></geometry><material name="other"/></visual>
+      <visual><geometry><sphere radius="1"/></geometry><material><color rgba="1 z 0 1"/></material></visual>
+    </link></robot>"#;
+    let robot = Robot::from_urdf_string(xml, &UrdfOptions::default()).unwrap();
+    let colors: Vec<_> = robot.visuals().iter().map(|v| v.color).collect();
+    assert_eq!(
+        colors[..3],
+        [Some([0.0, 0.0, 1.0, 1.0]), Some([0.0, 0.0, 1.0, 1.0]), None]
+    );
+    match &robot.visuals()[3].geometry {
+        Geometry::Malformed { message } => assert_eq!(
+            message,
+            "line 6: <color rgba=\"1 z 0 1\">: expected four numbers between 0 and 1"
+        ),
         other => panic!("{other:?}"),
     }
 }
@@ -497,6 +528,33 @@ fn packages_resolve_through_the_map_then_ros_package_path() {
     );
     let missing = plain.resolve("nope.stl", Some(Path::new("/tmp")));
     assert_eq!(missing, Err("no file at /tmp/nope.stl".to_string()));
+    assert_eq!(
+        plain.resolve(&format!("file://localhost{absolute}"), None),
+        Ok(file.clone())
+    );
+    assert_eq!(
+        plain.resolve("meshes/tool.stl", None),
+        Err(
+            "the relative path 'meshes/tool.stl' needs the URDF file's folder: load the URDF \
+             from its file, or name the mesh with package:// or an absolute path"
+                .to_string()
+        )
+    );
+    // package names and paths that leave the package
+    assert_eq!(
+        map.resolve("package:///meshes/tool.stl", Some(&pkg.join("urdf"))),
+        Err("no package name after package://".to_string())
+    );
+    for escape in [
+        "package://gripper_pkg/../gripper_pkg/meshes/tool.stl",
+        "package://gripper_pkg//etc/passwd",
+    ] {
+        let error = map.resolve(escape, None).unwrap_err();
+        assert!(
+            error.contains("leaves the package 'gripper_pkg'"),
+            "{error}"
+        );
+    }
     std::fs::remove_dir_all(root).unwrap();
 }
 
@@ -521,7 +579,23 @@ fn mesh_files_are_checked_by_their_bytes() {
         ),
         Ok(())
     );
-    assert!(check_mesh_bytes(MeshFormat::Dae, b"<?xml?><mesh/>").is_err());
+    assert_eq!(
+        check_mesh_bytes(MeshFormat::Dae, b"<?xml version=\"1.0\"?><mesh/>"),
+        Err("not a COLLADA file: no <COLLADA> element".into())
+    );
+    let truncated = b"<?xml version=\"1.0\"?><COLLADA><library_geometries><geometry>";
+    assert_eq!(
+        check_mesh_bytes(MeshFormat::Dae, truncated),
+        Err("not a COLLADA file: the XML ends inside an element".into())
+    );
+    let mismatched = b"<COLLADA><asset></COLLADA>";
+    assert!(check_mesh_bytes(MeshFormat::Dae, mismatched)
+        .unwrap_err()
+        .starts_with("not a COLLADA file: XML error at byte"));
+    assert_eq!(
+        check_mesh_bytes(MeshFormat::Dae, b"<COLLADA>\xff</COLLADA>"),
+        Err("not a COLLADA file: not UTF-8 text (byte 9)".into())
+    );
     assert_eq!(
         check_mesh_bytes(
             MeshFormat::Obj,
@@ -547,7 +621,7 @@ fn mesh_files_are_checked_by_their_bytes() {
     );
     assert_eq!(
         orbitflex::check_mesh_file(&dir.join("c.dae")),
-        Err("not a COLLADA file: no <COLLADA> element".into())
+        Err("not a COLLADA file: not UTF-8 text (byte 94)".into())
     );
     std::fs::remove_dir_all(dir).unwrap();
 }
@@ -650,4 +724,10 @@ fn along_a_trajectory_frame_poses_equal_single_calls() {
         assert_eq!(&motor[7 * frames * k..7 * frames * (k + 1)], &one[..]);
     }
     assert_ne!(link, motor);
+    // chosen rows only, in the order asked
+    let width = 7 * frames;
+    let some = rows.frame_poses_at(&arm, None, &[7, 0, 7]);
+    assert_eq!(&some[..width], &link[7 * width..8 * width]);
+    assert_eq!(&some[width..2 * width], &link[..width]);
+    assert_eq!(&some[2 * width..], &link[7 * width..8 * width]);
 }

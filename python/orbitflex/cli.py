@@ -461,10 +461,13 @@ def write_outputs(job: Job, outcome: Outcome, summary: Dict[str, Any], out: Path
                 figures = Figures(out, plan_caption(comparison))
                 plot_plan_vs_rigid(figures, comparison)
                 files += figures.files
-        if not args.no_animation:
-            files += animation(traj, out, args)
     except OSError as e:
         raise CliError("--out", f"cannot write {files[-1]}: {e.strerror or e}") from None
+    if not args.no_animation:
+        try:
+            files += animation(traj, out, args)
+        except OSError as e:
+            raise CliError("--out", f"cannot write {out / 'animation.html'}: {e.strerror or e}") from None
     return files
 
 

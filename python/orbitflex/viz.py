@@ -27,6 +27,7 @@ import base64
 import gzip
 import json
 import math
+import re
 import time
 import warnings
 from dataclasses import dataclass, field
@@ -109,9 +110,55 @@ def _material(rgba: Optional[Sequence[float]]) -> Any:
     return g.MeshPhongMaterial(color=color, opacity=opacity, transparent=opacity < 1)
 
 
-def _objects(shape: Mapping[str, Any], rgba: Optional[Sequence[float]]) -> List[Tuple[Any, np.ndarray]]:
+@dataclass
+class _MeshData:
+    """A mesh file read once: its contents for meshcat, and for a DAE the textures it names,
+    embedded as data URIs (``resources``), with a note for each one not found."""
+
+    contents: Union[bytes, str]
+    resources: Dict[str, str]
+    missing: List[str]
+
+
+_MIME = {".png": "image/png", ".jpg": "image/jpeg", ".jpeg": "image/jpeg", ".gif": "image/gif",
+         ".bmp": "image/bmp", ".webp": "image/webp", ".tga": "image/x-tga"}
+
+#: The largest texture embedded (bytes).
+MAX_TEXTURE_BYTES = 16_000_000
+
+
+def _mesh_data(path: Path, fmt: str) -> _MeshData:
+    data = path.read_bytes()
+    if fmt == "stl":
+        return _MeshData(data, {}, [])
+    text = data.decode("utf-8", "replace")
+    resources: Dict[str, str] = {}
+    missing: List[str] = []
+    if fmt == "dae":
+        # an <image>'s <init_from> names its file (COLLADA 1.4; 1.5 wraps it in <ref>); other
+        # <init_from>s name an image by id
+        pattern = r"<image\b[^>]*>(?:(?!</image>).)*?<init_from>\s*(?:<ref>)?\s*([^<]+?)\s*(?:</ref>)?\s*</init_from>"
+        for name in sorted(set(re.findall(pattern, text, flags=re.S))):
+            if name.startswith("#"):
+                continue
+            image = path.parent / name.replace("file://", "", 1)
+            mime = _MIME.get(image.suffix.lower())
+            try:
+                if mime is None or not image.is_file() or image.stat().st_size > MAX_TEXTURE_BYTES:
+                    raise OSError("not found, or not a PNG/JPEG/GIF/BMP/WebP/TGA image under 16 MB")
+                encoded = base64.b64encode(image.read_bytes()).decode("ascii")
+            except OSError as e:
+                missing.append(f"texture '{name}': {e}")
+                continue
+            resources[name] = f"data:{mime};base64,{encoded}"
+    return _MeshData(text, resources, missing)
+
+
+def _objects(
+    shape: Mapping[str, Any], rgba: Optional[Sequence[float]], meshes: Dict[Path, _MeshData]
+) -> List[Tuple[Any, np.ndarray]]:
     """The meshcat objects of one shape of :meth:`Robot.scene`, each with its matrix in the
-    frame."""
+    frame. Mesh files are read once into ``meshes``."""
     g = _meshcat().geometry
     origin = _matrix(shape["origin"])
     kind = shape["kind"]
@@ -131,23 +178,25 @@ def _objects(shape: Mapping[str, Any], rgba: Optional[Sequence[float]]) -> List[
             shift[2, 3] = end
             out.append((g.Mesh(g.Sphere(r), _material(rgba)), origin @ shift))
         return out
-    # a mesh: the file's bytes, in its own colours unless the URDF gives one
+    # a mesh: the file's bytes, in its own colours (and textures) unless the URDF gives one
     scale = np.diag([*shape["scale"], 1.0])
-    data = Path(shape["path"]).read_bytes()
-    fmt = shape["format"]
-    contents: Union[bytes, str] = data if fmt == "stl" else data.decode("utf-8", "replace")
+    path, fmt = Path(shape["path"]), shape["format"]
+    if path not in meshes:
+        meshes[path] = _mesh_data(path, fmt)
+    mesh = meshes[path]
     if rgba is None and fmt in ("dae", "obj"):
-        return [(_MeshFile(contents, fmt), origin @ scale)]
-    return [(g.Mesh(g.MeshGeometry(contents, fmt), material), origin @ scale)]
+        return [(_MeshFile(mesh.contents, fmt, mesh.resources), origin @ scale)]
+    return [(g.Mesh(g.MeshGeometry(mesh.contents, fmt), material), origin @ scale)]
 
 
 class _MeshFile:
     """A mesh file drawn with its own materials (meshcat's ``_meshfile_object``)."""
 
-    def __init__(self, contents: Union[bytes, str], fmt: str) -> None:
+    def __init__(self, contents: Union[bytes, str], fmt: str, resources: Dict[str, str]) -> None:
         import uuid
 
-        self.contents, self.format, self.uuid = contents, fmt, str(uuid.uuid1())
+        self.contents, self.format, self.resources = contents, fmt, resources
+        self.uuid = str(uuid.uuid1())
 
     def lower(self) -> Dict[str, Any]:
         return {
@@ -157,18 +206,21 @@ class _MeshFile:
                 "type": "_meshfile_object",
                 "format": self.format,
                 "data": self.contents,
-                "resources": {},
+                "resources": self.resources,
             },
         }
 
 
 def _safe(name: str) -> str:
-    return name.replace("/", "_") or "_"
+    """A scene-tree name: letters, digits, ``_``, ``.`` and ``-`` (meshcat's panel shows it)."""
+    return re.sub(r"[^A-Za-z0-9_.\-]", "_", name) or "_"
 
 
 @dataclass
 class _Scene:
-    """The set-object commands of a model's shapes, by frame path."""
+    """The set-object commands of a model's shapes, by frame path. With ``share``, a mesh drawn
+    again (same file, colour and scale) is a ``{"clone": path, "path": path, "matrix": …}``
+    item that the page copies from its first drawing instead of a second copy of the file."""
 
     names: List[str]
     commands: List[Dict[str, Any]] = field(default_factory=list)
@@ -179,6 +231,7 @@ def _scene(
     robot: "_core.Robot",
     packages: Optional[Mapping[str, Union[str, Path]]],
     ghost: bool,
+    share: bool = False,
 ) -> _Scene:
     """Set-object commands drawing every shape of ``robot`` under the path ``robot`` and, with
     ``ghost``, its stick figure under ``ghost`` in translucent blue. Bad meshes warn and get a
@@ -195,28 +248,39 @@ def _scene(
             safe += "_"
         names.append(safe)
     scene = _Scene(names=names, warnings=list(problems))
+    meshes: Dict[Path, _MeshData] = {}
+    drawn_meshes: Dict[Tuple[Any, ...], List[str]] = {}
     for root, drawn, override in roots:
         count: Dict[int, int] = {}
         for shape in drawn:
             rgba = override if override is not None else shape["color"]
+            link = robot.frame_names[shape["frame"]]
             try:
-                objects = _objects(shape, rgba)
+                objects = _objects(shape, rgba, meshes)
             except OSError as e:  # the file went away or cannot be read since it was checked
-                if root == roots[0][0]:
-                    scene.warnings.append(
-                        f"link '{robot.frame_names[shape['frame']]}', mesh '{shape.get('path')}': {e}"
-                    )
+                scene.warnings.append(f"link '{link}', mesh '{shape.get('path')}': {e}")
                 continue
             for obj, matrix in objects:
                 k = count.get(shape["frame"], 0)
                 count[shape["frame"]] = k + 1
-                path = mc.commands.Path((root, names[shape["frame"]], f"shape{k}"))
+                parts = [root, names[shape["frame"]], f"shape{k}"]
+                column_major = [float(v) for v in matrix.T.flatten()]
+                key = None
+                if shape["kind"] == "mesh":
+                    key = (shape["path"], tuple(rgba or ()), tuple(shape["scale"]))
+                    if share and key in drawn_meshes:
+                        scene.commands.append({"clone": drawn_meshes[key], "path": parts, "matrix": column_major})
+                        continue
+                    drawn_meshes[key] = parts
+                path = mc.commands.Path(tuple(parts))
                 if isinstance(obj, _MeshFile):
                     lowered = {"type": "set_object", "object": obj.lower(), "path": path.lower()}
                 else:
                     lowered = mc.commands.SetObject(obj, path=path).lower()
-                lowered["object"]["object"]["matrix"] = [float(v) for v in matrix.T.flatten()]
+                lowered["object"]["object"]["matrix"] = column_major
                 scene.commands.append(lowered)
+    for path, mesh in meshes.items():
+        scene.warnings += [f"mesh '{path}': {note}; drawn without it" for note in mesh.missing]
     for message in scene.warnings:
         warnings.warn(message, VisualWarning, stacklevel=3)
     return scene
@@ -270,7 +334,11 @@ def frame_rows(t: np.ndarray, fps: float) -> np.ndarray:
         return np.zeros(0, dtype=np.int64)
     if not (isinstance(fps, (int, float)) and math.isfinite(fps) and fps > 0):
         raise ValueError(f"fps: expected a positive number of frames per second, given {fps!r}")
-    frames = np.arange(t[0], t[-1], 1.0 / fps)
+    span = float(t[-1] - t[0])
+    if not span * fps < t.size:  # as many frames as rows, or more: every row
+        return np.arange(t.size)
+    frames = t[0] + np.arange(int(span * fps) + 1) / fps
+    frames = frames[frames < t[-1]]
     rows = np.searchsorted(t, frames - 1e-9 * max(1.0, abs(t[-1])))
     rows = np.unique(np.concatenate([[0], rows, [t.size - 1]]))
     return rows[rows < t.size]
@@ -306,10 +374,10 @@ def animation_html(
         scale = float(ghost)
         if not (math.isfinite(scale) and scale > 0):
             raise ValueError(f"ghost: expected True, False or a positive factor, given {ghost!r}")
-    scene = _scene(robot, packages, ghost=scale is not None)
-    poses = traj.frame_poses()[rows]
-    ghost_poses = traj.frame_poses(motor_side=scale)[rows] if scale is not None else None
-    ee = np.asarray(traj.ee_pose)[rows, :3]
+    scene = _scene(robot, packages, ghost=scale is not None, share=True)
+    poses = traj.frame_poses(rows=rows.tolist())
+    ghost_poses = traj.frame_poses(motor_side=scale, rows=rows.tolist()) if scale is not None else None
+    ee = poses[:, robot.frame_names.index(robot.ee_link), :3]
     t = np.asarray(traj.t)[rows]
     # the region the run covers, for the camera and the axes
     points = poses[:, :, :3].reshape(-1, 3)
@@ -332,12 +400,17 @@ def animation_html(
         "count": len(scene.names),
         "center": [float(v) for v in 0.5 * (lo + hi)],
         "extent": extent,
-        "commands": [_packed(c) for c in commands],
+        "commands": [c if "clone" in c else _packed(c) for c in commands],
     }
     viewer_js = (Path(mc.__file__).parent / "viewer" / "dist" / "main.min.js").read_text("utf-8")
-    page = _PAGE.replace("__TITLE__", _html_escape(heading))
-    page = page.replace("__VIEWER__", viewer_js.replace("</script", "<\\/script"))
-    return page.replace("__DATA__", json.dumps(info).replace("</", "<\\/"))
+    # each placeholder filled once, in one pass, so no value is read as another placeholder;
+    # in the script, <, > and & are JSON escapes, so no text can close or comment it out
+    fills = {
+        "TITLE": _html_escape(heading),
+        "VIEWER": viewer_js.replace("</script", "<\\/script"),
+        "DATA": json.dumps(info).replace("<", "\\u003c").replace(">", "\\u003e").replace("&", "\\u0026"),
+    }
+    return re.sub(r"__(TITLE|VIEWER|DATA)__", lambda m: fills[m.group(1)], _PAGE)
 
 
 def _g(value: float) -> str:
@@ -345,7 +418,8 @@ def _g(value: float) -> str:
 
 
 def _html_escape(text: str) -> str:
-    return text.replace("&", "&amp;").replace("<", "&lt;").replace(">", "&gt;")
+    return (text.replace("&", "&amp;").replace("<", "&lt;").replace(">", "&gt;")
+            .replace('"', "&quot;").replace("'", "&#39;"))
 
 
 def write_animation(
@@ -516,9 +590,11 @@ def show(
     ghost: bool = False,
     speed: float = 1.0,
     zmq_url: Optional[str] = None,
+    wait: bool = True,
 ) -> Viewer:
     """Opens a live viewer on loopback and returns it; prints its URL. With ``traj``, shows its
-    first row and plays it (``speed`` × real time). ``robot`` defaults to ``traj``'s."""
+    first row and plays it (``speed`` × real time), after a browser has opened the page when
+    ``wait`` (the default). ``robot`` defaults to ``traj``'s."""
     if robot is None:
         if traj is None:
             raise ValueError("show: give a trajectory, a robot, or both")
@@ -530,9 +606,11 @@ def show(
         ghost=ghost,
         ghost_scale=ghost_scale(traj) if (ghost and traj is not None) else 1.0,
     )
-    print(f"orbitflex viewer: open {viewer.url}")
+    print(f"orbitflex viewer: open {viewer.url}", flush=True)
     if traj is not None:
         viewer.display(np.asarray(traj.x)[0])
+        if wait:
+            viewer._vis.wait()  # until a browser is connected
         viewer.play(traj, speed=speed)
     return viewer
 
@@ -557,7 +635,6 @@ _PAGE = r"""<!DOCTYPE html>
     text-shadow: 0 0 4px #000; pointer-events: none; }
   #legend { position: absolute; left: 12px; top: 32px; font-size: 12px; color: #c8c8d0;
     text-shadow: 0 0 4px #000; pointer-events: none; line-height: 1.5; }
-  .dg.ac { display: none; }
 </style>
 </head>
 <body>
@@ -596,7 +673,24 @@ async function main() {
   viewer.set_property(["Axes"], "visible", false);
   viewer.set_property(["Background"], "top_color", [0.02, 0.03, 0.07]);
   viewer.set_property(["Background"], "bottom_color", [0.16, 0.18, 0.26]);
-  for (const c of DATA.commands) viewer.handle_command_bytearray(await gunzip(c));
+  // one shape that three.js cannot read leaves a gap, not a blank page
+  const failures = [];
+  for (const c of DATA.commands) {
+    try {
+      if (typeof c === "string") {
+        viewer.handle_command_bytearray(await gunzip(c));
+      } else {  // a mesh drawn again: a copy of its first drawing, sharing the geometry
+        const copy = viewer.scene_tree.find(c.clone.concat(["<object>"])).object.clone();
+        copy.matrix.fromArray(c.matrix);
+        copy.matrix.decompose(copy.position, copy.quaternion, copy.scale);
+        viewer.scene_tree.find(c.path.concat(["<object>"])).set_object(copy);
+      }
+    } catch (e) {
+      failures.push(String(e));
+      console.error("orbitflex: a shape could not be drawn:", e);
+    }
+  }
+  view.failures = failures;
 
   const times = floats(DATA.t), poses = floats(DATA.poses);
   const ghost = DATA.ghost ? floats(DATA.ghost) : null;
@@ -675,6 +769,7 @@ async function main() {
   }
   const legend = ["<span style='color:#e0409a'>&#9644;</span> end-effector trail",
     "inertial axes: <span style='color:#f33'>x</span> <span style='color:#3c3'>y</span> <span style='color:#48f'>z</span>"];
+  if (failures.length) legend.push("&#9888; " + failures.length + " shape(s) could not be drawn (see the browser console)");
   if (ghost) legend.push("<span style='color:#59bfff'>&#9632;</span> motor side (&theta;, stick figure), deflection &times; " + DATA.ghost_scale);
   document.getElementById("legend").innerHTML = legend.join("<br>");
 

@@ -200,13 +200,25 @@ impl<'a> StateRows<'a> {
     /// `Some(s)` poses them at `q + s (θ − q)`: the motor side for `s = 1`, the deflection
     /// exaggerated `s` times beyond it. One workspace for all rows.
     pub fn frame_poses(&self, arm: &FlexibleArm, motor_side: Option<f64>) -> Vec<f64> {
+        let rows: Vec<usize> = (0..self.len()).collect();
+        self.frame_poses_at(arm, motor_side, &rows)
+    }
+
+    /// [`frame_poses`](Self::frame_poses) at the given rows only, in their order,
+    /// `rows.len() × frames × 7` (a viewer's decimated frames). Panics on a row out of range.
+    pub fn frame_poses_at(
+        &self,
+        arm: &FlexibleArm,
+        motor_side: Option<f64>,
+        rows: &[usize],
+    ) -> Vec<f64> {
         let robot = arm.robot();
         let width = 7 * robot.frames().len();
-        let mut out = vec![0.0; self.len() * width];
+        let mut out = vec![0.0; rows.len() * width];
         let mut data = crate::algorithms::Data::new(robot);
         let mut angles = vec![0.0; self.layout.n];
-        for (x, out) in self.iter().zip(out.chunks_exact_mut(width)) {
-            let s = self.layout.split(x);
+        for (&row, out) in rows.iter().zip(out.chunks_exact_mut(width)) {
+            let s = self.layout.split(self.row(row));
             let q = match motor_side {
                 None => s.q,
                 Some(scale) => {

@@ -135,6 +135,10 @@ pub struct Scene {
 /// The largest mesh file read (bytes): 64 MB.
 pub const MAX_MESH_BYTES: u64 = 64_000_000;
 
+/// The most mesh bytes (distinct files) one scene reads: 256 MB; meshes past it are drawn as
+/// stand-ins, with a warning.
+pub const MAX_SCENE_MESH_BYTES: u64 = 256_000_000;
+
 /// Where `package://` mesh paths are looked up, in order: an explicit map from package name to
 /// its directory, then each directory of `ROS_PACKAGE_PATH`, then the directories above the
 /// URDF file (one named as the package, or holding it).
@@ -153,6 +157,19 @@ impl MeshSearch {
         let found = |p: PathBuf| p.is_file().then_some(p);
         if let Some(rest) = filename.strip_prefix("package://") {
             let (package, inner) = rest.split_once('/').unwrap_or((rest, ""));
+            if package.is_empty() {
+                return Err("no package name after package://".into());
+            }
+            let inside = Path::new(inner);
+            if inside.is_absolute()
+                || inside
+                    .components()
+                    .any(|c| matches!(c, std::path::Component::ParentDir))
+            {
+                return Err(format!(
+                    "the path '{inner}' leaves the package '{package}' (absolute, or with '..')"
+                ));
+            }
             // the package's candidate directories, in order
             let mut dirs: Vec<PathBuf> = Vec::new();
             if let Some(dir) = self.packages.get(package) {
@@ -161,12 +178,12 @@ impl MeshSearch {
             let env = self
                 .ros_package_path
                 .clone()
-                .or_else(|| std::env::var("ROS_PACKAGE_PATH").ok())
+                .map(std::ffi::OsString::from)
+                .or_else(|| std::env::var_os("ROS_PACKAGE_PATH"))
                 .unwrap_or_default();
-            for entry in env.split(':').filter(|e| !e.is_empty()) {
-                let entry = Path::new(entry);
+            for entry in std::env::split_paths(&env).filter(|e| !e.as_os_str().is_empty()) {
                 if entry.file_name().is_some_and(|n| n == package) {
-                    dirs.push(entry.to_path_buf());
+                    dirs.push(entry.clone());
                 }
                 dirs.push(entry.join(package));
             }
@@ -176,13 +193,13 @@ impl MeshSearch {
                 }
                 dirs.push(dir.join(package));
             }
-            if let Some(file) = dirs.iter().find_map(|d| found(d.join(inner))) {
+            if let Some(file) = dirs.iter().find_map(|d| found(d.join(inside))) {
                 return Ok(file);
             }
             if let Some(dir) = dirs.iter().find(|d| d.is_dir()) {
                 return Err(format!(
                     "no file at {} (package '{package}' is {})",
-                    dir.join(inner).display(),
+                    dir.join(inside).display(),
                     dir.display()
                 ));
             }
@@ -191,11 +208,21 @@ impl MeshSearch {
                  parent to ROS_PACKAGE_PATH, or keep the URDF inside the package"
             ));
         }
-        let path = filename.strip_prefix("file://").unwrap_or(filename);
+        // file:///abs and file://localhost/abs name the absolute path
+        let path = match filename.strip_prefix("file://") {
+            Some(rest) => rest.strip_prefix("localhost").unwrap_or(rest),
+            None => filename,
+        };
         let path = Path::new(path);
         let path = match urdf_dir {
-            Some(dir) if path.is_relative() => dir.join(path),
-            _ => path.to_path_buf(),
+            _ if path.is_absolute() => path.to_path_buf(),
+            Some(dir) => dir.join(path),
+            None => {
+                return Err(format!(
+                    "the relative path '{filename}' needs the URDF file's folder: load the URDF \
+                     from its file, or name the mesh with package:// or an absolute path"
+                ))
+            }
         };
         found(path.clone()).ok_or_else(|| format!("no file at {}", path.display()))
     }
@@ -252,13 +279,7 @@ pub fn check_mesh_bytes(format: MeshFormat, bytes: &[u8]) -> Result<(), String> 
                 ))
             }
         }
-        MeshFormat::Dae => {
-            if text().contains("<COLLADA") {
-                Ok(())
-            } else {
-                Err("not a COLLADA file: no <COLLADA> element".into())
-            }
-        }
+        MeshFormat::Dae => check_collada(bytes),
         MeshFormat::Obj => {
             let text = String::from_utf8_lossy(bytes);
             let has = |tag: &str| {
@@ -271,6 +292,48 @@ pub fn check_mesh_bytes(format: MeshFormat, bytes: &[u8]) -> Result<(), String> 
                 Err("not an OBJ file: no vertex ('v') and face ('f') lines".into())
             }
         }
+    }
+}
+
+/// A COLLADA document: well-formed XML, UTF-8, whose root element is `<COLLADA>`.
+fn check_collada(bytes: &[u8]) -> Result<(), String> {
+    let text = std::str::from_utf8(bytes).map_err(|e| {
+        format!(
+            "not a COLLADA file: not UTF-8 text (byte {})",
+            e.valid_up_to()
+        )
+    })?;
+    let mut reader = quick_xml::Reader::from_str(text);
+    let mut depth = 0usize;
+    let mut root = None;
+    loop {
+        match reader.read_event() {
+            Ok(quick_xml::events::Event::Start(e)) => {
+                if depth == 0 && root.is_none() {
+                    root = Some(e.local_name().as_ref().to_vec());
+                }
+                depth += 1;
+            }
+            Ok(quick_xml::events::Event::Empty(e)) if depth == 0 && root.is_none() => {
+                root = Some(e.local_name().as_ref().to_vec());
+            }
+            Ok(quick_xml::events::Event::End(_)) => depth = depth.saturating_sub(1),
+            Ok(quick_xml::events::Event::Eof) => break,
+            Ok(_) => {}
+            Err(e) => {
+                return Err(format!(
+                    "not a COLLADA file: XML error at byte {}: {e}",
+                    reader.error_position()
+                ))
+            }
+        }
+    }
+    if depth != 0 {
+        return Err("not a COLLADA file: the XML ends inside an element".into());
+    }
+    match root.as_deref() {
+        Some(b"COLLADA") => Ok(()),
+        _ => Err("not a COLLADA file: no <COLLADA> element".into()),
     }
 }
 
@@ -317,15 +380,19 @@ impl Robot {
     /// Never fails: a viewer shows what it can.
     pub fn scene(&self, search: &MeshSearch) -> Scene {
         let mut scene = Scene::default();
-        let mut has_visual = vec![false; self.link_frames.len()];
-        let mut stand_in = vec![false; self.link_frames.len()];
-        for (k, visual) in self.visuals.iter().enumerate() {
+        let frames = self.link_frames.len();
+        let children = self.children();
+        let mut has_visual = vec![false; frames];
+        let mut stand_in = vec![false; frames];
+        let mut numbers = vec![0usize; frames];
+        // each file found and checked once; the distinct files' bytes within the budget
+        let mut meshes: BTreeMap<&str, Result<(PathBuf, MeshFormat), String>> = BTreeMap::new();
+        let mut total = 0u64;
+        for visual in &self.visuals {
             let link = &self.link_frames[visual.frame].name;
             has_visual[visual.frame] = true;
-            let number = 1 + self.visuals[..k]
-                .iter()
-                .filter(|v| v.frame == visual.frame)
-                .count();
+            numbers[visual.frame] += 1;
+            let number = numbers[visual.frame];
             let mut shape = Shape {
                 frame: visual.frame,
                 origin: visual.origin,
@@ -343,11 +410,21 @@ impl Robot {
                     continue;
                 }
                 Geometry::Mesh { filename, .. } => {
-                    let found = search
-                        .resolve(filename, self.urdf_dir())
-                        .and_then(|path| check_mesh_file(&path).map(|format| (path, format)));
+                    let found = meshes.entry(filename).or_insert_with(|| {
+                        let mesh = search
+                            .resolve(filename, self.urdf_dir())
+                            .and_then(|path| check_mesh_file(&path).map(|format| (path, format)))?;
+                        let size = std::fs::metadata(&mesh.0).map_or(0, |m| m.len());
+                        if total + size > MAX_SCENE_MESH_BYTES {
+                            return Err(format!(
+                                "the meshes would pass {MAX_SCENE_MESH_BYTES} bytes in all"
+                            ));
+                        }
+                        total += size;
+                        Ok(mesh)
+                    });
                     match found {
-                        Ok(mesh) => shape.mesh = Some(mesh),
+                        Ok(mesh) => shape.mesh = Some(mesh.clone()),
                         Err(message) => {
                             scene.warnings.push(format!(
                                 "link '{link}', mesh '{filename}': {message}; drawn as a \
@@ -362,14 +439,14 @@ impl Robot {
             }
             scene.shapes.push(shape);
         }
-        for (frame, _) in self.link_frames.iter().enumerate() {
+        for frame in 0..frames {
             if !has_visual[frame] || stand_in[frame] {
                 let color = if stand_in[frame] {
                     STAND_IN_ORANGE
                 } else {
                     LINK_GREY
                 };
-                for (origin, geometry) in self.default_shapes(frame) {
+                for (origin, geometry) in self.default_shapes(&children[frame]) {
                     scene.shapes.push(Shape {
                         frame,
                         origin,
@@ -385,13 +462,25 @@ impl Robot {
         scene
     }
 
+    /// The child frames of each frame.
+    fn children(&self) -> Vec<Vec<usize>> {
+        let mut children = vec![Vec::new(); self.link_frames.len()];
+        for (k, frame) in self.link_frames.iter().enumerate() {
+            if let Some(parent) = frame.parent {
+                children[parent].push(k);
+            }
+        }
+        children
+    }
+
     /// The model as a stick figure: for every frame, a capsule from its origin to each child
     /// link's origin (a sphere for a leaf), whatever its visuals. Viewers draw the motor-side
     /// "ghost" arm with it.
     pub fn skeleton(&self) -> Vec<Shape> {
+        let children = self.children();
         (0..self.link_frames.len())
             .flat_map(|frame| {
-                self.default_shapes(frame)
+                self.default_shapes(&children[frame])
                     .into_iter()
                     .map(move |(origin, geometry)| Shape {
                         frame,
@@ -405,13 +494,13 @@ impl Robot {
             .collect()
     }
 
-    /// A capsule from frame `frame`'s origin to each child link's origin, or a sphere for a
-    /// leaf (or children all at the origin). The radius is a tenth of the segment, between 1
-    /// and 6 cm.
-    fn default_shapes(&self, frame: usize) -> Vec<(Transform, Geometry)> {
+    /// A capsule from a frame's origin to the origin of each of its `children`, or a sphere
+    /// for a leaf (or children all at the origin). The radius is a tenth of the segment,
+    /// between 1 and 6 cm.
+    fn default_shapes(&self, children: &[usize]) -> Vec<(Transform, Geometry)> {
         let mut shapes = Vec::new();
-        for child in self.link_frames.iter().filter(|f| f.parent == Some(frame)) {
-            let end = child.joint_origin.translation;
+        for &child in children {
+            let end = self.link_frames[child].joint_origin.translation;
             let length = end.norm();
             if length < 1e-6 {
                 continue;

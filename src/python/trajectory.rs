@@ -248,21 +248,38 @@ impl PyTrajectory {
     ///
     /// ``motor_side=None`` poses the links at ``q``; ``motor_side=s`` poses them at
     /// ``q + s (θ − q)``: the motor side (the "ghost" arm) for ``s = 1``, the deflection drawn
-    /// ``s`` times larger beyond it.
-    #[pyo3(signature = (motor_side=None))]
+    /// ``s`` times larger beyond it. ``rows`` (a sequence of row indices) computes only those
+    /// rows, in that order: shape ``(len(rows), len(frame_names), 7)``.
+    #[pyo3(signature = (motor_side=None, rows=None))]
     fn frame_poses<'py>(
         &self,
         py: Python<'py>,
         motor_side: Option<f64>,
+        rows: Option<Vec<i64>>,
     ) -> PyResult<Bound<'py, PyAny>> {
         if let Some(s) = motor_side {
             crate::args::check_finite("motor_side", &[s])?;
         }
         let frames = self.arm.get().arm.robot().frames().len();
-        let values = self.along(py, |arm, rows| rows.frame_poses(arm, motor_side))?;
-        let rows = self.rows(py);
+        let len = self.rows(py);
+        let rows: Vec<usize> = match rows {
+            None => (0..len).collect(),
+            Some(rows) => rows
+                .iter()
+                .enumerate()
+                .map(|(k, &r)| {
+                    usize::try_from(r).ok().filter(|&r| r < len).ok_or_else(|| {
+                        ModelError::new_err(format!(
+                            "rows[{k}]: expected a row index in 0..{len}, given {r}"
+                        ))
+                    })
+                })
+                .collect::<PyResult<_>>()?,
+        };
+        let count = rows.len();
+        let values = self.along(py, |arm, all| all.frame_poses_at(arm, motor_side, &rows))?;
         Ok(numpy::PyArray1::from_vec(py, values)
-            .reshape([rows, frames, 7])?
+            .reshape([count, frames, 7])?
             .into_any())
     }
 

@@ -652,6 +652,14 @@ def test_memory_estimate_counts_tables_record_and_diagnostics():
     assert free is None or free > 0
 
 
+def test_animation_write_error_names_the_file(tmp_path):
+    out = tmp_path / "out"
+    (out / "animation.html").mkdir(parents=True)
+    result = run_cli("demo", "--duration", "0.05", "--out", out, "--quiet", "--no-plots", cwd=tmp_path)
+    assert result.returncode == 2, result.stderr[-1500:]
+    assert f"--out: cannot write {out / 'animation.html'}: Is a directory" in result.stderr
+
+
 def test_diverged_run_summary_describes_the_finite_part(tmp_path):
     out = tmp_path / "div"
     result = run_cli("demo", "--duration", "2", "--dt", "0.03", "--out", out, "--quiet", cwd=tmp_path)

@@ -3,6 +3,7 @@ animation rendered in headless Chromium, and the live viewer on loopback."""
 
 from __future__ import annotations
 
+import base64
 import os
 import pickle
 import re
@@ -90,6 +91,17 @@ def test_frame_poses_errors_name_the_argument():
         robot.frame_poses([[0, 0, 0, 0, 0, 0, 1], [0] * 7], [0.0] * 7)
     with pytest.raises(orbitflex.ModelError, match=r"out: expected shape \(9, 7\), given shape \(9, 6\)"):
         robot.frame_poses([0, 0, 0, 0, 0, 0, 1], [0.0] * 7, out=np.zeros((9, 6)))
+
+
+def test_trajectory_frame_poses_at_chosen_rows():
+    traj = short_run(steps=30)
+    all_rows = traj.frame_poses(motor_side=2.0)
+    np.testing.assert_array_equal(traj.frame_poses(motor_side=2.0, rows=[30, 0, 5]), all_rows[[30, 0, 5]])
+    assert traj.frame_poses(rows=[]).shape == (0, 9, 7)
+    with pytest.raises(orbitflex.ModelError, match=r"rows\[1\]: expected a row index in 0\.\.31, given 31"):
+        traj.frame_poses(rows=[0, 31])
+    with pytest.raises(orbitflex.ModelError, match=r"rows\[0\]: expected a row index in 0\.\.31, given -1"):
+        traj.frame_poses(rows=[-1])
 
 
 def test_trajectory_frame_poses_along_the_rows():
@@ -237,6 +249,9 @@ def test_ghost_scale_and_frame_rows():
     assert len(rows) == 31
     with pytest.raises(ValueError, match="fps"):
         viz.frame_rows(t, 0)
+    # more frames than rows: every row, without building the frame times
+    np.testing.assert_array_equal(viz.frame_rows(t, 1e12), np.arange(t.size))
+    np.testing.assert_array_equal(viz.frame_rows(np.arange(0, 1e6), 1e7), np.arange(10**6))
 
 
 def test_page_is_self_contained(tmp_path):
@@ -348,10 +363,105 @@ def test_live_viewer_serves_on_loopback_and_updates(tmp_path):
         assert sum(rows) == 31
         shot = _pixels(_render(viewer.url, tmp_path, "live"))
         assert shot[60:520].std() > 10
-        # the server holds the scene: the robot's shapes and the ghost's
+        # the server holds the scene: every shape of the robot and the ghost, and the axes
         scene = viewer._vis.static_html()
-        assert "shoulder_roll_link" in scene or len(scene) > 100_000
+        drawn = len(viz._scene(robot, None, ghost=True).commands)
+        assert scene.count("handle_command") >= drawn + 1
         with pytest.raises(ValueError, match=r"x: expected a state of length 41"):
             viewer.display(np.zeros(5))
     finally:
         viewer.close()
+
+
+# ------------------------------------------------------------------------------- hostile models
+
+
+HOSTILE = """<robot name="__DATA__ &lt;/title&gt;&lt;script&gt;document.title=1337&lt;/script&gt;">
+  <link name="&lt;img src=x onerror=document.title=1337&gt;"><inertial><mass value="10"/><inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="1"/></inertial>
+    <visual><geometry><box size="1 1 1"/></geometry></visual></link>
+  <joint name="j" type="revolute"><parent link="&lt;img src=x onerror=document.title=1337&gt;"/><child link="&lt;!--&lt;script&gt;"/><origin xyz="0.5 0 0"/><axis xyz="0 0 1"/></joint>
+  <link name="&lt;!--&lt;script&gt;"><inertial><origin xyz="0.5 0 0"/><mass value="2"/><inertia ixx="0.1" ixy="0" ixz="0" iyy="0.1" iyz="0" izz="0.1"/></inertial></link>
+  <joint name="k" type="fixed"><parent link="&lt;!--&lt;script&gt;"/><child link="&lt;/script&gt;__TITLE__"/><origin xyz="1 0 0"/></joint>
+  <link name="&lt;/script&gt;__TITLE__"/>
+</robot>"""
+
+
+def _hostile_run():
+    robot = orbitflex.Robot.from_urdf_string(HOSTILE)
+    assert robot.frame_names == ["<img src=x onerror=document.title=1337>", "<!--<script>", "</script>__TITLE__"]
+    arm = orbitflex.FlexibleArm(robot, orbitflex.FlexibleJoints(100.0, 0.01, 0.1))
+    return arm.simulate(arm.state(theta=[0.3]), 0.01, 50)
+
+
+def test_names_cannot_inject_into_the_page(tmp_path):
+    page = _hostile_run().animate(tmp_path / "h.html")
+    text = page.read_text()
+    script = text[text.rindex("<script>"):]
+    assert "<img" not in script and "<!--" not in script and script.count("</script>") == 1
+    title = text[text.index("<title>") + 7 : text.index("</title>")]
+    assert title == "__DATA__ &lt;/title&gt;&lt;script&gt;document.title=1337&lt;/script&gt;: 1 joints, dt = 0.01 s, 51 rows"
+
+
+@needs_chromium
+def test_hostile_names_render_as_text(tmp_path):
+    page = _hostile_run().animate(tmp_path / "h.html")
+    dom = _dom(page.resolve().as_uri())
+    head = dom.split("</title>")[0]
+    assert "1337" not in head.split("<title>")[1].split("document.title=1337")[0]
+    assert head.endswith("\u2014 ready") or head.endswith("— ready"), head[-200:]
+    assert "t = 0.00 s / 0.50 s" in dom
+
+
+def _collada_robot(tmp_path: Path, dae: str, texture: bool = False) -> "orbitflex.Robot":
+    (tmp_path / "m.dae").write_text(dae)
+    visuals = "".join(f'<visual><origin xyz="{k} 0 0"/><geometry><mesh filename="m.dae"/></geometry></visual>' for k in range(3))
+    xml = f"""<robot name="dae"><link name="a"><inertial><mass value="10"/><inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="1"/></inertial>{visuals}</link>
+      <joint name="j" type="revolute"><parent link="a"/><child link="b"/><origin xyz="0.5 0 0"/><axis xyz="0 0 1"/></joint>
+      <link name="b"><inertial><origin xyz="0.5 0 0"/><mass value="2"/><inertia ixx="0.1" ixy="0" ixz="0" iyy="0.1" iyz="0" izz="0.1"/></inertial></link></robot>"""
+    (tmp_path / "dae.urdf").write_text(xml)
+    return orbitflex.Robot.from_urdf(tmp_path / "dae.urdf")
+
+
+# well-formed COLLADA that three.js cannot turn into a mesh (a triangle list indexing nothing)
+BROKEN_DAE = """<?xml version="1.0"?><COLLADA xmlns="http://www.collada.org/2005/11/COLLADASchema" version="1.4.1">
+<library_geometries><geometry id="g"><mesh><triangles count="1"><input semantic="VERTEX" source="#nothing" offset="0"/><p>0 1 2</p></triangles></mesh></geometry></library_geometries>
+<library_visual_scenes><visual_scene id="s"><node id="n"><instance_geometry url="#g"/></node></visual_scene></library_visual_scenes>
+<scene><instance_visual_scene url="#s"/></scene></COLLADA>"""
+
+
+@needs_chromium
+def test_a_mesh_three_js_cannot_read_leaves_a_gap_not_a_blank_page(tmp_path):
+    robot = _collada_robot(tmp_path, BROKEN_DAE)
+    arm = orbitflex.FlexibleArm(robot, orbitflex.FlexibleJoints(100.0, 0.01, 0.1))
+    page = arm.simulate(arm.state(theta=[0.3]), 0.01, 50).animate(tmp_path / "d.html")
+    dom = _dom(page.resolve().as_uri())
+    assert "ready" in dom.split("</title>")[0]
+    assert "t = 0.00 s / 0.50 s" in dom
+
+
+def test_a_mesh_drawn_several_times_is_embedded_once(tmp_path):
+    robot = _collada_robot(tmp_path, BROKEN_DAE)
+    scene = viz._scene(robot, None, ghost=False, share=True)
+    clones = [c for c in scene.commands if "clone" in c]
+    assert [c["path"] for c in clones] == [["robot", "a", "shape1"], ["robot", "a", "shape2"]]
+    assert all(c["clone"] == ["robot", "a", "shape0"] for c in clones)
+    assert clones[1]["matrix"][12] == 2.0  # column-major: the translation x of the third visual
+    # the live viewer (share=False) sends every copy
+    assert not any("clone" in c for c in viz._scene(robot, None, ghost=False).commands)
+
+
+def test_dae_textures_are_embedded_or_reported(tmp_path):
+    textured = BROKEN_DAE.replace(
+        "<library_geometries>",
+        "<library_images><image id='i1'><init_from>skin.png</init_from></image>"
+        "<image id='i2'><init_from>gone.jpg</init_from></image></library_images><library_geometries>",
+    )
+    png = base64.b64decode("iVBORw0KGgoAAAANSUhEUgAAAAEAAAABCAYAAAAfFcSJAAAADUlEQVR42mNk+M9QDwADhgGAWjR9awAAAABJRU5ErkJggg==")
+    (tmp_path / "skin.png").write_bytes(png)
+    robot = _collada_robot(tmp_path, textured)
+    with pytest.warns(viz.VisualWarning) as record:
+        scene = viz._scene(robot, None, ghost=False, share=True)
+    notes = [str(w.message) for w in record if issubclass(w.category, viz.VisualWarning)]
+    assert notes == [f"mesh '{tmp_path / 'm.dae'}': texture 'gone.jpg': not found, or not a PNG/JPEG/GIF/BMP/WebP/TGA image under 16 MB; drawn without it"]
+    resources = scene.commands[0]["object"]["object"]["resources"]
+    assert resources == {"skin.png": "data:image/png;base64," + base64.b64encode(png).decode()}

@@ -551,7 +551,7 @@ impl<'a> Reader<'a> {
         let text = self.required(e, "color", "rgba")?;
         let values: Vec<f64> = text
             .split_whitespace()
-            .filter_map(|v| v.parse().ok())
+            .map(|v| v.parse().unwrap_or(f64::NAN))
             .collect();
         match <[f64; 4]>::try_from(values) {
             Ok(rgba) if rgba.iter().all(|v| (0.0..=1.0).contains(v)) => Ok(rgba),
