@@ -356,6 +356,7 @@ fn malformed_visuals_never_fail_the_model() {
         r#"<visual><geometry><box size="1 nan 1"/></geometry></visual>"#,
         r#"<visual><geometry><cylinder radius="-1" length="1"/></geometry></visual>"#,
         r#"<visual><geometry><sphere/></geometry></visual>"#,
+        r#"<visual><geometry><sphere radius="0"/></geometry></visual>"#,
         r#"<visual><geometry><mesh/></geometry></visual>"#,
         r#"<visual><geometry><mesh filename="a.stl" scale="0 1 1"/></geometry></visual>"#,
         r#"<visual><geometry><box size="1 1 1"/><sphere radius="1"/></geometry></visual>"#,
@@ -426,6 +427,16 @@ fn the_scene_finds_meshes_through_the_package_above_the_urdf() {
         .collect();
     assert!((lengths[0] - 0.6).abs() < 1e-15);
     assert!((lengths[1] - (0.09f64 + 0.01).sqrt()).abs() < 1e-15);
+    // a tenth of the segment, kept within 1 and 6 cm
+    let radii: Vec<f64> = l2
+        .iter()
+        .map(|s| match s.geometry {
+            Geometry::Capsule { radius, .. } => radius,
+            _ => unreachable!(),
+        })
+        .collect();
+    assert_eq!(radii[0], 0.06);
+    assert!((radii[1] - 0.1 * (0.09f64 + 0.01).sqrt()).abs() < 1e-16);
     // the capsule's axis points at the child's joint, from half-way
     let to_tool = &l2[0].origin;
     assert!((to_tool.translation - Vec3::new(0.3, 0.0, 0.0)).norm() < 1e-15);
@@ -596,6 +607,27 @@ fn mesh_files_are_checked_by_their_bytes() {
         check_mesh_bytes(MeshFormat::Dae, b"<COLLADA>\xff</COLLADA>"),
         Err("not a COLLADA file: not UTF-8 text (byte 9)".into())
     );
+    // the root element decides, whether empty or not
+    let no_collada = Err("not a COLLADA file: no <COLLADA> element".to_string());
+    assert_eq!(check_mesh_bytes(MeshFormat::Dae, b"<COLLADA/>"), Ok(()));
+    assert_eq!(
+        check_mesh_bytes(MeshFormat::Dae, b"<a><COLLADA/></a>"),
+        no_collada
+    );
+    assert_eq!(
+        check_mesh_bytes(MeshFormat::Dae, b"<a><COLLADA></COLLADA></a>"),
+        no_collada
+    );
+    assert_eq!(
+        check_mesh_bytes(MeshFormat::Dae, b"<a/><COLLADA/>"),
+        no_collada
+    );
+    assert_eq!(
+        check_mesh_bytes(MeshFormat::Dae, b"<a></a><COLLADA></COLLADA>"),
+        no_collada
+    );
+    let extensions = [MeshFormat::Stl, MeshFormat::Dae, MeshFormat::Obj].map(|f| f.extension());
+    assert_eq!(extensions, ["stl", "dae", "obj"]);
     assert_eq!(
         check_mesh_bytes(
             MeshFormat::Obj,
@@ -623,6 +655,18 @@ fn mesh_files_are_checked_by_their_bytes() {
         orbitflex::check_mesh_file(&dir.join("c.dae")),
         Err("not a COLLADA file: not UTF-8 text (byte 94)".into())
     );
+    // at most MAX_MESH_BYTES are read: one byte more is refused, the limit itself is checked
+    let big = dir.join("big.stl");
+    let file = std::fs::File::create(&big).unwrap();
+    file.set_len(orbitflex::MAX_MESH_BYTES + 1).unwrap();
+    assert_eq!(
+        orbitflex::check_mesh_file(&big),
+        Err("more than the 64000000 bytes read".into())
+    );
+    file.set_len(orbitflex::MAX_MESH_BYTES).unwrap();
+    assert!(orbitflex::check_mesh_file(&big)
+        .unwrap_err()
+        .starts_with("not an STL file: 64000000 bytes"));
     std::fs::remove_dir_all(dir).unwrap();
 }
 
@@ -635,6 +679,12 @@ fn built_models_have_a_frame_per_body_and_for_the_ee() {
         expected.push(robot.ee_link().to_string());
     }
     assert_eq!(names, expected);
+    let parents: Vec<Option<usize>> = robot.frames().iter().map(|f| f.parent).collect();
+    assert_eq!(parents[..4], [None, Some(0), Some(1), Some(2)]);
+    for (k, joint) in robot.joints().iter().enumerate() {
+        assert_eq!(robot.frames()[k + 1].joint_origin, joint.origin);
+    }
+    assert_eq!(robot.frames()[0].joint_origin, Transform::identity());
     // the EE frame sits where the EE pose is
     let joints = FlexibleJoints::uniform(3, 1e4, 0.1, 1.0, 0.0).unwrap();
     let arm = FlexibleArm::new(robot.clone(), joints).unwrap();
@@ -730,4 +780,80 @@ fn along_a_trajectory_frame_poses_equal_single_calls() {
     assert_eq!(&some[..width], &link[7 * width..8 * width]);
     assert_eq!(&some[width..2 * width], &link[..width]);
     assert_eq!(&some[2 * width..], &link[7 * width..8 * width]);
+}
+
+/// A binary STL of `triangles` zero triangles, written sparse (the zeros are not stored).
+fn sparse_stl(path: &Path, triangles: u32) {
+    use std::io::Write;
+    let mut file = std::fs::File::create(path).unwrap();
+    file.write_all(&[0u8; 80]).unwrap();
+    file.write_all(&triangles.to_le_bytes()).unwrap();
+    file.set_len(84 + 50 * u64::from(triangles)).unwrap();
+}
+
+#[test]
+fn one_scene_reads_at_most_its_mesh_budget() {
+    let dir = std::env::temp_dir().join(format!("orbitflex_mesh_budget_{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    // five distinct 60 MB files (240 MB fit in the 256 MB budget, the fifth does not), and the
+    // first one again, which costs nothing more
+    let visuals: String = (0..5)
+        .chain([0])
+        .map(|k| format!(r#"<visual><geometry><mesh filename="m{k}.stl"/></geometry></visual>"#))
+        .collect();
+    for k in 0..5 {
+        sparse_stl(&dir.join(format!("m{k}.stl")), 1_200_000);
+    }
+    let xml = format!(
+        r#"<robot name="r"><link name="a"><inertial><mass value="1"/><inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="1"/></inertial>{visuals}</link></robot>"#
+    );
+    std::fs::write(dir.join("r.urdf"), xml).unwrap();
+    let robot = Robot::from_urdf(dir.join("r.urdf"), &UrdfOptions::default()).unwrap();
+    let scene = robot.scene(&MeshSearch::default());
+    assert_eq!(
+        scene.warnings,
+        [
+            "link 'a', mesh 'm4.stl': the meshes would pass 256000000 bytes in all; drawn as a \
+          stand-in"
+        ]
+    );
+    let meshes = scene.shapes.iter().filter(|s| s.mesh.is_some()).count();
+    assert_eq!(meshes, 5);
+    std::fs::remove_dir_all(dir).unwrap();
+}
+
+#[test]
+fn a_capsule_to_a_child_straight_below_points_down() {
+    let xml = r#"<robot name="r">
+      <link name="a"><inertial><mass value="1"/><inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="1"/></inertial></link>
+      <joint name="f" type="fixed"><parent link="a"/><child link="b"/><origin xyz="0 0 -2"/></joint>
+      <link name="b"/></robot>"#;
+    let robot = Robot::from_urdf_string(xml, &UrdfOptions::default()).unwrap();
+    let capsule = &robot.skeleton()[0];
+    assert_eq!(
+        capsule.geometry,
+        Geometry::Capsule {
+            radius: 0.06,
+            length: 2.0
+        }
+    );
+    let rotation = capsule.origin.rotation;
+    assert_eq!(rotation.transpose() * Vec3::z(), -Vec3::z());
+    assert!((rotation * rotation.transpose() - Mat3::identity()).norm() < 1e-15);
+    assert!((rotation.determinant() - 1.0).abs() < 1e-15);
+    assert_eq!(capsule.origin.translation, Vec3::new(0.0, 0.0, -1.0));
+}
+
+#[test]
+fn a_child_at_the_link_origin_gives_a_sphere_not_a_capsule() {
+    let xml = r#"<robot name="r">
+      <link name="a"><inertial><mass value="1"/><inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="1"/></inertial></link>
+      <joint name="f" type="fixed"><parent link="a"/><child link="b"/></joint>
+      <link name="b"/></robot>"#;
+    let robot = Robot::from_urdf_string(xml, &UrdfOptions::default()).unwrap();
+    let shapes = robot.skeleton();
+    assert_eq!(shapes.len(), 2);
+    assert!(shapes
+        .iter()
+        .all(|s| s.geometry == Geometry::Sphere { radius: 0.04 }));
 }

@@ -244,13 +244,17 @@ pub fn check_mesh_file(path: &Path) -> Result<MeshFormat, String> {
             ))
         }
     };
-    let size = std::fs::metadata(path)
-        .map_err(|e| format!("cannot read: {e}"))?
-        .len();
-    if size > MAX_MESH_BYTES {
-        return Err(format!("{size} bytes, more than the {MAX_MESH_BYTES} read"));
+    // at most one byte past the limit is read, whatever size the file system reports
+    let file = std::fs::File::open(path).map_err(|e| format!("cannot read: {e}"))?;
+    let mut bytes = Vec::new();
+    std::io::Read::read_to_end(
+        &mut std::io::Read::take(file, MAX_MESH_BYTES + 1),
+        &mut bytes,
+    )
+    .map_err(|e| format!("cannot read: {e}"))?;
+    if bytes.len() as u64 > MAX_MESH_BYTES {
+        return Err(format!("more than the {MAX_MESH_BYTES} bytes read"));
     }
-    let bytes = std::fs::read(path).map_err(|e| format!("cannot read: {e}"))?;
     check_mesh_bytes(format, &bytes)?;
     Ok(format)
 }
