@@ -819,6 +819,27 @@ fn one_scene_reads_at_most_its_mesh_budget() {
     );
     let meshes = scene.shapes.iter().filter(|s| s.mesh.is_some()).count();
     assert_eq!(meshes, 5);
+    // exactly the budget: four ASCII STLs of 64 MB each (a header, then sparse zeros)
+    let visuals: String = (0..4)
+        .map(|k| format!(r#"<visual><geometry><mesh filename="a{k}.stl"/></geometry></visual>"#))
+        .collect();
+    for k in 0..4 {
+        use std::io::Write;
+        let mut file = std::fs::File::create(dir.join(format!("a{k}.stl"))).unwrap();
+        file.write_all(b"solid s\nfacet normal 0 0 1\n").unwrap();
+        file.set_len(orbitflex::MAX_MESH_BYTES).unwrap();
+    }
+    let xml = format!(
+        r#"<robot name="r"><link name="a"><inertial><mass value="1"/><inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="1"/></inertial>{visuals}</link></robot>"#
+    );
+    std::fs::write(dir.join("exact.urdf"), xml).unwrap();
+    let robot = Robot::from_urdf(dir.join("exact.urdf"), &UrdfOptions::default()).unwrap();
+    let scene = robot.scene(&MeshSearch::default());
+    assert_eq!(scene.warnings, Vec::<String>::new());
+    assert_eq!(
+        4 * orbitflex::MAX_MESH_BYTES,
+        orbitflex::MAX_SCENE_MESH_BYTES
+    );
     std::fs::remove_dir_all(dir).unwrap();
 }
 

@@ -16,7 +16,7 @@ pub use robot::{JointModel, Robot};
 pub use urdf::UrdfOptions;
 pub use visual::{
     check_mesh_bytes, check_mesh_file, Geometry, LinkFrame, MeshFormat, MeshSearch, Scene, Shape,
-    Visual, MAX_MESH_BYTES,
+    Visual, MAX_MESH_BYTES, MAX_SCENE_MESH_BYTES,
 };
 
 /// The built-in default model: a 500 kg, 1.5 m spacecraft bus carrying a 7-joint space arm
