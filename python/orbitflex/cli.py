@@ -407,9 +407,10 @@ def print_demo_comparison(c: Comparison, note: Optional[str]) -> None:
     print_comparison(c)
 
 
-def animation(traj: Trajectory, out: Path, args: argparse.Namespace) -> List[Path]:
+def animation(job: Job, traj: Trajectory, out: Path, args: argparse.Namespace) -> List[Path]:
     """``animation.html`` (:func:`orbitflex.viz.write_animation`, 30 frames per simulated second,
-    with the motor-side ghost), or nothing, with a note, when meshcat is not installed."""
+    with the motor-side ghost, and the bus of ``--base-mass`` as a translucent cube), or nothing,
+    with a note, when meshcat is not installed."""
     try:
         from . import viz
 
@@ -419,7 +420,11 @@ def animation(traj: Trajectory, out: Path, args: argparse.Namespace) -> List[Pat
         return []
     path = out / "animation.html"
     packages = dict(getattr(args, "package", None) or [])
-    viz.write_animation(traj, path, fps=viz.DEFAULT_FPS, ghost=True, packages=packages)
+    bus = []
+    if getattr(args, "base_mass", None) is not None:
+        bus = [{"kind": "box", "size": [job.bus_side] * 3, "origin": [*job.bus_com, 0, 0, 0, 1],
+                "color": [0.85, 0.68, 0.28, 0.45]}]
+    viz.write_animation(traj, path, fps=viz.DEFAULT_FPS, ghost=True, packages=packages, shapes=bus)
     return [path]
 
 
@@ -465,7 +470,7 @@ def write_outputs(job: Job, outcome: Outcome, summary: Dict[str, Any], out: Path
         raise CliError("--out", f"cannot write {files[-1]}: {e.strerror or e}") from None
     if not args.no_animation:
         try:
-            files += animation(traj, out, args)
+            files += animation(job, traj, out, args)
         except OSError as e:
             raise CliError("--out", f"cannot write {out / 'animation.html'}: {e.strerror or e}") from None
     return files

@@ -232,12 +232,14 @@ def _scene(
     packages: Optional[Mapping[str, Union[str, Path]]],
     ghost: bool,
     share: bool = False,
+    extra: Sequence[Mapping[str, Any]] = (),
 ) -> _Scene:
     """Set-object commands drawing every shape of ``robot`` under the path ``robot`` and, with
     ``ghost``, its stick figure under ``ghost`` in translucent blue. Bad meshes warn and get a
     stand-in."""
     mc = _meshcat()
     shapes, problems = robot.scene({k: str(v) for k, v in (packages or {}).items()})
+    shapes = list(shapes) + [_checked_shape(shape, k, len(robot.frame_names)) for k, shape in enumerate(extra)]
     roots: List[Tuple[str, Any, Optional[Sequence[float]]]] = [("robot", shapes, None)]
     if ghost:
         roots.append(("ghost", robot.scene(skeleton=True)[0], _GHOST))
@@ -284,6 +286,42 @@ def _scene(
     for message in scene.warnings:
         warnings.warn(message, VisualWarning, stacklevel=3)
     return scene
+
+
+_SIZES = {"box": ("size",), "sphere": ("radius",), "cylinder": ("radius", "length"), "capsule": ("radius", "length")}
+
+
+def _checked_shape(shape: Mapping[str, Any], k: int, frames: int) -> Dict[str, Any]:
+    """An extra shape (``shapes=`` of :func:`write_animation`), checked, with defaults filled."""
+    where = f"shapes[{k}]"
+    kind = shape.get("kind")
+    if kind not in _SIZES:
+        raise ValueError(f"{where}: kind: expected one of {', '.join(_SIZES)}, given {kind!r}")
+    frame = shape.get("frame", 0)
+    if not isinstance(frame, int) or not 0 <= frame < frames:
+        raise ValueError(f"{where}: frame: expected an index into robot.frame_names (0..{frames - 1}), given {frame!r}")
+    out: Dict[str, Any] = {"kind": kind, "frame": frame, "stand_in": False}
+    origin = np.asarray(shape.get("origin", [0, 0, 0, 0, 0, 0, 1]), dtype=float)
+    if origin.shape != (7,) or not np.all(np.isfinite(origin)) or not np.linalg.norm(origin[3:]) > 0:
+        raise ValueError(f"{where}: origin: expected [x, y, z, qx, qy, qz, qw] with a non-zero quaternion")
+    out["origin"] = origin.tolist()
+    for key in _SIZES[kind]:
+        value = np.asarray(shape.get(key, np.nan), dtype=float)
+        if key == "size":
+            ok = value.shape == (3,) and bool(np.all(value > 0)) and bool(np.all(np.isfinite(value)))
+        else:
+            ok = value.shape == () and bool(value > 0) and bool(np.isfinite(value))
+        if not ok:
+            raise ValueError(f"{where}: {key}: expected {'three positive lengths' if key == 'size' else 'a positive length'} (m), given {shape.get(key)!r}")
+        out[key] = value.tolist()
+    color = shape.get("color")
+    if color is not None:
+        c = np.asarray(color, dtype=float)
+        if c.shape != (4,) or not np.all((c >= 0) & (c <= 1)):
+            raise ValueError(f"{where}: color: expected RGBA, four numbers in 0..1, given {color!r}")
+        color = c.tolist()
+    out["color"] = color
+    return out
 
 
 def _line(points: np.ndarray, color: int, path: Tuple[str, ...], segments: bool = False) -> Dict[str, Any]:
@@ -360,6 +398,7 @@ def animation_html(
     ghost: Union[bool, float] = False,
     packages: Optional[Mapping[str, Union[str, Path]]] = None,
     title: Optional[str] = None,
+    shapes: Sequence[Mapping[str, Any]] = (),
 ) -> str:
     """The text of the self-contained HTML animation of ``traj`` (see :func:`write_animation`)."""
     mc = _meshcat()
@@ -374,7 +413,7 @@ def animation_html(
         scale = float(ghost)
         if not (math.isfinite(scale) and scale > 0):
             raise ValueError(f"ghost: expected True, False or a positive factor, given {ghost!r}")
-    scene = _scene(robot, packages, ghost=scale is not None, share=True)
+    scene = _scene(robot, packages, ghost=scale is not None, share=True, extra=shapes)
     poses = traj.frame_poses(rows=rows.tolist())
     ghost_poses = traj.frame_poses(motor_side=scale, rows=rows.tolist()) if scale is not None else None
     ee = poses[:, robot.frame_names.index(robot.ee_link), :3]
@@ -382,6 +421,13 @@ def animation_html(
     # the region the run covers, for the camera and the axes
     points = poses[:, :, :3].reshape(-1, 3)
     lo, hi = points.min(axis=0), points.max(axis=0)
+    for shape in (_checked_shape(shape, k, len(robot.frame_names)) for k, shape in enumerate(shapes)):
+        # the extra shapes' bounding spheres along the run (at the first and last row)
+        reach = (0.5 * float(np.linalg.norm(shape["size"])) if shape["kind"] == "box"
+                 else float(shape["radius"]) + 0.5 * float(shape.get("length", 0.0)))
+        for pose in (poses[0, shape["frame"]], poses[-1, shape["frame"]]):
+            centre = pose[:3] + _matrix(pose)[:3, :3] @ np.asarray(shape["origin"][:3])
+            lo, hi = np.minimum(lo, centre - reach), np.maximum(hi, centre + reach)
     extent = float(max(np.max(hi - lo), 0.5))
     commands = list(scene.commands)
     commands.append(_axes(0.4 * extent))
@@ -429,6 +475,7 @@ def write_animation(
     ghost: Union[bool, float] = False,
     packages: Optional[Mapping[str, Union[str, Path]]] = None,
     title: Optional[str] = None,
+    shapes: Sequence[Mapping[str, Any]] = (),
 ) -> Path:
     """Writes ``traj`` as one self-contained HTML file and returns its path.
 
@@ -445,8 +492,14 @@ def write_animation(
       the page shows ``s``); a number sets ``s`` (1 is the true motor side).
     - ``packages``: a dict from ROS package name to its directory, for ``package://`` meshes
       (see :meth:`orbitflex.Robot.scene`).
+    - ``title``: the page's heading (default: the model, n, dt and the rows).
+    - ``shapes``: more shapes to draw, as dicts like :meth:`orbitflex.Robot.scene`'s: ``kind``
+      (``"box"``, ``"sphere"``, ``"cylinder"``, ``"capsule"``), its sizes in m (``size`` for a
+      box, ``radius`` and ``length`` for the others), ``frame`` (index into
+      ``robot.frame_names``, default 0, the base), ``origin`` (the pose in that frame, default
+      identity) and ``color`` (RGBA). The CLI draws the bus of ``--base-mass`` this way.
     """
-    text = animation_html(traj, fps=fps, ghost=ghost, packages=packages, title=title)
+    text = animation_html(traj, fps=fps, ghost=ghost, packages=packages, title=title, shapes=shapes)
     path = Path(path)
     path.write_text(text, encoding="utf-8")
     return path

@@ -288,9 +288,10 @@ impl PyTrajectory {
     /// with play/pause, a time slider and speeds; offline, paused at ``t = 0`` (``#t=SECONDS``
     /// in the URL opens it at that time). ``fps`` frames per second of simulated time are kept;
     /// ``ghost=True`` (or a factor) also draws the motor-side arm, its deflection exaggerated;
-    /// ``packages`` maps ROS package names to directories for ``package://`` meshes. Needs
-    /// ``pip install 'orbitflex[viz]'``.
-    #[pyo3(signature = (path, fps=30.0, ghost=None, packages=None, title=None))]
+    /// ``packages`` maps ROS package names to directories for ``package://`` meshes; ``shapes``
+    /// adds shapes (dicts like ``Robot.scene``'s). Needs ``pip install 'orbitflex[viz]'``.
+    #[pyo3(signature = (path, fps=30.0, ghost=None, packages=None, title=None, shapes=None))]
+    #[allow(clippy::too_many_arguments)]
     fn animate<'py>(
         slf: &Bound<'py, Self>,
         path: &Bound<'py, PyAny>,
@@ -298,6 +299,7 @@ impl PyTrajectory {
         ghost: Option<&Bound<'py, PyAny>>,
         packages: Option<&Bound<'py, PyAny>>,
         title: Option<&str>,
+        shapes: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyAny>> {
         let py = slf.py();
         let kwargs = PyDict::new(py);
@@ -307,6 +309,9 @@ impl PyTrajectory {
         }
         kwargs.set_item("packages", packages)?;
         kwargs.set_item("title", title)?;
+        if let Some(shapes) = shapes {
+            kwargs.set_item("shapes", shapes)?;
+        }
         py.import("orbitflex.viz")?
             .getattr("write_animation")?
             .call((slf, path), Some(&kwargs))

@@ -652,6 +652,22 @@ def test_memory_estimate_counts_tables_record_and_diagnostics():
     assert free is None or free > 0
 
 
+def test_simulate_with_a_bus_draws_it_in_the_animation(model_files, tmp_path):
+    urdf, params = model_files
+    out = tmp_path / "bus"
+    result = run_cli("simulate", urdf, "--params", params, "--locked-joints", "finger_slide", "--duration", "0.05",
+                     "--base-mass", "300", "--out", out, "--quiet", "--no-plots", cwd=tmp_path)
+    assert result.returncode == 0, result.stderr[-1500:]
+    text = (out / "animation.html").read_text()
+    plain = tmp_path / "plain"
+    result = run_cli("simulate", urdf, "--params", params, "--locked-joints", "finger_slide", "--duration", "0.05",
+                     "--out", plain, "--quiet", "--no-plots", cwd=tmp_path)
+    assert result.returncode == 0, result.stderr[-1500:]
+    # one more drawing command: the bus cube
+    count = lambda page: page.count('"H4sI')  # each gzip-compressed command starts so in base64
+    assert count(text) == count((plain / "animation.html").read_text()) + 1
+
+
 def test_animation_write_error_names_the_file(tmp_path):
     out = tmp_path / "out"
     (out / "animation.html").mkdir(parents=True)

@@ -465,3 +465,27 @@ def test_dae_textures_are_embedded_or_reported(tmp_path):
     assert notes == [f"mesh '{tmp_path / 'm.dae'}': texture 'gone.jpg': not found, or not a PNG/JPEG/GIF/BMP/WebP/TGA image under 16 MB; drawn without it"]
     resources = scene.commands[0]["object"]["object"]["resources"]
     assert resources == {"skin.png": "data:image/png;base64," + base64.b64encode(png).decode()}
+
+
+def test_extra_shapes_are_drawn_and_checked(tmp_path):
+    robot = orbitflex.models.space_arm()
+    bus = {"kind": "box", "size": [2.0, 2.0, 2.0], "origin": [0.1, 0, 0, 0, 0, 0, 1], "color": [1, 0, 0, 0.5]}
+    plain = viz._scene(robot, None, ghost=False)
+    scene = viz._scene(robot, None, ghost=False, extra=[bus])
+    assert len(scene.commands) == len(plain.commands) + 1
+    added = scene.commands[-1]
+    assert added["path"] == "/robot/bus/shape5"  # after the bus's five visuals
+    assert added["object"]["geometries"][0]["width"] == 2.0
+    assert added["object"]["object"]["matrix"][12] == 0.1
+    bad = [
+        ({"kind": "cone"}, r"shapes\[0\]: kind: expected one of box, sphere, cylinder, capsule, given 'cone'"),
+        ({"kind": "box", "size": [1, 1]}, r"shapes\[0\]: size: expected three positive lengths \(m\), given \[1, 1\]"),
+        ({"kind": "sphere", "radius": -1}, r"shapes\[0\]: radius: expected a positive length \(m\), given -1"),
+        ({"kind": "sphere", "radius": 1, "frame": 9}, r"shapes\[0\]: frame: expected an index into robot.frame_names \(0..8\), given 9"),
+        ({"kind": "sphere", "radius": 1, "origin": [0] * 7}, r"shapes\[0\]: origin: expected \[x, y, z, qx, qy, qz, qw\]"),
+        ({"kind": "sphere", "radius": 1, "color": [2, 0, 0, 1]}, r"shapes\[0\]: color: expected RGBA"),
+    ]
+    traj = short_run(steps=10)
+    for shape, message in bad:
+        with pytest.raises(ValueError, match=message):
+            traj.animate(tmp_path / "x.html", shapes=[shape])
