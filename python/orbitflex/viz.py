@@ -534,7 +534,11 @@ class Viewer:
     ) -> None:
         mc = _meshcat()
         self.robot = robot
-        self._vis = mc.visualizer.Visualizer(zmq_url=zmq_url)
+        import contextlib
+        import io
+
+        with contextlib.redirect_stdout(io.StringIO()):  # meshcat prints its URL; `url` has it
+            self._vis = mc.visualizer.Visualizer(zmq_url=zmq_url)
         self._ghost = bool(ghost)
         self.ghost_scale = float(ghost_scale)
         scene = _scene(robot, packages, ghost=self._ghost)
