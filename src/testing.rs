@@ -129,6 +129,7 @@ pub fn random_tree(shape: (&[usize], usize), seed: u64) -> Robot {
     robot.parents = parents.to_vec();
     robot.ee_body = ee_body;
     robot.name = format!("random_tree_{seed}");
+    robot.link_frames = crate::model::body_frames(&robot);
     robot.frames = crate::model::JointFrames::new(&robot);
     robot
 }

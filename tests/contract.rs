@@ -481,3 +481,25 @@ fn dynamics_argument_checks_name_the_bad_element() {
     );
     assert_eq!(aba(&good, &[1.0], &Loads::ZERO), Ok(()));
 }
+
+/// A payload joins the body that carries the EE frame, wherever it sits in the tree (not the
+/// last body), moved there through the EE frame's placement.
+#[test]
+fn a_payload_joins_the_ee_body() {
+    use orbitflex::testing::{random_tree, TREE_THREE_ARMS};
+    let robot = random_tree(TREE_THREE_ARMS, 5);
+    assert_eq!(robot.ee_body(), 8);
+    let payload = Inertia::from_com(20.0, Vec3::new(0.0, 0.0, 0.1), Mat3::identity() * 0.3);
+    let loaded = robot.with_payload(payload).unwrap();
+    let moved = payload.transformed_to_parent(robot.ee_transform());
+    for (i, (before, after)) in robot.inertias().iter().zip(loaded.inertias()).enumerate() {
+        if i == 8 {
+            let expected = before.add(&moved);
+            assert!((after.mass - expected.mass).abs() < 1e-12);
+            assert!((after.com - expected.com).norm() < 1e-12);
+            assert!((after.rotational - expected.rotational).norm() < 1e-12);
+        } else {
+            assert_eq!(after, before, "body {i}");
+        }
+    }
+}

@@ -381,7 +381,7 @@ impl Robot {
 
     /// This robot holding a rigid payload at its end-effector: `payload` (its mass, centre of
     /// mass and rotational inertia about the EE origin, all in the EE frame) is joined to the
-    /// last link, as a fixed link merged into it would be. Validated like any new model. For
+    /// body that carries the EE frame, as a fixed link merged into it would be. Validated like any new model. For
     /// dispersing a grasped object's mass in a campaign.
     ///
     /// ```
@@ -396,9 +396,9 @@ impl Robot {
     /// ```
     pub fn with_payload(&self, payload: Inertia) -> Result<Robot> {
         let mut robot = self.clone();
-        let last = robot.inertias.len() - 1;
+        let ee = robot.ee_body;
         let held = payload.transformed_to_parent(&robot.ee_transform);
-        robot.inertias[last] = robot.inertias[last].add(&held);
+        robot.inertias[ee] = robot.inertias[ee].add(&held);
         RobotBuilder { robot }.build()
     }
 }

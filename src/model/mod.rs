@@ -14,6 +14,7 @@ pub use builder::{check_inertia, RobotBuilder, MAX_INERTIA, MAX_LENGTH, MAX_MASS
 pub(crate) use frames::JointFrames;
 pub use robot::{JointModel, Robot};
 pub use urdf::UrdfOptions;
+pub(crate) use visual::body_frames;
 pub use visual::{
     check_mesh_bytes, check_mesh_file, Geometry, LinkFrame, MeshFormat, MeshSearch, Scene, Shape,
     Visual, MAX_MESH_BYTES, MAX_SCENE_MESH_BYTES,
