@@ -232,14 +232,14 @@ def _scene(
     packages: Optional[Mapping[str, Union[str, Path]]],
     ghost: bool,
     share: bool = False,
-    extra: Sequence[Mapping[str, Any]] = (),
+    extra: Sequence[Dict[str, Any]] = (),
 ) -> _Scene:
     """Set-object commands drawing every shape of ``robot`` under the path ``robot`` and, with
     ``ghost``, its stick figure under ``ghost`` in translucent blue. Bad meshes warn and get a
     stand-in."""
     mc = _meshcat()
     shapes, problems = robot.scene({k: str(v) for k, v in (packages or {}).items()})
-    shapes = list(shapes) + [_checked_shape(shape, k, len(robot.frame_names)) for k, shape in enumerate(extra)]
+    shapes = list(shapes) + list(extra)  # already checked (_checked_shape)
     roots: List[Tuple[str, Any, Optional[Sequence[float]]]] = [("robot", shapes, None)]
     if ghost:
         roots.append(("ghost", robot.scene(skeleton=True)[0], _GHOST))
@@ -383,9 +383,7 @@ def frame_rows(t: np.ndarray, fps: float) -> np.ndarray:
 
 
 def _packed(command: Dict[str, Any]) -> str:
-    import umsgpack  # type: ignore[import-untyped]
-
-    return base64.b64encode(gzip.compress(umsgpack.packb(command), mtime=0)).decode("ascii")
+    return base64.b64encode(gzip.compress(_umsgpack(command), mtime=0)).decode("ascii")
 
 
 def _f32(a: np.ndarray) -> str:
@@ -413,7 +411,8 @@ def animation_html(
         scale = float(ghost)
         if not (math.isfinite(scale) and scale > 0):
             raise ValueError(f"ghost: expected True, False or a positive factor, given {ghost!r}")
-    scene = _scene(robot, packages, ghost=scale is not None, share=True, extra=shapes)
+    extra = [_checked_shape(shape, k, len(robot.frame_names)) for k, shape in enumerate(shapes)]
+    scene = _scene(robot, packages, ghost=scale is not None, share=True, extra=extra)
     poses = traj.frame_poses(rows=rows.tolist())
     ghost_poses = traj.frame_poses(motor_side=scale, rows=rows.tolist()) if scale is not None else None
     ee = poses[:, robot.frame_names.index(robot.ee_link), :3]
@@ -421,7 +420,7 @@ def animation_html(
     # the region the run covers, for the camera and the axes
     points = poses[:, :, :3].reshape(-1, 3)
     lo, hi = points.min(axis=0), points.max(axis=0)
-    for shape in (_checked_shape(shape, k, len(robot.frame_names)) for k, shape in enumerate(shapes)):
+    for shape in extra:
         # the extra shapes' bounding spheres along the run (at the first and last row)
         reach = (0.5 * float(np.linalg.norm(shape["size"])) if shape["kind"] == "box"
                  else float(shape["radius"]) + 0.5 * float(shape.get("length", 0.0)))
@@ -635,7 +634,7 @@ class Viewer:
 
 
 def _umsgpack(command: Dict[str, Any]) -> bytes:
-    import umsgpack
+    import umsgpack  # type: ignore[import-untyped]
 
     return bytes(umsgpack.packb(command))
 

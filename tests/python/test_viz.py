@@ -471,7 +471,7 @@ def test_extra_shapes_are_drawn_and_checked(tmp_path):
     robot = orbitflex.models.space_arm()
     bus = {"kind": "box", "size": [2.0, 2.0, 2.0], "origin": [0.1, 0, 0, 0, 0, 0, 1], "color": [1, 0, 0, 0.5]}
     plain = viz._scene(robot, None, ghost=False)
-    scene = viz._scene(robot, None, ghost=False, extra=[bus])
+    scene = viz._scene(robot, None, ghost=False, extra=[viz._checked_shape(bus, 0, len(robot.frame_names))])
     assert len(scene.commands) == len(plain.commands) + 1
     added = scene.commands[-1]
     assert added["path"] == "/robot/bus/shape5"  # after the bus's five visuals
