@@ -75,6 +75,7 @@ fn main() {
     let options = UrdfOptions {
         ee_link: (args[1] != "-").then(|| args[1].clone()),
         locked_joints: args[2..].to_vec(),
+        ..UrdfOptions::default()
     };
     let robot = Robot::from_urdf(&args[0], &options).expect("a valid URDF");
     let n = robot.dof();

@@ -43,7 +43,8 @@ struct Case {
     v: Vec<f64>,
     qd: Vec<f64>,
     tau: Vec<f64>,
-    loads: Loads,
+    fb: Vec<f64>,
+    f: Vec<f64>,
     x0: Vec<f64>,
     x: Vec<f64>,
     dt: f64,
@@ -86,7 +87,6 @@ fn case(n: usize) -> Case {
             .unwrap()
             .dt)
         .min(1e-3);
-    let loads = Loads::from_slices(Some(&fb), Some(&f)).unwrap();
     Case {
         n,
         data: Data::new(&robot),
@@ -98,7 +98,8 @@ fn case(n: usize) -> Case {
         v,
         qd,
         tau,
-        loads,
+        fb,
+        f,
         x0,
         dt,
     }
@@ -115,13 +116,14 @@ fn main() {
         for (k, c) in cases.iter_mut().enumerate() {
             // about 3 ms per block whatever n
             let iters = 20_000 / c.n + 1;
+            let loads = Loads::from_slices(Some(&c.fb), Some(&c.f)).unwrap();
             let a = block(iters, || {
                 let out = algorithms::aba(
                     &c.robot,
                     &mut c.data,
                     &RigidState::new(black_box(&c.q), &c.v, &c.qd),
                     &c.tau,
-                    &c.loads,
+                    &loads,
                 )
                 .unwrap();
                 black_box(out[0]);
@@ -133,10 +135,7 @@ fn main() {
                         &mut c.ws,
                         black_box(&mut c.x),
                         c.dt,
-                        &Inputs {
-                            u: &c.tau,
-                            loads: c.loads,
-                        },
+                        &Inputs { u: &c.tau, loads },
                     )
                     .unwrap();
                 black_box(c.x[0]);

@@ -68,51 +68,100 @@ impl<'a> RigidState<'a> {
 ///
 /// - `base_wrench` is `f_B`: the spatial force `[moment; force]` the base's own actuators apply
 ///   to it (thrusters, reaction-wheel torque), base frame, about the base origin (N·m, N).
-/// - `ee_wrench` is `f`: the spatial force the end-effector exerts ON its environment, EE frame,
-///   about the EE origin. A load the environment applies to the EE is `−f`.
+/// - `ee_wrench` is `[f_1; …; f_k]`, six numbers per end-effector in
+///   [`Robot::ee_links`](crate::Robot::ee_links) order: `f_e` is the spatial force `[moment;
+///   force]` end-effector `e` exerts ON its environment, in its own frame, about its origin. A
+///   load the environment applies to the EE is `−f_e`. An empty slice means no EE wrench; a
+///   robot with one end-effector takes the six numbers of `f`.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
-pub struct Loads {
+pub struct Loads<'a> {
     /// `f_B`, base frame.
     pub base_wrench: Force,
-    /// `f`, EE frame (exerted by the EE on its environment).
-    pub ee_wrench: Force,
+    /// `[f_1; …; f_k]` (6k numbers), or empty for none.
+    pub ee_wrench: &'a [f64],
 }
 
-impl Loads {
+impl<'a> Loads<'a> {
     /// No external load: `f_B = 0`, `f = 0` (free floating).
-    pub const ZERO: Loads = Loads {
+    pub const ZERO: Loads<'static> = Loads {
         base_wrench: Force::ZERO,
-        ee_wrench: Force::ZERO,
+        ee_wrench: &[],
     };
 
-    /// From `[moment; force]` slices of length 6 (`None`: zero), checked for length and
-    /// finiteness.
-    pub fn from_slices(base_wrench: Option<&[f64]>, ee_wrench: Option<&[f64]>) -> Result<Self> {
-        let read = |what: &str, v: Option<&[f64]>| -> Result<Force> {
-            match v {
-                Some(v) => {
-                    check_vector(what, v, 6)?;
-                    Ok(Force::from_slice(v))
-                }
-                None => Ok(Force::ZERO),
+    /// From `[moment; force]` slices (`None`: zero): `base_wrench` of length 6, `ee_wrench` of
+    /// length 6 per end-effector, checked for finiteness and for a whole number of wrenches (the
+    /// count is checked against the robot where the loads are used).
+    pub fn from_slices(base_wrench: Option<&[f64]>, ee_wrench: Option<&'a [f64]>) -> Result<Self> {
+        let base_wrench = match base_wrench {
+            Some(v) => {
+                check_vector("base_wrench", v, 6)?;
+                Force::from_slice(v)
             }
+            None => Force::ZERO,
         };
-        Ok(Self {
-            base_wrench: read("base_wrench", base_wrench)?,
-            ee_wrench: read("ee_wrench", ee_wrench)?,
-        })
+        let ee_wrench = ee_wrench.unwrap_or(&[]);
+        let loads = Self {
+            base_wrench,
+            ee_wrench,
+        };
+        loads.check()?;
+        if ee_wrench.len() % 6 != 0 {
+            return Err(Error::InvalidArgument {
+                what: "ee_wrench".into(),
+                message: format!(
+                    "expected 6 numbers per end-effector, given {}",
+                    ee_wrench.len()
+                ),
+            });
+        }
+        Ok(loads)
     }
 
-    /// Checks that both wrenches are finite.
+    /// Checks that every wrench is finite.
     #[inline]
     pub fn check(&self) -> Result<()> {
-        let (base, ee) = (self.base_wrench.to_array(), self.ee_wrench.to_array());
-        if base.iter().chain(&ee).all(|v| v.is_finite()) {
+        let base = self.base_wrench.to_array();
+        if base.iter().chain(self.ee_wrench).all(|v| v.is_finite()) {
             return Ok(());
         }
-        check_finite("base_wrench", &self.base_wrench.to_array())?;
-        check_finite("ee_wrench", &self.ee_wrench.to_array())
+        check_finite("base_wrench", &base)?;
+        check_finite("ee_wrench", self.ee_wrench)
     }
+
+    /// [`check`](Self::check), and that `ee_wrench` has one wrench per end-effector of `robot`
+    /// (or none).
+    #[inline]
+    pub fn check_for(&self, robot: &crate::Robot) -> Result<()> {
+        let k = robot.end_effectors().len();
+        if !self.ee_wrench.is_empty() && self.ee_wrench.len() != 6 * k {
+            return Err(ee_wrench_length_error(robot, self.ee_wrench.len()));
+        }
+        self.check()
+    }
+}
+
+/// The error for an EE wrench of the wrong length, naming the end-effectors.
+#[cold]
+pub(crate) fn ee_wrench_length_error(robot: &crate::Robot, given: usize) -> Error {
+    let k = robot.end_effectors().len();
+    Error::InvalidArgument {
+        what: "ee_wrench".into(),
+        message: format!(
+            "expected {} numbers (one [moment; force] per end-effector: {}), given {given}",
+            6 * k,
+            robot.ee_links().join(", ")
+        ),
+    }
+}
+
+/// Checks an EE wrench slice against the robot: empty, or 6 finite numbers per end-effector.
+#[inline]
+pub fn check_ee_wrench(robot: &crate::Robot, ee_wrench: &[f64]) -> Result<()> {
+    Loads {
+        base_wrench: Force::ZERO,
+        ee_wrench,
+    }
+    .check_for(robot)
 }
 
 /// Checks that `values` has `expected` elements, all finite.

@@ -182,17 +182,20 @@ impl Robot {
             .clone())
     }
 
-    /// `J` (6×n): joint rates to the EE twist `[ω; v]` in the EE frame with the base at rest
-    /// (model §2: `J = Bᵀ Φ H`).
-    pub fn ee_jacobian(&self, q: &[f64]) -> Result<DMatrix<f64>> {
+    /// `J_e` (6×n): joint rates to the twist `[ω; v]` of end-effector `ee` in its own frame with
+    /// the base at rest (model §2: `J = Bᵀ Φ H`). `ee` indexes [`Robot::ee_links`]; `None` is
+    /// the only end-effector (an error listing them when there are several).
+    pub fn ee_jacobian(&self, q: &[f64], ee: Option<usize>) -> Result<DMatrix<f64>> {
+        let ee = self.ee_choice(ee)?;
         let mut data = Data::new(self);
-        algorithms::ee_jacobian(self, &mut data, q)?;
+        algorithms::ee_jacobian(self, &mut data, q, ee)?;
         Ok(data.jacobian)
     }
 
     /// The generalized Jacobian of the free-floating arm with zero momentum (model §2), 6×n:
-    /// `V_{n+1} = (J − Φ_{n+1,B} M_b⁻¹ M_rb) q̇` in the EE frame, the EE twist the joint rates
-    /// give once the base has reacted (`V_B = −M_b⁻¹ M_rb q̇`).
+    /// `V_e = (J_e − Φ_{e,B} M_b⁻¹ M_rb) q̇` in the frame of end-effector `ee` (as in
+    /// [`ee_jacobian`](Self::ee_jacobian)), the EE twist the joint rates give once the base has
+    /// reacted (`V_B = −M_b⁻¹ M_rb q̇`).
     ///
     /// ```
     /// use nalgebra::{DVector, Vector6};
@@ -206,13 +209,14 @@ impl Robot {
     /// let h = robot.momentum(&[0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0], &RigidState::new(&q, base.as_slice(), qd.as_slice()))?;
     /// assert!(h.iter().all(|v| v.abs() < 1e-9));
     /// // the EE twist Φ_{n+1,B} V_B + J q̇ is what the generalized Jacobian gives
-    /// let twist = robot.ee_base_operator(&q)? * Vector6::from_column_slice(base.as_slice())
-    ///     + Vector6::from_column_slice((robot.ee_jacobian(&q)? * &qd).as_slice());
-    /// let direct = robot.generalized_jacobian(&q)? * &qd;
+    /// let twist = robot.ee_base_operator(&q, None)? * Vector6::from_column_slice(base.as_slice())
+    ///     + Vector6::from_column_slice((robot.ee_jacobian(&q, None)? * &qd).as_slice());
+    /// let direct = robot.generalized_jacobian(&q, None)? * &qd;
     /// assert!((twist - Vector6::from_column_slice(direct.as_slice())).amax() < 1e-12);
     /// # Ok::<(), orbitflex::Error>(())
     /// ```
-    pub fn generalized_jacobian(&self, q: &[f64]) -> Result<DMatrix<f64>> {
+    pub fn generalized_jacobian(&self, q: &[f64], ee: Option<usize>) -> Result<DMatrix<f64>> {
+        let ee = self.ee_choice(ee)?;
         let mut data = Data::new(self);
         let m = algorithms::crba(self, &mut data, q)?;
         let n = self.dof();
@@ -225,15 +229,17 @@ impl Robot {
                 message: "the base block M_b is not positive definite here".into(),
             })?
             .solve(&m_rb);
-        algorithms::ee_jacobian(self, &mut data, q)?;
+        algorithms::ee_jacobian(self, &mut data, q, ee)?;
         let correction = data.ee_base * reaction;
         Ok(&data.jacobian - DMatrix::from_column_slice(6, n, correction.as_slice()))
     }
 
-    /// `Φ_{n+1,B}` (6×6): base twist to EE twist, both in their own frames.
-    pub fn ee_base_operator(&self, q: &[f64]) -> Result<Mat6> {
+    /// `Φ_{e,B}` (6×6): base twist to the twist of end-effector `ee`, both in their own frames
+    /// (`ee` as in [`ee_jacobian`](Self::ee_jacobian)).
+    pub fn ee_base_operator(&self, q: &[f64], ee: Option<usize>) -> Result<Mat6> {
+        let ee = self.ee_choice(ee)?;
         check_vector("q", q, self.dof())?;
-        Ok(algorithms::ee_from_base(self, q).matrix())
+        Ok(algorithms::ee_from_base(self, q, ee).matrix())
     }
 
     /// Forward dynamics `[α_B; q̈]` (A.19): `α_B` is the base's classical acceleration
@@ -252,8 +258,9 @@ impl Robot {
     }
 
     /// Inverse dynamics `[f_B; τ]` (A.19) for the classical base acceleration `α_B` (base frame)
-    /// and joint accelerations `q̈`, with the EE wrench `f` (the force the EE exerts on its
-    /// environment, EE frame).
+    /// and joint accelerations `q̈`, with the EE wrenches `[f_1; …; f_k]` (the force each
+    /// end-effector exerts on its environment, in its own frame; 6 numbers per end-effector, or
+    /// empty for none).
     pub fn inverse_dynamics(
         &self,
         state: &RigidState,

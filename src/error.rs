@@ -60,15 +60,6 @@ pub enum Error {
         kind: String,
     },
 
-    /// The kinematic tree has moving joints off the chain from the root to the EE link.
-    #[error("{source_name}: {message}")]
-    Branching {
-        /// The file.
-        source_name: String,
-        /// Which joint branches where, and what to do.
-        message: String,
-    },
-
     /// A link or joint name that does not exist in the file.
     #[error("{source_name}: unknown {what} '{name}'; the file has: {available}")]
     UnknownName {

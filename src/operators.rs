@@ -41,7 +41,9 @@ pub struct Operators {
     pub a: DVector<f64>,
     /// `b` (6n), stacked bias forces `b_i` (A.10).
     pub b: DVector<f64>,
-    /// `B` (6n×6): zero blocks except the EE body's, `Φ_{n+1,e}ᵀ` (the last block on a chain).
+    /// `B` (6n×6k): one block column per end-effector `e`, zero except in the row block of the
+    /// body `b` carrying it, which holds `Φ_{e,b}ᵀ` (on a chain, `k = 1` and the one block is
+    /// the last).
     pub b_ee: DMatrix<f64>,
     /// `Φ̂₁` (6n×6), blocks `Φ_{iB}` (A.17).
     pub phi_hat1: DMatrix<f64>,
@@ -63,10 +65,12 @@ pub struct Operators {
     pub c_b: DVector<f64>,
     /// `C_r = Hᵀ Φᵀ M Φ a + Hᵀ Φᵀ b` (A.19), the fixed-base Coriolis/centrifugal torques.
     pub c_r: DVector<f64>,
-    /// `J = Bᵀ Φ H` (6×n): the paper's `J = Hᵀ Φᵀ B` is a typo (model §2); `Jᵀ = Hᵀ Φᵀ B`.
+    /// `J = Bᵀ Φ H` (6k×n), the end-effectors' Jacobians `J_e` stacked: the paper's
+    /// `J = Hᵀ Φᵀ B` is a typo (model §2); `Jᵀ = Hᵀ Φᵀ B`.
     pub j: DMatrix<f64>,
-    /// `Φ_{n+1,B} = Φ_{n+1,e} Φ_{eB}` (6×6), `e` the EE body.
-    pub phi_ee_base: Mat6,
+    /// `Φ_{e,B} = Φ_{e,b} Φ_{bB}` stacked over the end-effectors (6k×6), `b` the body carrying
+    /// end-effector `e`.
+    pub phi_ee_base: DMatrix<f64>,
 }
 
 impl Operators {
@@ -136,15 +140,19 @@ impl Operators {
                 .view_mut((r, 0), (6, 6))
                 .copy_from(&to_base.matrix());
         }
-        let ee = robot.ee_transform();
-        let ee_body = robot.ee_body();
-        let mut b_ee = DMatrix::zeros(6 * n, 6);
-        if ee_body > 0 {
-            b_ee.view_mut((6 * (ee_body - 1), 0), (6, 6))
-                .copy_from(&ee.matrix().transpose());
+        let k = robot.end_effectors().len();
+        let mut b_ee = DMatrix::zeros(6 * n, 6 * k);
+        let mut phi_ee_base = DMatrix::zeros(6 * k, 6);
+        for (e, ee) in robot.end_effectors().iter().enumerate() {
+            if ee.body > 0 {
+                b_ee.view_mut((6 * (ee.body - 1), 6 * e), (6, 6))
+                    .copy_from(&ee.transform.matrix().transpose());
+            }
+            let to_base = phi_to[ee.body][0].expect("the base supports every body");
+            phi_ee_base
+                .view_mut((6 * e, 0), (6, 6))
+                .copy_from(&ee.transform.compose(&to_base).matrix());
         }
-        let ee_to_base = phi_to[ee_body][0].expect("the base supports every body");
-        let phi_ee_base = ee.compose(&ee_to_base).matrix();
 
         let phi_hat2 = phi_hat1.transpose();
         let m_base = inertias[0].matrix();
@@ -205,28 +213,32 @@ impl Operators {
         out
     }
 
-    /// `[Φ_{n+1,B}ᵀ; Jᵀ]` ((6+n)×6): maps the EE wrench `f` into generalized forces (A.19).
+    /// `[Φ_{e,B}ᵀ; J_eᵀ]` side by side over the end-effectors ((6+n)×6k): maps the EE wrenches
+    /// `[f_1; …; f_k]` into generalized forces (A.19).
     pub fn ee_force_map(&self) -> DMatrix<f64> {
-        let n = self.j.ncols();
-        let mut out = DMatrix::zeros(6 + n, 6);
-        out.view_mut((0, 0), (6, 6))
+        let (k6, n) = self.j.shape();
+        let mut out = DMatrix::zeros(6 + n, k6);
+        out.view_mut((0, 0), (6, k6))
             .copy_from(&self.phi_ee_base.transpose());
-        out.view_mut((6, 0), (n, 6)).copy_from(&self.j.transpose());
+        out.view_mut((6, 0), (n, k6)).copy_from(&self.j.transpose());
         out
     }
 
     /// Forward dynamics from (A.19) by a Cholesky solve:
-    /// `[α_B; q̈] = 𝓜⁻¹ ([f_B; τ] − [C_B; C_r] − [Φ_{n+1,B}ᵀ; Jᵀ] f)`.
+    /// `[α_B; q̈] = 𝓜⁻¹ ([f_B; τ] − [C_B; C_r] − Σ_e [Φ_{e,B}ᵀ; J_eᵀ] f_e)`.
     pub fn forward_dynamics(&self, tau: &[f64], loads: &Loads) -> Result<DVector<f64>> {
         let n = self.m_r.nrows();
         check_vector("tau", tau, n)?;
         loads.check()?;
+        check_ee_length(self.j.nrows(), loads.ee_wrench)?;
         let mut rhs = DVector::zeros(6 + n);
         rhs.rows_mut(0, 6)
             .copy_from_slice(&loads.base_wrench.to_array());
         rhs.rows_mut(6, n).copy_from_slice(tau);
-        let f = DVector::from_column_slice(&loads.ee_wrench.to_array());
-        rhs -= self.bias_forces() + self.ee_force_map() * f;
+        rhs -= self.bias_forces();
+        if !loads.ee_wrench.is_empty() {
+            rhs -= self.ee_force_map() * DVector::from_column_slice(loads.ee_wrench);
+        }
         let chol = self
             .mass_matrix()
             .cholesky()
@@ -237,7 +249,8 @@ impl Operators {
         Ok(chol.solve(&rhs))
     }
 
-    /// Inverse dynamics from (A.19): `[f_B; τ] = 𝓜 [α_B; q̈] + [C_B; C_r] + [Φ_{n+1,B}ᵀ; Jᵀ] f`.
+    /// Inverse dynamics from (A.19):
+    /// `[f_B; τ] = 𝓜 [α_B; q̈] + [C_B; C_r] + Σ_e [Φ_{e,B}ᵀ; J_eᵀ] f_e` (`ee_wrench` empty: none).
     pub fn inverse_dynamics(
         &self,
         base_acc: &[f64],
@@ -247,13 +260,16 @@ impl Operators {
         let n = self.m_r.nrows();
         check_vector("base_acc", base_acc, 6)?;
         check_vector("qdd", qdd, n)?;
-        check_vector("ee_wrench", ee_wrench, 6)?;
+        crate::args::check_finite("ee_wrench", ee_wrench)?;
+        check_ee_length(self.j.nrows(), ee_wrench)?;
         let mut acc = DVector::zeros(6 + n);
         acc.rows_mut(0, 6).copy_from_slice(base_acc);
         acc.rows_mut(6, n).copy_from_slice(qdd);
-        Ok(self.mass_matrix() * acc
-            + self.bias_forces()
-            + self.ee_force_map() * DVector::from_column_slice(ee_wrench))
+        let mut out = self.mass_matrix() * acc + self.bias_forces();
+        if !ee_wrench.is_empty() {
+            out += self.ee_force_map() * DVector::from_column_slice(ee_wrench);
+        }
+        Ok(out)
     }
 
     /// Spatial momentum about the base origin in the base frame, `[M_b M_rb] [V_B; q̇]`: the sum
@@ -264,4 +280,18 @@ impl Operators {
             + &self.m_rb * DVector::from_column_slice(qd);
         Force::from_slice(h.as_slice())
     }
+}
+
+/// An EE wrench is empty or has the `6k` numbers of the stacked Jacobian's rows.
+fn check_ee_length(rows: usize, ee_wrench: &[f64]) -> Result<()> {
+    if ee_wrench.is_empty() || ee_wrench.len() == rows {
+        return Ok(());
+    }
+    Err(Error::InvalidArgument {
+        what: "ee_wrench".into(),
+        message: format!(
+            "expected {rows} numbers (one [moment; force] per end-effector), given {}",
+            ee_wrench.len()
+        ),
+    })
 }

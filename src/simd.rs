@@ -89,7 +89,7 @@ mod tests {
             let tau: Vec<f64> = (0..n).map(|k| 0.3 * k as f64 - 1.0).collect();
             let loads = Loads {
                 base_wrench: Force::from_slice(&[1.0, -2.0, 0.5, 3.0, 0.2, -1.0]),
-                ee_wrench: Force::from_slice(&[0.1, 0.4, -0.3, 2.0, -1.0, 0.7]),
+                ee_wrench: &[0.1, 0.4, -0.3, 2.0, -1.0, 0.7],
             };
             let (mut fast, mut portable) = (Data::new(&robot), Data::new(&robot));
             crate::algorithms::aba::aba_unchecked(&robot, &mut fast, &state, &tau, &loads).unwrap();
@@ -98,8 +98,8 @@ mod tests {
             let acc = Motion::from_slice(&[0.2, -0.1, 0.3, 1.0, -0.5, 0.25]);
             let qdd: Vec<f64> = (0..n).map(|k| 1.0 - 0.2 * k as f64).collect();
             let f = loads.ee_wrench;
-            crate::algorithms::rnea::rnea_unchecked(&robot, &mut fast, &state, acc, Some(&qdd), &f);
-            rnea_kernel(&robot, &mut portable, &state, acc, Some(&qdd), &f);
+            crate::algorithms::rnea::rnea_unchecked(&robot, &mut fast, &state, acc, Some(&qdd), f);
+            rnea_kernel(&robot, &mut portable, &state, acc, Some(&qdd), f);
             assert_eq!(fast.tau, portable.tau);
             crate::algorithms::crba(&robot, &mut fast, &q).unwrap();
             portable.mass_matrix_buffer().unwrap();

@@ -110,28 +110,51 @@ pub fn random_chain(n: usize, seed: u64) -> Robot {
         .expect("random chains are valid")
 }
 
-/// The branched tree of [`random_tree`]: body 1 carries two branches on a single trunk, the
-/// EE frame on body 4 (path 4 → 3 → 1 → base; bodies 2, 5, 6, 7 are off it).
-pub const TREE_ONE_TRUNK: (&[usize], usize) = (&[0, 0, 1, 1, 3, 2, 2, 6], 4);
+/// The branched tree of [`random_tree`]: body 1 is a trunk carrying two branches (from bodies 2
+/// and 6), the EE frame on body 5 (path 5 → 4 → 2 → 1 → base; bodies 3, 6, 7 are off it).
+pub const TREE_ONE_TRUNK: (&[usize], usize) = (&[0, 0, 1, 2, 2, 4, 1, 6], 5);
 
-/// Three arms on the base (bodies 1, 2 and 9), the first forked at body 1, the EE frame on body 8
-/// (path 8 → 7 → 1 → base).
-pub const TREE_THREE_ARMS: (&[usize], usize) = (&[0, 0, 0, 1, 2, 2, 4, 1, 7, 0], 8);
+/// Three arms on the base (bodies 1, 6 and 9), the first forked at body 1, the EE frame on body 5
+/// (path 5 → 4 → 1 → base).
+pub const TREE_THREE_ARMS: (&[usize], usize) = (&[0, 0, 1, 2, 1, 4, 0, 6, 6, 0], 5);
 
 /// A random branched tree (seeded): the bodies of [`random_chain`] re-hung from `parents`
-/// (`parents[i] < i`, entry 0 unused) with the EE frame on body `ee_body`, for checking that the
-/// recursions follow `parents` rather than assuming a chain. `shape` is one of
-/// [`TREE_ONE_TRUNK`], [`TREE_THREE_ARMS`] or any `(parents, ee_body)` of that form.
+/// (depth-first: `parents[i]` is `i − 1` or one of its ancestors; entry 0 unused) with the EE
+/// frame on body `ee_body`, for checking that the recursions follow `parents` rather than
+/// assuming a chain. `shape` is one of [`TREE_ONE_TRUNK`], [`TREE_THREE_ARMS`] or any
+/// `(parents, ee_body)` of that form.
 pub fn random_tree(shape: (&[usize], usize), seed: u64) -> Robot {
     let (parents, ee_body) = shape;
     assert!(parents.iter().enumerate().skip(1).all(|(i, &p)| p < i) && ee_body < parents.len());
     let mut robot = random_chain(parents.len() - 1, seed);
     robot.parents = parents.to_vec();
-    robot.ee_body = ee_body;
+    robot.ees[0].body = ee_body;
     robot.name = format!("random_tree_{seed}");
-    robot.link_frames = crate::model::body_frames(&robot);
-    robot.frames = crate::model::JointFrames::new(&robot);
-    robot
+    robot.link_frames = Vec::new();
+    crate::model::RobotBuilder::from_robot(robot)
+        .build()
+        .expect("random trees are valid")
+}
+
+/// [`random_tree`] with one end-effector on every leaf body (a random placement each) instead of
+/// one on `ee_body`.
+pub fn random_tree_all_leaves(parents: &[usize], seed: u64) -> Robot {
+    let robot = random_tree((parents, parents.len() - 1), seed);
+    let mut rng = Rng::new(seed ^ 0x5eed);
+    let n = parents.len() - 1;
+    let ees = (1..=n)
+        .filter(|&b| (b + 1..=n).all(|k| parents[k] != b))
+        .map(|b| crate::model::EndEffector {
+            link: format!("ee{b}"),
+            body: b,
+            transform: Transform::new(rng.rotation(), rng.unit() * rng.range(0.05, 0.3)),
+        })
+        .collect();
+    let mut robot = Robot { ees, ..robot };
+    robot.link_frames = Vec::new();
+    crate::model::RobotBuilder::from_robot(robot)
+        .build()
+        .expect("random trees are valid")
 }
 
 /// Random flexible-joint parameters for `n` joints (seeded): stiffness 200–800 N·m/rad, damping

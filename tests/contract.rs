@@ -105,7 +105,7 @@ fn ee_pose_by_hand() {
             ..StateSpec::default()
         })
         .unwrap();
-    let pose = arm.ee_pose(&x);
+    let pose = arm.ee_pose(&x, 0);
     // r + Rz(90°) (0.5 e_x + Rz(45°) 0.3 e_x)
     let c = 0.3 * s;
     let want_position = [1.0 - c, 2.0 + 0.5 + c, 3.0];
@@ -120,7 +120,7 @@ fn ee_pose_by_hand() {
     // the scalar part is kept non-negative: a base turned by −90° about −z is the same
     let mut flipped = x.clone();
     flipped[3..7].iter_mut().for_each(|v| *v = -*v);
-    assert_eq!(arm.ee_pose(&flipped), pose);
+    assert_eq!(arm.ee_pose(&flipped, 0), pose);
     // along rows of states
     let rows: Vec<f64> = [x.clone(), moving(&arm)].concat();
     let along = orbitflex::integrate::StateRows {
@@ -129,7 +129,7 @@ fn ee_pose_by_hand() {
     }
     .ee_pose(&arm);
     assert_eq!(&along[..7], &pose);
-    assert_eq!(&along[7..], &arm.ee_pose(&moving(&arm)));
+    assert_eq!(&along[7..], &arm.ee_pose(&moving(&arm), 0));
 }
 
 /// Times are `k dt` exactly, and a controller is asked at `t = k dt` with the state of step k.
@@ -451,11 +451,11 @@ fn dynamics_argument_checks_name_the_bad_element() {
     wrench[4] = f64::INFINITY;
     let base = Loads {
         base_wrench: Force::from_slice(&wrench),
-        ee_wrench: Force::ZERO,
+        ee_wrench: &[],
     };
     let ee = Loads {
         base_wrench: Force::ZERO,
-        ee_wrench: Force::from_slice(&wrench),
+        ee_wrench: &wrench,
     };
     assert_eq!(
         aba(&good, &[1.0], &base),
@@ -488,12 +488,12 @@ fn dynamics_argument_checks_name_the_bad_element() {
 fn a_payload_joins_the_ee_body() {
     use orbitflex::testing::{random_tree, TREE_THREE_ARMS};
     let robot = random_tree(TREE_THREE_ARMS, 5);
-    assert_eq!(robot.ee_body(), 8);
+    assert_eq!(robot.ee_body(), 5);
     let payload = Inertia::from_com(20.0, Vec3::new(0.0, 0.0, 0.1), Mat3::identity() * 0.3);
     let loaded = robot.with_payload(payload).unwrap();
     let moved = payload.transformed_to_parent(robot.ee_transform());
     for (i, (before, after)) in robot.inertias().iter().zip(loaded.inertias()).enumerate() {
-        if i == 8 {
+        if i == 5 {
             let expected = before.add(&moved);
             assert!((after.mass - expected.mass).abs() < 1e-12);
             assert!((after.com - expected.com).norm() < 1e-12);
@@ -502,4 +502,11 @@ fn a_payload_joins_the_ee_body() {
             assert_eq!(after, before, "body {i}");
         }
     }
+    // with several end-effectors, which one holds the payload is ambiguous
+    let several = orbitflex::testing::random_tree_all_leaves(TREE_THREE_ARMS.0, 5);
+    let err = several.with_payload(payload).unwrap_err().to_string();
+    assert!(
+        err.contains("5 end-effectors") && err.contains("'ee3'"),
+        "{err}"
+    );
 }

@@ -27,7 +27,7 @@ struct Case {
 
 fn case(robot: Robot, seed: u64) -> Case {
     let (q, v, qd) = random_state(&robot, seed);
-    let n = robot.dof();
+    let (n, k) = (robot.dof(), robot.end_effectors().len());
     let mut rng = Rng::new(seed + 17);
     Case {
         robot,
@@ -36,7 +36,7 @@ fn case(robot: Robot, seed: u64) -> Case {
         qd,
         tau: rng.vector(n, -5.0, 5.0),
         fb: rng.vector(6, -5.0, 5.0),
-        f: rng.vector(6, -5.0, 5.0),
+        f: rng.vector(6 * k, -5.0, 5.0),
         acc: rng.vector(6 + n, -2.0, 2.0),
     }
 }
@@ -161,15 +161,56 @@ fn derivatives_equal_central_differences_on_branched_trees() {
             &c.f,
         )
         .unwrap();
-        // joint 5 (body 5, under 2) and joint 4 (body 4, under 3) are on different branches
-        assert_eq!(d.id_q[(6 + 4, 3)], 0.0);
-        assert_eq!(d.id_q[(6 + 3, 4)], 0.0);
+        // body 5 (under 4, under 2) and body 3 (under 2) are on different branches
+        assert_eq!(d.id_q[(6 + 4, 2)], 0.0);
+        assert_eq!(d.id_q[(6 + 2, 4)], 0.0);
         assert!(d.id_q[(6 + 1, 4)] != 0.0, "joint 2 carries joint 5");
-        for off_path in [1, 4, 5, 6] {
+        // the EE (on body 5) reaches joints 5, 4, 2, 1 only
+        for off_path in [2, 5, 6] {
             assert!(d.id_ee_wrench.row(6 + off_path).iter().all(|&x| x == 0.0));
         }
         let c = case(random_tree(TREE_THREE_ARMS, seed), seed);
         check(&c, &format!("three arms, seed={seed}"));
+    }
+}
+
+/// With an end-effector on every leaf (five on the three-armed tree, three on the trunk), every
+/// wrench at once: `∂/∂f` has one 6-column block per end-effector, and each block reaches only the
+/// joints on its end-effector's path.
+#[test]
+fn derivatives_with_several_end_effectors_equal_central_differences() {
+    for seed in 0..3 {
+        for (shape, label) in [
+            (TREE_ONE_TRUNK.0, "one trunk"),
+            (TREE_THREE_ARMS.0, "three arms"),
+        ] {
+            let robot = orbitflex::testing::random_tree_all_leaves(shape, seed);
+            let c = case(robot, seed);
+            assert_eq!(c.f.len(), 6 * c.robot.end_effectors().len());
+            check(&c, &format!("{label}, every leaf, seed={seed}"));
+            let mut data = Data::new(&c.robot);
+            let state = RigidState::new(&c.q, &c.v, &c.qd);
+            let d = algorithms::rnea_derivatives(
+                &c.robot,
+                &mut data,
+                &state,
+                &c.acc[..6],
+                &c.acc[6..],
+                &c.f,
+            )
+            .unwrap();
+            for (e, ee) in c.robot.end_effectors().iter().enumerate() {
+                let path: Vec<usize> = c.robot.path_to_base(ee.body).collect();
+                for body in 1..=c.robot.dof() {
+                    let row = d.id_ee_wrench.view((5 + body, 6 * e), (1, 6));
+                    assert_eq!(
+                        row.iter().any(|&x| x != 0.0),
+                        path.contains(&body),
+                        "{label}: EE {e} and joint {body}"
+                    );
+                }
+            }
+        }
     }
 }
 

@@ -81,7 +81,7 @@ fn check_agreement(n: usize, seed: u64) {
     given.rows_mut(6, n).copy_from_slice(&tau);
     assert!(rel_err_v(&gen, &given) < 1e-10, "ID(FD) n={n}");
 
-    algorithms::ee_jacobian(&robot, &mut data, &q).unwrap();
+    algorithms::ee_jacobian(&robot, &mut data, &q, 0).unwrap();
     assert!(rel_err_m(&data.jacobian, &ops.j) < 1e-10, "J n={n}");
     let ee_base = DMatrix::from_column_slice(6, 6, data.ee_base.as_slice());
     let ee_base_op = DMatrix::from_column_slice(6, 6, ops.phi_ee_base.as_slice());
@@ -227,7 +227,7 @@ fn ee_twist_from_jacobian_matches_velocity_recursion() {
         let robot = random_chain(1 + seed as usize % 9, seed);
         let (q, v, qd) = random_state(&robot, seed);
         let mut data = Data::new(&robot);
-        algorithms::ee_jacobian(&robot, &mut data, &q).unwrap();
+        algorithms::ee_jacobian(&robot, &mut data, &q, 0).unwrap();
         let twist = data.ee_base * nalgebra::Vector6::from_column_slice(&v)
             + nalgebra::Vector6::from_column_slice(
                 (&data.jacobian * DVector::from_column_slice(&qd)).as_slice(),

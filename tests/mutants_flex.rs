@@ -208,12 +208,25 @@ fn flexible_joints_is_empty_only_without_joints() {
 
 #[test]
 fn inputs_check_refuses_wrong_length_and_non_finite_torques() {
+    let robot = random_chain(2, 1);
     assert!(matches!(
-        Inputs::torques(&[1.0]).check(2),
+        Inputs::torques(&[1.0]).check(&robot),
         Err(Error::Dimension { .. })
     ));
-    assert!(Inputs::torques(&[1.0, f64::NAN]).check(2).is_err());
-    assert!(Inputs::torques(&[1.0, 2.0]).check(2).is_ok());
+    assert!(Inputs::torques(&[1.0, f64::NAN]).check(&robot).is_err());
+    assert!(Inputs::torques(&[1.0, 2.0]).check(&robot).is_ok());
+    // one EE wrench per end-effector, or none
+    let mut inputs = Inputs::torques(&[1.0, 2.0]);
+    inputs.loads.ee_wrench = &[0.0; 6];
+    assert!(inputs.check(&robot).is_ok());
+    inputs.loads.ee_wrench = &[0.0; 12];
+    let err = inputs.check(&robot).unwrap_err().to_string();
+    assert!(
+        err.contains("expected 6 numbers") && err.contains("given 12"),
+        "{err}"
+    );
+    inputs.loads.ee_wrench = &[0.0, 0.0, f64::INFINITY, 0.0, 0.0, 0.0];
+    assert!(inputs.check(&robot).is_err());
 }
 
 #[test]

@@ -113,7 +113,7 @@ fn hot_paths_do_not_allocate() {
     );
     assert_eq!(
         allocations(|| {
-            algorithms::ee_jacobian(&robot, &mut data, &q).unwrap();
+            algorithms::ee_jacobian(&robot, &mut data, &q, 0).unwrap();
         }),
         0,
         "jacobian"

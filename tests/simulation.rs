@@ -138,8 +138,8 @@ fn power(arm: &FlexibleArm, x: &[f64], u: &[f64], fb: &[f64], f: &[f64]) -> f64 
     let v_b = &x[l.base_twist()];
     pw += fb.iter().zip(v_b).map(|(a, b)| a * b).sum::<f64>();
     // V_{n+1} = Φ_{n+1,B} V_B + J q̇
-    let j = arm.robot().ee_jacobian(q).unwrap();
-    let phi = arm.robot().ee_base_operator(q).unwrap();
+    let j = arm.robot().ee_jacobian(q, None).unwrap();
+    let phi = arm.robot().ee_base_operator(q, None).unwrap();
     let v_ee = phi * nalgebra::Vector6::from_column_slice(v_b)
         + nalgebra::Vector6::from_column_slice(
             (j * nalgebra::DVector::from_column_slice(qd)).as_slice(),

@@ -67,6 +67,7 @@ fn options() -> UrdfOptions {
     UrdfOptions {
         ee_link: Some("tool".into()),
         locked_joints: vec!["finger".into()],
+        ..UrdfOptions::default()
     }
 }
 
@@ -247,7 +248,7 @@ fn frame_poses_agree_with_body_poses_and_the_ee_pose() {
     let mut x = arm.rest_state();
     x[..7].copy_from_slice(&base);
     x[7..14].copy_from_slice(&q);
-    let ee = arm.ee_pose(&x);
+    let ee = arm.ee_pose(&x, 0);
     let k = robot.frame_index(robot.ee_link()).unwrap();
     for (a, b) in poses[7 * k..7 * k + 7].iter().zip(&ee) {
         assert!((a - b).abs() < 1e-14);
@@ -694,7 +695,7 @@ fn built_models_have_a_frame_per_body_and_for_the_ee() {
     let mut data = Data::new(&robot);
     algorithms::frame_poses(&robot, &mut data, &x[..7], &x[7..10], &mut poses).unwrap();
     let k = robot.frame_index(robot.ee_link()).unwrap();
-    for (a, b) in poses[7 * k..7 * k + 7].iter().zip(arm.ee_pose(&x)) {
+    for (a, b) in poses[7 * k..7 * k + 7].iter().zip(arm.ee_pose(&x, 0)) {
         assert!((a - b).abs() < 1e-14);
     }
     // the stick figure: a capsule per parent-child pair with an offset, a sphere for leaves

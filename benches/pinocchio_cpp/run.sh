@@ -131,15 +131,20 @@ space=$out/space_arm.urdf
 python3 -c "import orbitflex; open('$space', 'w').write(orbitflex.models.space_arm_urdf())" 2>/dev/null ||
   cp "$root/models/space_arm.urdf" "$space"
 
+# MODELS picks the models (default: the two 7-joint arms of the tables); the branched ones are
+# the dual-arm servicer (two 7-joint arms on the bus) and solo12 (a quadruped: four 3-joint legs)
 declare -A model_args=(
   [panda]="$robots/panda_description/urdf/panda.urdf panda_hand_tcp panda_finger_joint1 panda_finger_joint2"
   [space_arm]="$space -"
+  [dual_arm]="$root/models/dual_arm.urdf -"
+  [solo12]="$robots/solo_description/robots/solo12.urdf -"
 )
+read -r -a models <<<"${MODELS:-panda space_arm}"
 sides=(rust "${builds[@]}")
 log=$out/log.txt
 : >"$log"
 for round in $(seq 1 "$rounds"); do
-  for model in panda space_arm; do
+  for model in "${models[@]}"; do
     # shellcheck disable=SC2086
     set -- ${model_args[$model]}
     order=("${sides[@]}")
@@ -159,11 +164,12 @@ for round in $(seq 1 "$rounds"); do
 done
 
 python3 - "$log" "$(lscpu | sed -n 's/^Model name: *//p')" "${builds[*]}" \
-  "$($clangxx --version 2>/dev/null | head -1 || true)" "$(g++ --version | head -1)" <<'EOF'
+  "$($clangxx --version 2>/dev/null | head -1 || true)" "$(g++ --version | head -1)" "${models[*]}" <<'EOF'
 import statistics, sys
 from collections import defaultdict
 
 log, cpu, builds, clang_version, gcc_version = sys.argv[1], sys.argv[2], sys.argv[3].split(), sys.argv[4], sys.argv[5]
+models = sys.argv[6].split()
 times = defaultdict(list)      # (model, side, name) -> [ns per round]
 checks = {}
 for line in open(log):
@@ -184,7 +190,7 @@ def ratio(model, ours, build, theirs):
     return statistics.median(x / y for x, y in zip(a, b)) if a and b else None
 
 
-for model in ("panda", "space_arm"):
+for model in models:
     for build in builds:
         for name in ("check_qdd", "check_step"):
             a, b = checks.get((model, "rust", name)), checks.get((model, build, name))
@@ -210,7 +216,7 @@ pairs = [("aba", "aba_local", "`aba` (LOCAL)"),
          ("rk4_step", "rk4_step", "RK4 step (4 × aba)"),
          ("aba_derivatives", "aba_derivatives", "`computeABADerivatives`"),
          ("rnea_derivatives", "rnea_derivatives", "`computeRNEADerivatives`")]
-for model in ("panda", "space_arm"):
+for model in models:
     for ours, theirs, label in pairs:
         a = med.get((model, "rust", ours))
         bt = {b: med.get((model, b, theirs)) for b in builds}
@@ -221,7 +227,7 @@ for model in ("panda", "space_arm"):
         rs = " | ".join(f"{ratio(model, ours, b, theirs):.2f}" for b in builds)
         print(f"| {model} | {label} | {a:.0f} | {cells} | {fastest} | **{ratio(model, ours, fastest, theirs):.2f}** | {rs} |")
 print()
-for model in ("panda", "space_arm"):
+for model in models:
     def per_round(side, fd):
         return statistics.median(s / a for s, a in zip(times[(model, side, "rk4_step")], times[(model, side, fd)]))
     if (model, "rust", "rk4_step") in times:
@@ -229,7 +235,7 @@ for model in ("panda", "space_arm"):
             [f"{per_round(b, 'aba_local'):.2f} {b}" for b in builds if (model, b, "rk4_step") in times]
         print(f"{model}: RK4 step / forward dynamics = " + ", ".join(parts) + "  ")
 print()
-for model in ("panda", "space_arm"):
+for model in models:
     jac, step = times.get((model, "rust", "step_jacobians")), times.get((model, "rust", "rk4_step"))
     cd = times.get((model, "rust", "step_jacobians_central_differences"))
     if jac and step and cd:

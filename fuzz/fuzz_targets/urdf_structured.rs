@@ -56,6 +56,7 @@ struct Urdf {
     /// Elements wrapped around one link: (depth, close them).
     nesting: Option<(u32, bool)>,
     ee_link: Option<u8>,
+    ee_links: Vec<u8>,
     locked: Vec<u8>,
 }
 
@@ -130,6 +131,11 @@ fuzz_target!(|urdf: Urdf| {
             .iter()
             .map(|i| format!("j{}", *i as usize % urdf.joints.len().max(1)))
             .collect(),
+        ee_links: urdf
+            .ee_links
+            .iter()
+            .map(|i| format!("l{}", *i as usize % urdf.links.len().max(1)))
+            .collect(),
     };
     let Ok(robot) = Robot::from_urdf_string(&xml, &options) else {
         return;
@@ -144,4 +150,11 @@ fuzz_target!(|urdf: Urdf| {
         assert!(acc.iter().all(|v| v.is_finite()), "{xml}");
     }
     let _ = algorithms::crba(&robot, &mut data, &q);
+    // every end-effector: its Jacobian, and one wrench each through the inverse dynamics
+    let k = robot.end_effectors().len();
+    for e in 0..k {
+        algorithms::ee_jacobian(&robot, &mut data, &q, e).expect("a valid end-effector index");
+    }
+    let wrench: Vec<f64> = (0..6 * k).map(|i| (i as f64).sin()).collect();
+    let _ = algorithms::rnea(&robot, &mut data, &state, &[0.0; 6], &qd, &wrench);
 });

@@ -22,6 +22,7 @@ re-exports it.
 """
 
 from ._core import (
+    DUAL_ARM_URDF,
     SPACE_ARM_URDF,
     BatchTrajectory,
     FlexibleArm,
@@ -54,5 +55,6 @@ __all__ = [
     "SimulationError",
     "models",
     "SPACE_ARM_URDF",
+    "DUAL_ARM_URDF",
     "__version__",
 ]

@@ -33,7 +33,9 @@ parameter                 shape  what                                    nominal
 ``base_rate``             (3,)   initial base angular rate, base frame   zeros
                                  (rad/s)
 ``payload_mass``          ()     mass held at the EE (kg), at            ``payload_mass`` (0)
-                                 ``payload_com`` in the EE frame
+                                 ``payload_com`` in the EE frame (the
+                                 end-effector ``payload_ee`` of a robot
+                                 with several)
 ========================= ====== ======================================= =====================
 
 Distributions (``distribution =``): ``normal`` (nominal + ``std`` × N(0, 1), or with
@@ -52,7 +54,7 @@ Metrics, one column each (NaN where a run failed before they were defined):
   every joint until the end (NaN if not settled; resolution ``dt × record_every``);
 - ``base_attitude_change`` (rad): the bus's rotation angle between the start and the end;
 - ``ee_error`` (m): the distance between the EE position at the end and that of the nominal
-  run (no dispersion).
+  run (no dispersion); on a robot with several end-effectors, the largest of their distances.
 
 The table has one row per run, ``run`` (the index) first, then the dispersed parameters
 (``stiffness[0]``, …; scalars by name), then the metrics; nothing about where or when a run
@@ -178,7 +180,8 @@ class Dispersion:
 @dataclass
 class Campaign:
     """A Monte-Carlo campaign: the nominal slew, the dispersions and the number of runs (module
-    docs). ``robot`` is a ``Robot`` or a URDF path (with ``ee_link``, ``locked_joints``), default
+    docs). ``robot`` is a ``Robot`` or a URDF path (with ``ee_link``, ``ee_links``,
+    ``locked_joints``), default
     the built-in space arm; ``joints`` a ``FlexibleJoints``, default the built-in arm's (for the
     built-in arm) or ``FlexibleJoints.defaults_for(robot)``. ``goal`` (rad, link side), ``kp``
     (N·m/rad), ``kd`` (N·m·s/rad) and ``q0`` (rad) are scalars or per joint; the reference moves
@@ -199,10 +202,12 @@ class Campaign:
     robot: Union[None, str, Robot] = None
     ee_link: Optional[str] = None
     locked_joints: Sequence[str] = ()
+    ee_links: Sequence[str] = ()
     joints: Optional[FlexibleJoints] = None
     q0: Any = 0.0
     payload_mass: float = 0.0
     payload_com: Any = (0.0, 0.0, 0.0)
+    payload_ee: Union[None, str, int] = None
     record_every: int = 10
     settle_tolerance: float = 5e-3
     log: List[Dict[str, Any]] = field(default_factory=list, compare=False, repr=False)
@@ -246,7 +251,8 @@ class Campaign:
                                         f"{', '.join(keys)}")
             return t
 
-        robot_t = table("robot", ["model", "urdf", "ee_link", "locked_joints", "payload_mass", "payload_com"])
+        robot_t = table("robot", ["model", "urdf", "ee_link", "ee_links", "locked_joints", "payload_mass",
+                                  "payload_com", "payload_ee"])
         joints_t = table("joints", ["model", *JOINT_PARAMETERS])
         sim_t = table("simulation", ["dt", "duration", "record_every"])
         slew_t = table("slew", ["goal", "q0", "slew_time", "kp", "kd", "settle_tolerance"])
@@ -278,6 +284,8 @@ class Campaign:
                 kwargs["ee_link"] = robot_t["ee_link"]
             if robot_t.get("locked_joints"):
                 kwargs["locked_joints"] = list(robot_t["locked_joints"])
+            if robot_t.get("ee_links"):
+                kwargs["ee_links"] = list(robot_t["ee_links"])
             loaded = models.space_arm() if robot is None else Robot.from_urdf(robot, **kwargs)
             joints = FlexibleJoints.defaults_for(loaded)
         elif model is not None:
@@ -297,7 +305,9 @@ class Campaign:
                        duration=sim_t["duration"], slew_time=slew_t["slew_time"],
                        runs=spec.get("runs", 100), seed=spec.get("seed", 0), dispersions=dispersions,
                        name=spec.get("name", "campaign"), robot=robot, ee_link=robot_t.get("ee_link"),
-                       locked_joints=tuple(robot_t.get("locked_joints", ())), joints=joints,
+                       locked_joints=tuple(robot_t.get("locked_joints", ())),
+                       ee_links=tuple(robot_t.get("ee_links", ())), payload_ee=robot_t.get("payload_ee"),
+                       joints=joints,
                        q0=slew_t.get("q0", 0.0), payload_mass=robot_t.get("payload_mass", 0.0),
                        payload_com=robot_t.get("payload_com", (0.0, 0.0, 0.0)),
                        record_every=sim_t.get("record_every", 10),
@@ -356,6 +366,8 @@ class Campaign:
             kwargs["ee_link"] = self.ee_link
         if self.locked_joints:
             kwargs["locked_joints"] = list(self.locked_joints)
+        if self.ee_links:
+            kwargs["ee_links"] = list(self.ee_links)
         return Robot.from_urdf(self.robot, **kwargs)
 
     def _joints(self, robot: Robot) -> FlexibleJoints:
@@ -427,7 +439,8 @@ class Campaign:
         if arm is None:
             loaded = robot
             if float(values["payload_mass"]) > 0:
-                loaded = robot.with_payload(float(values["payload_mass"]), com=np.asarray(self.payload_com, float))
+                loaded = robot.with_payload(float(values["payload_mass"]), com=np.asarray(self.payload_com, float),
+                                            ee=self.payload_ee)
             joints = FlexibleJoints(*(values[p] for p in JOINT_PARAMETERS))
             arm = arms[key] = FlexibleArm(loaded, joints)
         x0 = arm.state(q=values["q0"], base_twist=np.r_[values["base_rate"], 0.0, 0.0, 0.0])
@@ -436,13 +449,14 @@ class Campaign:
         return arm, x0, pd
 
     def nominal_ee(self) -> Array:
-        """The EE position (m, inertial frame) at the end of the nominal run (no dispersion)."""
+        """The EE positions (m, inertial frame) at the end of the nominal run (no dispersion),
+        (k, 3), one row per end-effector in ``robot.ee_links`` order."""
         robot = self._robot()
         arm, x0, pd = self._setup(robot, self._nominal(robot), {})
         batch = simulate_batch(arm, x0, self.dt, self.steps, u=pd, threads=1, keep_rows=False)
         if not batch.ok[0]:
             raise CampaignError(f"the nominal run (no dispersion) failed: {batch.messages[0]}")
-        return np.asarray(arm.ee_pose(batch.final_state[0])[:3])
+        return _ee_positions(arm, batch.final_state[0])
 
     def run_chunk(self, start: int, stop: int, nominal_ee: Array, threads: Optional[int] = None,
                   progress: Optional[Callable[[int, int], Any]] = None) -> "pd.DataFrame":
@@ -502,8 +516,8 @@ class Campaign:
         quat1 = final[:, 3:7]
         dot = np.abs(np.einsum("bi,bi->b", quat0, quat1))
         attitude = 2.0 * np.arccos(np.clip(dot, 0.0, 1.0))
-        ee = np.stack([np.asarray(s[0].ee_pose(x)[:3]) for s, x in zip(setups, final)])
-        ee_error = np.linalg.norm(ee - nominal_ee, axis=1)
+        ee = np.stack([_ee_positions(s[0], x) for s, x in zip(setups, final)])   # (B, k, 3)
+        ee_error = np.linalg.norm(ee - nominal_ee, axis=2).max(axis=1)
 
         def nan_if_failed(v: Array) -> Array:
             return np.where(ok, v, np.nan)
@@ -605,6 +619,11 @@ class Campaign:
 def _offset(progress: Callable[[int, int], Any], start: int, total: int) -> Callable[[int, int], Any]:
     """A batch's ``progress(done, runs)`` as the campaign's, for a chunk from run ``start``."""
     return lambda done, _runs: progress(start + done, total)
+
+
+def _ee_positions(arm: FlexibleArm, x: Array) -> Array:
+    """Every end-effector's position (m, inertial frame) at state ``x``, (k, 3)."""
+    return np.stack([np.asarray(arm.ee_pose(x, ee=e)[:3]) for e in range(len(arm.robot.ee_links))])
 
 
 def _run_chunk_task(campaign: Campaign, start: int, stop: int, nominal_ee: Array,

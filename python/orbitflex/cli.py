@@ -118,21 +118,26 @@ def cli_words(message: str) -> str:
         names = [name.strip().strip("'\"") for name in match.group(1).split(",")]
         return "--locked-joints " + ",".join(names)
 
-    message = re.sub(r"locked_joints=\[([^\]]*)\]", locked, message)
+    # a list of what the file has names links and joints, not keywords: left as it is
+    head, sep, listing = message.partition("; the file has: ")
+    head = re.sub(r"locked_joints=\[([^\]]*)\]", locked, head)
     # the keywords, not a link or joint of that name (names are quoted: 'ee_link')
-    message = re.sub(r"(?<![\w'\"-])locked_joints(?![\w'\"])", "--locked-joints", message)
-    return re.sub(r"(?<![\w'\"-])ee_link(?![\w'\"])", "--ee-link", message)
+    head = re.sub(r"(?<![\w'\"-])locked_joints(?![\w'\"])", "--locked-joints", head)
+    head = re.sub(r"(?<![\w'\"-])ee_links(?![\w'\"])", "--ee-links", head)
+    return re.sub(r"(?<![\w'\"-])ee_link(?![\w'\"])", "--ee-link", head) + sep + listing
 
 
 def urdf_error(error: Exception) -> CliError:
     """A URDF-loading error, under the flag it points to: ``--ee-link`` or ``--locked-joints``
     if it names one (the first one it names), else ``URDF``."""
     message = cli_words(str(error))
-    named = [(message.find(flag), flag) for flag in ("--ee-link", "--locked-joints") if flag in message]
+    named = [(found.start(), flag) for flag in ("--ee-link", "--ee-links", "--locked-joints")
+             for found in [re.search(re.escape(flag) + r"(?![\w-])", message)] if found]
     if not named:
         return CliError("URDF", message)
     flag = min(named)[1]
     # "unknown link (--ee-link) 'x'" reads "unknown link 'x'" once the flag leads the line
+    message = message[len(flag) + 2:] if message.startswith(flag + ": ") else message
     return CliError(flag, re.sub(rf" \((?:in )?{flag}\)", "", message))
 
 
@@ -550,7 +555,7 @@ def summarise(name: str, outcome: Outcome, steps_asked: int) -> Dict[str, Any]:
         "momentum_drift_linear": float(h_drift[3:].max()),
         "energy_change_J": de,
         **balance,
-        "ee_travel_m": float(np.linalg.norm(traj.ee_pose[-1, :3] - traj.ee_pose[0, :3])),
+        "ee_travel_m": ee_travel(traj),
     }
     if outcome.failure is not None:
         summary.update(failure_step=outcome.failure.step, failure_time_s=outcome.failure.time,
@@ -576,7 +581,11 @@ def print_summary(s: Dict[str, Any], dof: int) -> None:
     factor, unit = angle_unit(largest)
     in_deg = "" if unit == "deg" else f" ({s['max_deflection_deg']:.3g} deg)"
     print(f"  joint deflection    max {largest * factor:.3g} {unit}{in_deg} at {s['max_deflection_joint']}")
-    print(f"  EE travel           {s['ee_travel_m']:.3g} m")
+    travel = s["ee_travel_m"]
+    if isinstance(travel, dict):
+        print("  EE travel           " + ", ".join(f"{link} {v:.3g} m" for link, v in travel.items()))
+    else:
+        print(f"  EE travel           {travel:.3g} m")
     if not s["completed"]:
         cause = "growth of the diverging run"
     elif s["warnings"]:
@@ -776,25 +785,45 @@ def plot_attitude(figures: Figures, traj: Trajectory, rows: Rows) -> None:
     figures.save(fig, "base_attitude.png")
 
 
+def ee_paths(traj: Trajectory) -> Array:
+    """EE positions, (rows, k, 3) for k end-effectors (k = 1 on a chain)."""
+    poses = np.asarray(traj.ee_pose)
+    return (poses[:, None, :3] if poses.ndim == 2 else poses[:, :, :3])
+
+
+def ee_travel(traj: Trajectory) -> Any:
+    """Start-to-end EE displacement (m): a number for one end-effector, a dict by link name for
+    several."""
+    paths = ee_paths(traj)
+    travel = [float(np.linalg.norm(paths[-1, e] - paths[0, e])) for e in range(paths.shape[1])]
+    links = traj.arm.robot.ee_links
+    return travel[0] if len(links) == 1 else dict(zip(links, travel))
+
+
 def plot_ee_path(figures: Figures, job: Job, traj: Trajectory, rows: Rows) -> None:
-    """Left: the EE path with the arm and the bus at the start and the end, to scale. Right: the
-    path alone, relative to its start and zoomed."""
-    path = traj.ee_pose[rows, :3]
+    """Left: the EE paths with the arm and the bus at the start and the end, to scale. Right: the
+    first end-effector's path alone, relative to its start and zoomed."""
+    paths = ee_paths(traj)[rows]
+    links = traj.arm.robot.ee_links
+    path = paths[:, 0]
     fig = figures.plt.figure(figsize=(12, 6.5), layout="constrained")
     fig.suptitle(f"End-effector path, inertial frame (equal axes)\n{figures.caption}", fontsize=11)
     scene = fig.add_subplot(1, 2, 1, projection="3d")
-    points = [path]
+    points = [paths.reshape(-1, 3)]
     for k, colour, when in ((0, "tab:green", "start"), (-1, "tab:red", "end")):
         points += draw_arm(scene, job, traj, k, colour, when)
-    scene.plot(*path.T, color="tab:blue", lw=2, label="EE path")
+    for e, link in enumerate(links):
+        scene.plot(*paths[:, e].T, color="tab:blue", lw=2, alpha=1.0 if e == 0 else 0.6,
+                   label="EE path" if len(links) == 1 else f"{link} path")
     equal_axes(scene, np.vstack(points))
     scene.set(xlabel="x (m)", ylabel="y (m)", zlabel="z (m)", title="arm and bus at the start and the end")
     scene.legend(fontsize=8, loc="upper left")
-    plot_ee_zoom(fig.add_subplot(1, 2, 2, projection="3d"), traj.t[rows], path)
+    plot_ee_zoom(fig.add_subplot(1, 2, 2, projection="3d"), traj.t[rows], path,
+                 "" if len(links) == 1 else f" ({links[0]})")
     figures.save(fig, "ee_path.png")
 
 
-def plot_ee_zoom(ax: Any, t: Array, path: Array) -> None:
+def plot_ee_zoom(ax: Any, t: Array, path: Array, which: str = "") -> None:
     """The EE path relative to its start, in m, mm or µm, with a dot every tick interval."""
     shift = path - path[0]
     extent = float(np.ptp(path, axis=0).max())
@@ -809,17 +838,30 @@ def plot_ee_zoom(ax: Any, t: Array, path: Array) -> None:
     equal_axes(ax, shift)
     ax.set(xlabel=f"Δx ({unit})", ylabel=f"Δy ({unit})", zlabel=f"Δz ({unit})")
     x0 = ", ".join(f"{v:.3g}" for v in path[0])
-    ax.set_title(f"EE displacement from its start at ({x0}) m\n"
+    ax.set_title(f"EE{which} displacement from its start at ({x0}) m\n"
                  f"{np.linalg.norm(shift[-1]):.3g} {unit} from start to end")
     ax.legend(fontsize=8, loc="upper left")
 
 
 def draw_arm(ax: Any, job: Job, traj: Trajectory, k: int, colour: str, when: str) -> List[Array]:
-    """Draws the arm (a line through its bodies, from the first joint to the EE) and the bus (a
-    cube outline) at row ``k``; returns the points drawn."""
+    """Draws the arm (a line through its bodies, from the first joint to each EE, one per branch)
+    and the bus (a cube outline) at row ``k``; returns the points drawn."""
     pose = traj.base_pose[k]
-    bodies = traj.arm.robot.body_poses(pose, traj.q[k])[1:, :3]
-    ax.plot(*bodies.T, "o-", color=colour, lw=2, ms=3, label=f"arm at the {when} (t = {traj.t[k]:.3g} s)")
+    robot = traj.arm.robot
+    rows = robot.body_poses(pose, traj.q[k])[:, :3]
+    parents = [-1] + [p + 1 for p in robot.parents]  # by body: 0 is the base
+    n = robot.dof
+    drawn = []
+    for e, body in enumerate(robot.ee_bodies):
+        chain = [n + 1 + e]  # the EE row, then its body and the bodies above it, not the base
+        while body > 0:
+            chain.append(body)
+            body = parents[body]
+        line = rows[chain[::-1]]
+        ax.plot(*line.T, "o-", color=colour, lw=2, ms=3,
+                label=f"arm at the {when} (t = {traj.t[k]:.3g} s)" if e == 0 else None)
+        drawn.append(line)
+    bodies = np.vstack(drawn)
     edges = cube_edges(pose, job.bus_com, job.bus_side)
     for i, edge in enumerate(edges):
         ax.plot(*edge.T, color=colour, lw=0.8, alpha=0.6,
@@ -892,7 +934,8 @@ PLAN_OUTPUTS = {
 
 PLAN_EPILOG = """\
 Values per joint (--goal, --start, --waypoint, --motor-torque, --joint-speed, --kp, --kd) are
-one value for every joint or one per joint, in the URDF's chain order (base to EE); angles in
+one value for every joint or one per joint, in the model's joint order (depth-first from the
+base: base to EE on a chain, one arm after another on a tree); angles in
 rad, link side.
 
 The planner (orbitflex.plan_slew) moves every joint along q_a + (q_b − q_a) σ(t/T), σ of degree
@@ -1540,7 +1583,8 @@ def joint_list(values: Optional[List[str]]) -> List[str]:
 def load_robot(args: argparse.Namespace) -> Robot:
     locked = joint_list(args.locked_joints)
     try:
-        robot = Robot.from_urdf(args.urdf, ee_link=args.ee_link, locked_joints=locked or None)
+        robot = Robot.from_urdf(args.urdf, ee_link=args.ee_link, locked_joints=locked or None,
+                                ee_links=joint_list(args.ee_links) or None)
     except (ValueError, OSError) as e:
         raise urdf_error(e) from None
     if robot.dof == 0:
@@ -1658,7 +1702,10 @@ def model_options(p: argparse.ArgumentParser, verb: str) -> None:
     p.add_argument("urdf", metavar="URDF", help="path to the URDF; the root link is the floating base")
     p.add_argument("--params", metavar="TOML", default=None,
                    help="joint parameters keyed by joint name (keys below; default: scaled to the links)")
-    p.add_argument("--ee-link", metavar="LINK", default=None, help="EE link (default: the unique leaf)")
+    p.add_argument("--ee-link", metavar="LINK", default=None,
+                   help="the one end-effector link (default: every leaf link is an end-effector)")
+    p.add_argument("--ee-links", metavar="LINKS", action="append", default=None,
+                   help="end-effector links of a tree, in order: a comma-separated list; repeatable")
     p.add_argument("--package", metavar="NAME=DIR", type=package_dir, action="append", default=None,
                    help="where the ROS package NAME of package:// meshes is (for animation.html); "
                         "repeatable; ROS_PACKAGE_PATH and the folders above the URDF are searched too")

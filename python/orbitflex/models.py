@@ -3,13 +3,24 @@
 ``space_arm()``: a 500 kg, 1.5 m cube spacecraft bus carrying a 7-joint, 86 kg space arm (two
 carbon-fibre booms of 2.0 m and 1.8 m, a 3-joint wrist, a 3 kg end-effector), EE link ``ee``.
 The URDF text is embedded in the compiled module (``space_arm_urdf()``).
+
+``dual_arm()``: the same bus carrying two of those arms, mounted 0.9 m apart on the same face
+(the right arm is the mirror image of the left): 14 joints, ``left_*`` first, end-effectors
+``left_ee`` and ``right_ee``, 672 kg in all (``dual_arm_urdf()``).
 """
 
 from __future__ import annotations
 
-from ._core import SPACE_ARM_URDF, FlexibleJoints, Robot
+from ._core import DUAL_ARM_URDF, SPACE_ARM_URDF, FlexibleJoints, Robot
 
-__all__ = ["space_arm", "space_arm_urdf", "space_arm_joints"]
+__all__ = [
+    "space_arm",
+    "space_arm_urdf",
+    "space_arm_joints",
+    "dual_arm",
+    "dual_arm_urdf",
+    "dual_arm_joints",
+]
 
 
 def space_arm() -> Robot:
@@ -33,3 +44,22 @@ def space_arm_joints() -> FlexibleJoints:
     ``FlexibleArm.rk4_stability_limit``).
     """
     return FlexibleJoints.space_arm()
+
+
+def dual_arm() -> Robot:
+    """The built-in dual-arm servicer: bus + two 7-joint arms (see the module docstring).
+
+    Joints 0-6 are the left arm, 7-13 the right (``robot.parents`` is -1 at 0 and 7);
+    ``robot.ee_links == ["left_ee", "right_ee"]``, the order of ``ee_wrench`` rows.
+    """
+    return Robot.dual_arm()
+
+
+def dual_arm_urdf() -> str:
+    """The URDF text of the dual-arm servicer."""
+    return DUAL_ARM_URDF
+
+
+def dual_arm_joints() -> FlexibleJoints:
+    """``space_arm_joints()`` for each arm of ``dual_arm()``: the left arm's 7, then the right's."""
+    return FlexibleJoints.dual_arm()

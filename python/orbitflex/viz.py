@@ -415,7 +415,8 @@ def animation_html(
     scene = _scene(robot, packages, ghost=scale is not None, share=True, extra=extra)
     poses = traj.frame_poses(rows=rows.tolist())
     ghost_poses = traj.frame_poses(motor_side=scale, rows=rows.tolist()) if scale is not None else None
-    ee = poses[:, robot.frame_names.index(robot.ee_link), :3]
+    # one trail per end-effector (every arm of a tree)
+    trails = [poses[:, robot.frame_names.index(link), :3] for link in robot.ee_links]
     t = np.asarray(traj.t)[rows]
     # the region the run covers, for the camera and the axes
     points = poses[:, :, :3].reshape(-1, 3)
@@ -430,7 +431,8 @@ def animation_html(
     extent = float(max(np.max(hi - lo), 0.5))
     commands = list(scene.commands)
     commands.append(_axes(0.4 * extent))
-    commands.append(_line(ee, _TRAIL, ("ee_trail",)))
+    for e, trail in enumerate(trails):
+        commands.append(_line(trail, _TRAIL, ("ee_trail" if e == 0 else f"ee_trail_{e}",)))
     dt = float(np.median(np.diff(np.asarray(traj.t)))) if len(traj.t) > 1 else 0.0
     heading = title or f"{robot.name}: {robot.dof} joints, dt = {_g(dt)} s, {len(traj.t)} rows"
     info: Dict[str, Any] = {
@@ -443,6 +445,7 @@ def animation_html(
         "ghost_scale": scale,
         "frames": int(rows.size),
         "count": len(scene.names),
+        "trails": len(trails),
         "center": [float(v) for v in 0.5 * (lo + hi)],
         "extent": extent,
         "commands": [c if "clone" in c else _packed(c) for c in commands],
@@ -751,7 +754,10 @@ async function main() {
   const times = floats(DATA.t), poses = floats(DATA.poses);
   const ghost = DATA.ghost ? floats(DATA.ghost) : null;
   const F = DATA.count, K = DATA.frames, T0 = times[0], T1 = times[K - 1];
-  const trail = viewer.scene_tree.find(["ee_trail", "<object>"]).object;
+  const trails = [];
+  for (let e = 0; e < DATA.trails; e++) {
+    trails.push(viewer.scene_tree.find([e === 0 ? "ee_trail" : "ee_trail_" + e, "<object>"]).object);
+  }
 
   // camera: three.js is y-up; the inertial frame z-up maps to (x, z, -y)
   const c = DATA.center, d = 0.8 * DATA.extent + 0.2;
@@ -788,7 +794,7 @@ async function main() {
     const f = span > 0 ? Math.min(Math.max((t - times[k]) / span, 0), 1) : 0;
     place("robot", poses, k, f);
     if (ghost) place("ghost", ghost, k, f);
-    trail.geometry.setDrawRange(0, k + 1);
+    for (const trail of trails) trail.geometry.setDrawRange(0, k + 1);
     view.time = t;
     slider.value = t;
     label.textContent = "t = " + t.toFixed(2) + " s / " + T1.toFixed(2) + " s";

@@ -21,7 +21,7 @@ pub fn aba<'a>(
     check_data(robot, data)?;
     state.check(robot)?;
     check_vector("tau", tau, robot.dof())?;
-    loads.check()?;
+    loads.check_for(robot)?;
     aba_unchecked(robot, data, state, tau, loads)?;
     Ok(&data.ddq)
 }
@@ -30,7 +30,7 @@ pub fn aba<'a>(
 /// `H_i = [e_z; 0]` (`crate::model` joint frames).
 ///
 /// 1. Forwards: velocities (A.4), Coriolis terms (A.7), and each body's starting `I^A = M_i`
-///    (A.9) and `p^A = b_i` (A.10); the EE body also carries `Φ_{n+1,e}ᵀ f` (A.3, A.8).
+///    (A.9) and `p^A = b_i` (A.10); each EE body also carries `Φ_{e,b}ᵀ f_e` (A.3, A.8).
 /// 2. Backwards: `U = I^A H`, `D = Hᵀ U`, `u = τ − Hᵀ p^A`; the parent receives
 ///    `Φᵀ (I^A − U Uᵀ/D) Φ` and `Φᵀ (p^A + I^a a + U u/D)`.
 /// 3. The base solves `I^A_B α_B = f_B − p^A_B`; then forwards
@@ -73,9 +73,7 @@ pub(crate) fn aba_kernel(
         data.ia[i] = articulated[i];
         data.pa[i] = body_bias(robot, data, i);
     }
-    data.pa[robot.ee_body()] += robot
-        .frame_ee_transform()
-        .apply_force_transpose(&loads.ee_wrench);
+    robot.add_ee_wrenches(&mut data.pa, loads.ee_wrench);
 
     for i in (1..=n).rev() {
         let (ia, pa, c) = (data.ia[i], data.pa[i], data.c[i]);

@@ -14,6 +14,9 @@ use nalgebra::DMatrix;
 /// towards the base along the joints that support body `i`: `𝓜[j, i] = H_jᵀ Φ_{ij}ᵀ F` for each
 /// such joint `j`, and `M_rb[:, i] = Φ_{iB}ᵀ F`. Finally `M_b = I^c_B`.
 ///
+/// On a tree, `𝓜[i, j] = 0` for joints on different branches; only the pairs where one joint
+/// supports the other are computed, O(Σ_i depth(i)) of them.
+///
 /// The first call allocates the matrix; later calls reuse it.
 ///
 /// Runs as AVX2 code where the processor has it, with the same bits (`crate::simd`).
@@ -34,6 +37,11 @@ pub(crate) fn crba_kernel(robot: &Robot, data: &mut Data, q: &[f64]) {
     }
     data.ic.copy_from_slice(robot.frame_inertias());
     let m = &mut data.mass_matrix;
+    if !robot.is_chain() {
+        // on a tree, 𝓜[i, j] = 0 where neither joint supports the other, and nothing below
+        // writes there: clear what an earlier call (or another model's) may have left
+        m.fill(0.0);
+    }
     for i in (1..=robot.dof()).rev() {
         let moved = data.ic[i].transformed_to_parent(&data.x[i]);
         data.ic[parents[i]] = data.ic[parents[i]].add(&moved);

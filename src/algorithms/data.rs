@@ -95,8 +95,9 @@ impl Data {
     }
 
     /// The mass-matrix buffer, allocated (zeroed) on first use, or an error if it would exceed
-    /// [`crate::args::MAX_DENSE_BYTES`]. Entries that the model's structure keeps at zero
-    /// (joints on different branches) are never written, so they stay zero.
+    /// [`crate::args::MAX_DENSE_BYTES`]. (On a tree, [`crate::algorithms::crba`] clears the
+    /// entries of joints on different branches itself: a workspace may have served another
+    /// model of the same size.)
     pub(crate) fn mass_matrix_buffer(&mut self) -> crate::Result<&mut DMatrix<f64>> {
         let size = 6 + self.dof();
         if self.mass_matrix.nrows() != size {

@@ -65,7 +65,7 @@ pub struct Derivatives {
     pub id_q: DMatrix<f64>,
     /// `∂[f_B; τ]/∂ν`, (6+n)×(6+n).
     pub id_v: DMatrix<f64>,
-    /// `∂[f_B; τ]/∂f = [Φ_{n+1,B}ᵀ; Jᵀ]`, (6+n)×6.
+    /// `∂[f_B; τ]/∂f = [Φ_{e,B}ᵀ; J_eᵀ]` per end-effector `e` (block column `e`), (6+n)×6k.
     pub id_ee_wrench: DMatrix<f64>,
     /// `∂[α_B; q̈]/∂q`, (6+n)×n.
     pub fd_q: DMatrix<f64>,
@@ -75,7 +75,7 @@ pub struct Derivatives {
     pub fd_tau: DMatrix<f64>,
     /// `∂[α_B; q̈]/∂f_B = 𝓜⁻¹[𝟙; 0]`, (6+n)×6.
     pub fd_base_wrench: DMatrix<f64>,
-    /// `∂[α_B; q̈]/∂f`, (6+n)×6.
+    /// `∂[α_B; q̈]/∂f`, one block column per end-effector, (6+n)×6k.
     pub fd_ee_wrench: DMatrix<f64>,
     scratch: Scratch,
 }
@@ -126,18 +126,18 @@ struct Scratch {
 }
 
 impl Derivatives {
-    /// Buffers for `n` joints.
-    fn new(n: usize) -> Self {
+    /// Buffers for `n` joints and `k` end-effectors.
+    fn new(n: usize, k: usize) -> Self {
         let (rows, bodies) = (6 + n, n + 1);
         Self {
             id_q: DMatrix::zeros(rows, n),
             id_v: DMatrix::zeros(rows, rows),
-            id_ee_wrench: DMatrix::zeros(rows, 6),
+            id_ee_wrench: DMatrix::zeros(rows, 6 * k),
             fd_q: DMatrix::zeros(rows, n),
             fd_v: DMatrix::zeros(rows, rows),
             fd_tau: DMatrix::zeros(rows, n),
             fd_base_wrench: DMatrix::zeros(rows, 6),
-            fd_ee_wrench: DMatrix::zeros(rows, 6),
+            fd_ee_wrench: DMatrix::zeros(rows, 6 * k),
             scratch: Scratch {
                 to_body: vec![Transform::identity(); bodies],
                 axis: vec![Motion::zero(); bodies],
@@ -255,8 +255,8 @@ pub fn rnea_derivatives<'a>(
     state.check(robot)?;
     check_vector("base_acc", base_acc, 6)?;
     check_vector("qdd", qdd, robot.dof())?;
-    check_vector("ee_wrench", ee_wrench, 6)?;
-    let mut d = take_derivatives(data, robot.dof());
+    crate::args::check_ee_wrench(robot, ee_wrench)?;
+    let mut d = take_derivatives(data, robot.dof(), robot.end_effectors().len());
     for i in 1..=robot.dof() {
         data.x[i] = robot.joint_transform(i, state.q[i - 1]);
     }
@@ -267,7 +267,7 @@ pub fn rnea_derivatives<'a>(
         state,
         &Motion::from_slice(base_acc),
         qdd,
-        &Force::from_slice(ee_wrench),
+        ee_wrench,
     );
     ee_force_map(robot, &mut d);
     data.derivatives = d;
@@ -289,11 +289,12 @@ pub fn aba_derivatives<'a>(
 ) -> Result<&'a Derivatives> {
     super::aba(robot, data, state, tau, loads)?;
     let n = robot.dof();
-    let mut d = take_derivatives(data, n);
+    let k = robot.end_effectors().len();
+    let mut d = take_derivatives(data, n, k);
     let acc = Motion::from_slice(&data.ddq.as_slice()[..6]);
     let mut qdd = std::mem::take(&mut d.scratch.qdd);
     qdd.copy_from_slice(&data.ddq.as_slice()[6..]);
-    id_derivatives(robot, data, &mut d, state, &acc, &qdd, &loads.ee_wrench);
+    id_derivatives(robot, data, &mut d, state, &acc, &qdd, loads.ee_wrench);
     d.scratch.qdd = qdd;
     ee_force_map(robot, &mut d);
     factorisation(robot, data, &mut d.scratch)?;
@@ -321,7 +322,7 @@ pub fn aba_derivatives<'a>(
         minus_product(inverse, &d.id_v, &mut d.fd_v);
         minus_product(inverse, &d.id_ee_wrench, &mut d.fd_ee_wrench);
     } else {
-        let columns = 2 * n + 12;
+        let columns = 2 * n + 6 + 6 * k;
         rhs.clear();
         rhs.resize(m * columns, 0.0);
         for (offset, block) in [(0, &d.id_q), (n, &d.id_v), (2 * n + 6, &d.id_ee_wrench)] {
@@ -339,7 +340,7 @@ pub fn aba_derivatives<'a>(
             for j in 0..m {
                 d.fd_v[(r, j)] = row[n + j];
             }
-            for j in 0..6 {
+            for j in 0..6 * k {
                 d.fd_ee_wrench[(r, j)] = row[2 * n + 6 + j];
             }
         }
@@ -356,35 +357,39 @@ pub(crate) const DENSE_PRODUCTS_UP_TO: usize = 28;
 
 /// The derivative buffers, sized for `n` joints (allocated on first use), moved out of `data`
 /// for the duration of a call.
-fn take_derivatives(data: &mut Data, n: usize) -> Derivatives {
-    if data.derivatives.id_q.nrows() != 6 + n {
-        data.derivatives = Derivatives::new(n);
+fn take_derivatives(data: &mut Data, n: usize, k: usize) -> Derivatives {
+    let d = &data.derivatives;
+    if d.id_q.nrows() != 6 + n || d.id_ee_wrench.ncols() != 6 * k {
+        data.derivatives = Derivatives::new(n, k);
     }
     std::mem::take(&mut data.derivatives)
 }
 
-/// `∂ID/∂f = [Φ_{n+1,B}ᵀ; Jᵀ]` from the transforms and axes [`id_derivatives`] left in the
-/// scratch: column `j` is the unit EE wrench `e_j` moved to the base, `F = Φ_{n+1,B}ᵀ e_j`, and
-/// its generalized force `S_kᵀ F` for the joints `k` that move the EE body (0 for the others).
+/// `∂ID/∂f = [Φ_{e,B}ᵀ; J_eᵀ]` per end-effector `e`, from the transforms and axes
+/// [`id_derivatives`] left in the scratch: column `j` of block `e` is the unit wrench `e_j` of
+/// that end-effector moved to the base, `F = Φ_{e,B}ᵀ e_j`, and its generalized force `S_kᵀ F`
+/// for the joints `k` that move its body (0 for the others).
 fn ee_force_map(robot: &Robot, d: &mut Derivatives) {
     let s = &d.scratch;
-    let ee = robot.ee_body();
-    let to_ee = robot.frame_ee_transform().compose(&s.to_body[ee]);
     let rows = 6 + robot.dof();
-    let forces: [Force; 6] = std::array::from_fn(|j| {
-        let mut unit = [0.0; 6];
-        unit[j] = 1.0;
-        to_ee.apply_force_transpose(&Force::from_slice(&unit))
-    });
-    // column-major: column j is one contiguous slice
     let map = d.id_ee_wrench.as_mut_slice();
-    for (column, f) in map.chunks_exact_mut(rows).zip(&forces) {
-        column[..6].copy_from_slice(&f.to_array());
-        column[6..].fill(0.0);
-    }
-    for k in robot.path_to_base(ee) {
-        for (j, f) in forces.iter().enumerate() {
-            map[j * rows + 5 + k] = s.axis[k].dot(f);
+    for (e, ee) in robot.end_effectors().iter().enumerate() {
+        let to_ee = robot.frame_ee_transform(e).compose(&s.to_body[ee.body]);
+        let forces: [Force; 6] = std::array::from_fn(|j| {
+            let mut unit = [0.0; 6];
+            unit[j] = 1.0;
+            to_ee.apply_force_transpose(&Force::from_slice(&unit))
+        });
+        // column-major: column j is one contiguous slice
+        let block = &mut map[6 * e * rows..6 * (e + 1) * rows];
+        for (column, f) in block.chunks_exact_mut(rows).zip(&forces) {
+            column[..6].copy_from_slice(&f.to_array());
+            column[6..].fill(0.0);
+        }
+        for k in robot.path_to_base(ee.body) {
+            for (j, f) in forces.iter().enumerate() {
+                block[j * rows + 5 + k] = s.axis[k].dot(f);
+            }
         }
     }
 }
@@ -416,7 +421,7 @@ fn id_derivatives(
     state: &RigidState,
     base_acc: &Motion,
     qdd: &[f64],
-    ee_wrench: &Force,
+    ee_wrench: &[f64],
 ) {
     let n = robot.dof();
     let parents = robot.parents();
@@ -441,9 +446,13 @@ fn id_derivatives(
         s.to_body[i] = to_body;
         body_terms(s, i, &inertias[i].transformed_to_parent(&to_body));
     }
-    let ee = robot.ee_body();
-    let at_body = robot.frame_ee_transform().apply_force_transpose(ee_wrench);
-    s.force[ee] += s.to_body[ee].apply_force_transpose(&at_body);
+    for (e, w) in ee_wrench.chunks_exact(6).enumerate() {
+        let body = robot.end_effectors()[e].body;
+        let at_body = robot
+            .frame_ee_transform(e)
+            .apply_force_transpose(&Force::from_slice(w));
+        s.force[body] += s.to_body[body].apply_force_transpose(&at_body);
+    }
     for i in (1..=n).rev() {
         let lambda = parents[i];
         let (inertia, momentum, force, t) = (s.inertia[i], s.momentum[i], s.force[i], s.t[i]);

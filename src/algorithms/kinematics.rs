@@ -44,14 +44,17 @@ pub(crate) fn body_velocity(robot: &Robot, data: &mut Data, i: usize, state: &Ri
     data.x[i] = x;
 }
 
-/// Fills `data.jacobian = J` (6×n, column `k` is `Φ_{n+1,k} H_k` for the joints that move the EE
-/// body and zero for the others, model §2) and `data.ee_base = Φ_{n+1,B}`, so that
-/// `V_{n+1} = Φ_{n+1,B} V_B + J q̇` in the EE frame.
-pub fn ee_jacobian(robot: &Robot, data: &mut Data, q: &[f64]) -> Result<()> {
+/// Fills `data.jacobian = J_e` (6×n, column `k` is `Φ_{e,k} H_k` for the joints that move the
+/// body carrying end-effector `ee` and zero for the others, model §2) and
+/// `data.ee_base = Φ_{e,B}`, so that `V_e = Φ_{e,B} V_B + J_e q̇` in the frame of end-effector
+/// `ee` (an index into [`Robot::end_effectors`]; `0` for a chain).
+pub fn ee_jacobian(robot: &Robot, data: &mut Data, q: &[f64], ee: usize) -> Result<()> {
     check_data(robot, data)?;
     check_vector("q", q, robot.dof())?;
-    let mut to_ee = *robot.frame_ee_transform();
-    for k in robot.path_to_base(robot.ee_body()) {
+    let ee = robot.ee_choice(Some(ee))?;
+    data.jacobian.fill(0.0);
+    let mut to_ee = *robot.frame_ee_transform(ee);
+    for k in robot.path_to_base(robot.end_effectors()[ee].body) {
         let column = to_ee.apply_motion(&Motion::new(Vec3::z(), Vec3::zeros()));
         data.jacobian
             .column_mut(k - 1)
@@ -62,11 +65,11 @@ pub fn ee_jacobian(robot: &Robot, data: &mut Data, q: &[f64]) -> Result<()> {
     Ok(())
 }
 
-/// `Φ_{n+1,B}(q)`: the EE frame seen from the base frame, composed along the path from the EE
-/// body to the base. Allocation-free.
-pub(crate) fn ee_from_base(robot: &Robot, q: &[f64]) -> Transform {
-    let mut to_ee = *robot.frame_ee_transform();
-    for k in robot.path_to_base(robot.ee_body()) {
+/// `Φ_{e,B}(q)`: end-effector `ee`'s frame seen from the base frame, composed along the path
+/// from its body to the base. Allocation-free.
+pub(crate) fn ee_from_base(robot: &Robot, q: &[f64], ee: usize) -> Transform {
+    let mut to_ee = *robot.frame_ee_transform(ee);
+    for k in robot.path_to_base(robot.end_effectors()[ee].body) {
         to_ee = to_ee.compose(&robot.joint_transform(k, q[k - 1]));
     }
     to_ee
@@ -91,8 +94,8 @@ pub fn pose(position: &Vec3, rotation: &crate::spatial::Mat3) -> [f64; 7] {
     ]
 }
 
-/// The inertial poses of the base, of every body `1..=n` and of the EE frame (`n + 2` rows of
-/// [`pose`]), for the base pose `[r_B; quat_B (x, y, z, w)]` and joint angles `q`: body `i`'s
+/// The inertial poses of the base, of every body `1..=n` and of every end-effector frame
+/// (`n + 1 + k` rows of [`pose`], `n + 2` on a chain), for the base pose `[r_B; quat_B (x, y, z, w)]` and joint angles `q`: body `i`'s
 /// origin is `o_λ + E_λ p_{λ,i}` and its axes `E_i = E_λ R_{i,λ}ᵀ`. Checks its arguments.
 pub fn body_poses(robot: &Robot, base_pose: &[f64], q: &[f64]) -> Result<Vec<[f64; 7]>> {
     crate::args::check_base_pose(base_pose)?;
@@ -109,8 +112,6 @@ pub fn body_poses(robot: &Robot, base_pose: &[f64], q: &[f64]) -> Result<Vec<[f6
         origins.push(o + e * x.translation);
         rotations.push(e * x.rotation.transpose());
     }
-    let ee = robot.frame_ee_transform();
-    let (e, o) = (rotations[robot.ee_body()], origins[robot.ee_body()]);
     // joint-frame axes E'_i = E_i Q_iᵀ back to the link frame's E_i = E'_i Q_i
     let mut poses: Vec<[f64; 7]> = origins
         .iter()
@@ -118,10 +119,14 @@ pub fn body_poses(robot: &Robot, base_pose: &[f64], q: &[f64]) -> Result<Vec<[f6
         .enumerate()
         .map(|(i, (o, e))| pose(o, &(e * robot.joint_frame_rotation(i))))
         .collect();
-    poses.push(pose(
-        &(o + e * ee.translation),
-        &(e * ee.rotation.transpose()),
-    ));
+    for (k, end) in robot.end_effectors().iter().enumerate() {
+        let ee = robot.frame_ee_transform(k);
+        let (e, o) = (rotations[end.body], origins[end.body]);
+        poses.push(pose(
+            &(o + e * ee.translation),
+            &(e * ee.rotation.transpose()),
+        ));
+    }
     Ok(poses)
 }
 

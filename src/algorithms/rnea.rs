@@ -5,12 +5,13 @@ use super::kinematics::{body_bias, body_velocity};
 use crate::args::{check_vector, RigidState};
 use crate::error::Result;
 use crate::model::Robot;
-use crate::spatial::{Force, Motion};
+use crate::spatial::Motion;
 use nalgebra::DVector;
 
-/// Inverse dynamics: `[f_B; τ] = 𝓜 [α_B; q̈] + [C_B; C_r] + [Φ_{n+1,B}ᵀ; Jᵀ] f` (A.19), computed
-/// recursively. `base_acc = α_B` (classical, base frame), `ee_wrench = f` (the force the EE
-/// exerts on its environment, EE frame). Result in `data.tau` (length 6+n).
+/// Inverse dynamics: `[f_B; τ] = 𝓜 [α_B; q̈] + [C_B; C_r] + Σ_e [Φ_{e,B}ᵀ; J_eᵀ] f_e` (A.19),
+/// computed recursively. `base_acc = α_B` (classical, base frame); `ee_wrench = [f_1; …; f_k]`,
+/// the force each end-effector exerts on its environment in its own frame (6 numbers per
+/// end-effector, or empty for none). Result in `data.tau` (length 6+n).
 pub fn rnea<'a>(
     robot: &Robot,
     data: &'a mut Data,
@@ -23,14 +24,14 @@ pub fn rnea<'a>(
     state.check(robot)?;
     check_vector("base_acc", base_acc, 6)?;
     check_vector("qdd", qdd, robot.dof())?;
-    check_vector("ee_wrench", ee_wrench, 6)?;
+    crate::args::check_ee_wrench(robot, ee_wrench)?;
     rnea_unchecked(
         robot,
         data,
         state,
         Motion::from_slice(base_acc),
         Some(qdd),
-        &Force::from_slice(ee_wrench),
+        ee_wrench,
     );
     Ok(&data.tau)
 }
@@ -43,14 +44,14 @@ pub fn bias_forces<'a>(
 ) -> Result<&'a DVector<f64>> {
     check_data(robot, data)?;
     state.check(robot)?;
-    rnea_unchecked(robot, data, state, Motion::zero(), None, &Force::zero());
+    rnea_unchecked(robot, data, state, Motion::zero(), None, &[]);
     Ok(&data.tau)
 }
 
 /// RNEA without argument checks; `qdd = None` means `q̈ = 0`.
 ///
 /// In joint frames (`H_i = [e_z; 0]`, so `H_iᵀ f = f_z` of the moment). Forwards, per body: (A.4), (A.7), then (A.6) `α_i = Φ α_λ + a_i + H_i q̈_i` and the body's own
-/// `M_i α_i + b_i` (A.8). The EE body also carries `Φ_{n+1,e}ᵀ f` (A.3). Backwards, each body's
+/// `M_i α_i + b_i` (A.8). Each EE body also carries `Φ_{e,b}ᵀ f_e` (A.3). Backwards, each body's
 /// force is complete once its children have added theirs: `τ_i = H_iᵀ f_i` (A.2), and the parent
 /// receives `Φᵀ f_i` (A.8, A.12). `f_B = f_0`.
 ///
@@ -62,9 +63,9 @@ pub(crate) fn rnea_unchecked(
     state: &RigidState,
     base_acc: Motion,
     qdd: Option<&[f64]>,
-    ee_wrench: &Force,
+    ee_wrench: &[f64],
 ) {
-    crate::simd::dispatch!(rnea_kernel(robot: &Robot, data: &mut Data, state: &RigidState, base_acc: Motion, qdd: Option<&[f64]>, ee_wrench: &Force))
+    crate::simd::dispatch!(rnea_kernel(robot: &Robot, data: &mut Data, state: &RigidState, base_acc: Motion, qdd: Option<&[f64]>, ee_wrench: &[f64]))
 }
 
 #[inline(always)]
@@ -74,7 +75,7 @@ pub(crate) fn rnea_kernel(
     state: &RigidState,
     base_acc: Motion,
     qdd: Option<&[f64]>,
-    ee_wrench: &Force,
+    ee_wrench: &[f64],
 ) {
     let n = robot.dof();
     let inertias = robot.frame_inertias();
@@ -93,7 +94,7 @@ pub(crate) fn rnea_kernel(
         data.acc[i] = acc;
         data.f[i] = inertias[i].apply(&acc) + body_bias(robot, data, i);
     }
-    data.f[robot.ee_body()] += robot.frame_ee_transform().apply_force_transpose(ee_wrench);
+    robot.add_ee_wrenches(&mut data.f, ee_wrench);
     for i in (1..=n).rev() {
         let f = data.f[i];
         data.tau[5 + i] = f.angular.z;

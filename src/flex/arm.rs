@@ -42,8 +42,9 @@ pub struct FlexibleArm {
 pub struct Inputs<'a> {
     /// Motor torques `u` (N·m), reflected to the link side.
     pub u: &'a [f64],
-    /// `f_B` (base frame) and `f` (EE frame, exerted by the EE on its environment).
-    pub loads: Loads,
+    /// `f_B` (base frame) and `[f_1; …; f_k]` (each in its EE frame, exerted by the
+    /// end-effector on its environment).
+    pub loads: Loads<'a>,
 }
 
 impl<'a> Inputs<'a> {
@@ -55,10 +56,11 @@ impl<'a> Inputs<'a> {
         }
     }
 
-    /// Checks `u` against `n` joints and the loads for finiteness.
-    pub fn check(&self, n: usize) -> Result<()> {
-        check_vector("u", self.u, n)?;
-        self.loads.check()
+    /// Checks `u` against the robot's `n` joints, and the loads for finiteness and one wrench
+    /// per end-effector (or none).
+    pub fn check(&self, robot: &Robot) -> Result<()> {
+        check_vector("u", self.u, robot.dof())?;
+        self.loads.check_for(robot)
     }
 }
 
@@ -249,7 +251,7 @@ impl FlexibleArm {
     ) -> Result<()> {
         ws.check(self)?;
         self.check_state(x)?;
-        inputs.check(self.dof())?;
+        inputs.check(&self.robot)?;
         check_length("xdot", xdot.len(), self.layout().len())?;
         self.derivative_unchecked(&mut ws.data, &mut ws.tau, x, inputs, xdot)
     }
@@ -340,7 +342,7 @@ impl FlexibleArm {
     ) -> Result<Jacobians> {
         ws.check(self)?;
         self.check_state(x)?;
-        inputs.check(self.dof())?;
+        inputs.check(&self.robot)?;
         let mut x = x.to_vec();
         normalise_quaternion(&mut x[self.layout().quaternion()]);
         jacobians::derivative_jacobians(self, ws, &x, inputs)
@@ -359,7 +361,7 @@ impl FlexibleArm {
         crate::args::check_dt(dt)?;
         ws.check(self)?;
         self.check_state(x)?;
-        inputs.check(self.dof())?;
+        inputs.check(&self.robot)?;
         let mut x = x.to_vec();
         normalise_quaternion(&mut x[self.layout().quaternion()]);
         Ok(jacobians::step_jacobians(self, ws, &x, dt, inputs)?.0)
@@ -402,15 +404,18 @@ impl FlexibleArm {
         momentum_in_inertial_frame(&x[layout.base_pose()], &h)
     }
 
-    /// The EE pose `[position (m); quaternion (x, y, z, w), w ≥ 0]` in the inertial frame at
-    /// state `x`.
-    pub fn ee_pose(&self, x: &[f64]) -> [f64; 7] {
+    /// The pose `[position (m); quaternion (x, y, z, w), w ≥ 0]` of end-effector `ee` (an index
+    /// into [`Robot::end_effectors`], `0` on a chain) in the inertial frame at state `x`.
+    ///
+    /// # Panics
+    /// If `ee` is out of range.
+    pub fn ee_pose(&self, x: &[f64], ee: usize) -> [f64; 7] {
         let s = self.layout().split(x);
         let base_rotation = quaternion_to_rotation(s.quaternion); // base -> inertial
-        let ee = algorithms::ee_from_base(&self.robot, s.q); // Φ_{n+1,B}
-                                                             // The EE origin is at p_{B,n+1} in base axes; R_{n+1,B}ᵀ turns EE axes into base axes.
-        let position = Vec3::from_column_slice(s.position) + base_rotation * ee.translation;
-        algorithms::pose(&position, &(base_rotation * ee.rotation.transpose()))
+        let to_ee = algorithms::ee_from_base(&self.robot, s.q, ee); // Φ_{e,B}
+                                                                    // The EE origin is at p_{B,e} in base axes; R_{e,B}ᵀ turns EE axes into base axes.
+        let position = Vec3::from_column_slice(s.position) + base_rotation * to_ee.translation;
+        algorithms::pose(&position, &(base_rotation * to_ee.rotation.transpose()))
     }
 
     /// The largest stable RK4 step at state `x` for the closed loop of the joints, the arm and

@@ -30,7 +30,7 @@ use nalgebra::{DMatrix, DMatrixViewMut};
 
 /// Jacobians with respect to the state's tangent and to the inputs. Rows: the tangent of the
 /// result (`12 + 4n`); columns: the tangent of the state (`x`), the motor torques (`u`, n), the
-/// base wrench (`base_wrench`, 6) and the EE wrench (`ee_wrench`, 6).
+/// base wrench (`base_wrench`, 6) and the EE wrenches (`ee_wrench`, 6 per end-effector).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Jacobians {
     /// With respect to the state's tangent, (12+4n)×(12+4n).
@@ -39,17 +39,17 @@ pub struct Jacobians {
     pub u: DMatrix<f64>,
     /// With respect to `f_B`, (12+4n)×6.
     pub base_wrench: DMatrix<f64>,
-    /// With respect to `f`, (12+4n)×6.
+    /// With respect to `[f_1; …; f_k]`, (12+4n)×6k.
     pub ee_wrench: DMatrix<f64>,
 }
 
 impl Jacobians {
-    fn zeros(rows: usize, state_columns: usize, n: usize) -> Self {
+    fn zeros(rows: usize, state_columns: usize, n: usize, k: usize) -> Self {
         Self {
             x: DMatrix::zeros(rows, state_columns),
             u: DMatrix::zeros(rows, n),
             base_wrench: DMatrix::zeros(rows, 6),
-            ee_wrench: DMatrix::zeros(rows, 6),
+            ee_wrench: DMatrix::zeros(rows, 6 * k),
         }
     }
 }
@@ -104,7 +104,8 @@ pub(crate) fn derivative_jacobians(
     inputs: &Inputs,
 ) -> Result<Jacobians> {
     let layout = arm.layout();
-    let mut out = Jacobians::zeros(layout.tangent_len(), layout.tangent_len(), layout.n);
+    let k = arm.robot().end_effectors().len();
+    let mut out = Jacobians::zeros(layout.tangent_len(), layout.tangent_len(), layout.n, k);
     jacobians_into(arm, ws, x, inputs, Coordinates::Tangent, &mut out)?;
     Ok(out)
 }
@@ -113,8 +114,8 @@ pub(crate) fn derivative_jacobians(
 /// `x` (columns) and at the new state `x⁺` (rows), including the quaternion's renormalisation.
 /// Returns them with `x⁺`.
 ///
-/// The sensitivities are kept row by row over all `c = m + n + 12` parameters (the raw state,
-/// `u`, `f_B`, `f`), so one row of a product is a combination of contiguous rows. With the stage
+/// The sensitivities are kept row by row over all `c = m + n + 6 + 6k` parameters (the raw
+/// state, `u`, `f_B`, `[f_1; …; f_k]`), so one row of a product is a combination of contiguous rows. With the stage
 /// points `x_s = x + h_s k_{s−1}`, `dk₁ = K₁ [𝟙 | 0] + D₁` and
 /// `dk_s = K_s ([𝟙 | 0] + h_s dk_{s−1}) + D_s` (`D_s` the direct input terms), so only three
 /// products are needed, and in each only the rigid-dynamics rows of `K_s` are dense. Up to
@@ -149,8 +150,9 @@ pub(crate) fn step_jacobians_with(
     let (m, n) = (layout.len(), layout.n);
     // the buffers live in the workspace: fresh megabytes per call would cost page faults
     let mut scratch = std::mem::take(&mut ws.jacobians);
-    if scratch.stage.x.nrows() != m {
-        scratch.stage = Jacobians::zeros(m, m, n);
+    let k = arm.robot().end_effectors().len();
+    if scratch.stage.x.nrows() != m || scratch.stage.ee_wrench.ncols() != 6 * k {
+        scratch.stage = Jacobians::zeros(m, m, n, k);
     }
     let result = stage_chain(arm, ws, x, dt, inputs, dense_products, &mut scratch);
     ws.jacobians = scratch;
@@ -173,7 +175,7 @@ pub(crate) struct StepScratch {
 impl Default for StepScratch {
     fn default() -> Self {
         Self {
-            stage: Jacobians::zeros(0, 0, 0),
+            stage: Jacobians::zeros(0, 0, 0, 0),
             dk: Vec::new(),
             previous: Vec::new(),
             total: Vec::new(),
@@ -197,7 +199,7 @@ fn stage_chain(
 ) -> Result<(Jacobians, Vec<f64>)> {
     let layout = arm.layout();
     let (m, n) = (layout.len(), layout.n);
-    let c = m + n + 12;
+    let c = m + n + 6 + 6 * arm.robot().end_effectors().len();
     let StepScratch {
         stage,
         dk,
@@ -393,7 +395,8 @@ fn to_tangent(
 ) -> Jacobians {
     let layout = arm.layout();
     let (m, n, t) = (layout.len(), layout.n, layout.tangent_len());
-    let c = m + n + 12;
+    let k = arm.robot().end_effectors().len();
+    let c = m + n + 6 + 6 * k;
     let quaternion = layout.quaternion();
     // E's rotation block (4 × 3) and P's (3 × 4)
     let from = &x[quaternion.clone()];
@@ -410,8 +413,8 @@ fn to_tangent(
         let product = quaternion_product(&conjugate, &unit);
         [2.0 * product[0], 2.0 * product[1], 2.0 * product[2]]
     });
-    // the result row by row (row-major, t × (t + n + 12)), then into the column-major outputs
-    let width = t + n + 12;
+    // the result row by row (row-major, t × (t + n + 6 + 6k)), then into the column-major outputs
+    let width = t + n + 6 + 6 * k;
     rows.clear();
     rows.resize(t * width, 0.0);
     let mut row = vec![0.0; c];
@@ -438,7 +441,7 @@ fn to_tangent(
         }
         out_row[t..].copy_from_slice(&row[m..]);
     }
-    let mut out = Jacobians::zeros(t, t, n);
+    let mut out = Jacobians::zeros(t, t, n, k);
     for (block, offset) in [
         (&mut out.x, 0),
         (&mut out.u, t),
@@ -527,6 +530,8 @@ fn jacobians_into(
         for j in 0..6 {
             out.x[(row, twist + j)] = d.fd_v[(r, j)];
             out.base_wrench[(row, j)] = d.fd_base_wrench[(r, j)];
+        }
+        for j in 0..d.fd_ee_wrench.ncols() {
             out.ee_wrench[(row, j)] = d.fd_ee_wrench[(r, j)];
         }
     }

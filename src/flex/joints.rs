@@ -159,6 +159,20 @@ impl FlexibleJoints {
             .expect("the built-in joint parameters are valid")
     }
 
+    /// [`space_arm`](Self::space_arm)'s parameters for each arm of [`crate::Robot::dual_arm`]:
+    /// the left arm's seven joints, then the right arm's.
+    pub fn dual_arm() -> Self {
+        let one = Self::space_arm();
+        let twice = |v: &[f64]| [v, v].concat();
+        Self::new(
+            twice(&one.stiffness),
+            twice(&one.motor_inertia),
+            twice(&one.damping),
+            twice(&one.motor_damping),
+        )
+        .expect("the built-in joint parameters are valid")
+    }
+
     /// Parameters for a robot with no actuator data, scaled to its links (the CLI's default
     /// when no `--params` file is given). Each joint `i` sees the link-side inertia
     /// `m_i = 1/(𝓜⁻¹)_ii` at `q = 0` (the inertia it would drive with every other joint free);

@@ -190,7 +190,8 @@ impl<'a> BatchInput<'a> {
                 given: format!("{s} rows"),
             });
         }
-        if self.width != width {
+        // a zero input has no rows to check (its width is only a default)
+        if self.width != width && !self.values.is_empty() {
             return Err(Error::Dimension {
                 what: what.into(),
                 expected: format!("rows of {width} numbers"),
@@ -528,7 +529,11 @@ impl<'a> Batch<'a> {
         for (what, input, w) in [
             ("x0s", &self.x0, width),
             ("base_wrench", &self.base_wrench, 6),
-            ("ee_wrench", &self.ee_wrench, 6),
+            (
+                "ee_wrench",
+                &self.ee_wrench,
+                6 * self.arms.get(0).robot().end_effectors().len(),
+            ),
         ] {
             input.check(what, w, self.runs, settings.steps)?;
         }

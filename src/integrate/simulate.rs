@@ -12,14 +12,16 @@ use crate::flex::state::state_defect;
 use crate::flex::{normalise_quaternion, ArmWorkspace, FlexibleArm, Inputs, StabilityLimit};
 use crate::spatial::Force;
 
-/// The external wrenches of a run, each a [`Schedule`] of width 6 `[moment; force]`:
-/// `base` is `f_B` (base frame, applied to the base by its actuators) and `ee` is `f` (EE frame,
-/// exerted by the EE on its environment).
+/// The external wrenches of a run, each a [`Schedule`] of `[moment; force]` rows: `base` is
+/// `f_B` (width 6, base frame, applied to the base by its actuators) and `ee` is
+/// `[f_1; …; f_k]` (width 6k, one wrench per end-effector in
+/// [`crate::Robot::ee_links`] order, each in its EE frame, exerted by the end-effector on its
+/// environment; width 6 on a chain).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Wrenches {
     /// `f_B` per step.
     pub base: Schedule,
-    /// `f` per step.
+    /// `[f_1; …; f_k]` per step.
     pub ee: Schedule,
 }
 
@@ -36,22 +38,33 @@ impl Wrenches {
         ee: Schedule::Zero,
     };
 
-    /// Checks both schedules: width 6, a table of exactly `steps` rows, finite values.
-    pub fn check(&self, steps: usize) -> Result<()> {
+    /// Checks both schedules for `robot`: widths 6 and 6k, a table of exactly `steps` rows,
+    /// finite values.
+    pub fn check(&self, robot: &crate::Robot, steps: usize) -> Result<()> {
         self.base.check("base_wrench", 6, Some(steps))?;
-        self.ee.check("ee_wrench", 6, Some(steps))
+        let width = 6 * robot.end_effectors().len();
+        self.ee.check("ee_wrench", width, Some(steps))
     }
 
-    /// The loads of step `k`.
+    /// The loads of step `k`, the EE row written into `ee_row` (unused when the EE schedule is
+    /// zero).
+    ///
+    /// # Panics
+    /// If `ee_row`'s length is not the EE schedule's width (6k; [`check`](Self::check) it first).
     #[inline]
-    pub fn loads(&self, k: usize) -> Loads {
+    pub fn loads<'b>(&self, k: usize, ee_row: &'b mut [f64]) -> Loads<'b> {
         let mut row = [0.0; 6];
         self.base.write(k, &mut row);
         let base_wrench = Force::from_slice(&row);
-        self.ee.write(k, &mut row);
+        let ee_wrench: &[f64] = if matches!(self.ee, Schedule::Zero) {
+            &[]
+        } else {
+            self.ee.write(k, ee_row);
+            ee_row
+        };
         Loads {
             base_wrench,
-            ee_wrench: Force::from_slice(&row),
+            ee_wrench,
         }
     }
 }
@@ -128,7 +141,7 @@ pub fn step(
     check_dt(dt)?;
     crate::algorithms::check_data(arm.robot(), &ws.data)?;
     arm.check_state(x)?;
-    inputs.check(arm.dof())?;
+    inputs.check(arm.robot())?;
     step_unchecked(arm, ws, x, dt, inputs)?;
     match state_defect(&arm.layout(), x) {
         Some(defect) => Err(Error::Simulation {
@@ -181,7 +194,7 @@ pub fn check_run(
         },
         other => other,
     })?;
-    wrenches.check(steps)?;
+    wrenches.check(arm.robot(), steps)?;
     u.check_run(arm.dof(), steps)
 }
 
@@ -321,6 +334,7 @@ fn run_checked(
         Vec::new()
     };
     let mut torque = vec![0.0; layout.n];
+    let mut ee_row = vec![0.0; 6 * arm.robot().end_effectors().len()];
     let every = observer.every();
     for k in 0..steps {
         let t = k as f64 * dt;
@@ -336,7 +350,19 @@ fn run_checked(
         let outcome = if every > 0 && k > 0 && k % every == 0 && !observer.observe(k, steps) {
             Err(stop("interrupted by the caller".into()))
         } else {
-            run_step(arm, &mut ws, &mut x, dt, k, t, u, wrenches, &mut torque).map_err(stop)
+            run_step(
+                arm,
+                &mut ws,
+                &mut x,
+                dt,
+                k,
+                t,
+                u,
+                wrenches,
+                &mut torque,
+                &mut ee_row,
+            )
+            .map_err(stop)
         };
         if let Err(error) = outcome {
             if !kept {
@@ -371,13 +397,14 @@ fn run_step(
     u: &mut dyn Controller,
     wrenches: &Wrenches,
     torque: &mut [f64],
+    ee_row: &mut [f64],
 ) -> std::result::Result<(), String> {
     u.torque(k, t, x, torque)
         .map_err(|e| format!("the controller failed: {e}"))?;
     check_finite("u", torque).map_err(|e| format!("the controller returned {e}"))?;
     let inputs = Inputs {
         u: torque,
-        loads: wrenches.loads(k),
+        loads: wrenches.loads(k, ee_row),
     };
     step_unchecked(arm, ws, x, dt, &inputs).map_err(|e| {
         format!(

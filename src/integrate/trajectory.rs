@@ -189,9 +189,13 @@ impl<'a> StateRows<'a> {
         self.iter().map(|x| arm.energy(&mut ws, x)).collect()
     }
 
-    /// EE pose `[p; quat]` in the inertial frame, row-major `len × 7`.
+    /// Every end-effector's pose `[p; quat]` in the inertial frame, row-major `len × k × 7`
+    /// (`len × 7` on a chain), end-effectors in [`crate::Robot::ee_links`] order.
     pub fn ee_pose(&self, arm: &FlexibleArm) -> Vec<f64> {
-        self.iter().flat_map(|x| arm.ee_pose(x)).collect()
+        let k = arm.robot().end_effectors().len();
+        self.iter()
+            .flat_map(|x| (0..k).flat_map(move |e| arm.ee_pose(x, e)))
+            .collect()
     }
 
     /// The inertial pose `[p (m); quat (x, y, z, w), w ≥ 0]` of every named frame

@@ -33,9 +33,7 @@ impl RobotBuilder {
                 joints: Vec::new(),
                 parents: vec![0],
                 inertias: vec![base_inertia],
-                ee_body: 0,
-                ee_link: base_name.to_string(),
-                ee_transform: Transform::identity(),
+                ees: Vec::new(),
                 frames: Default::default(),
                 link_frames: Vec::new(),
                 visuals: Vec::new(),
@@ -46,10 +44,9 @@ impl RobotBuilder {
 
     /// Appends revolute joint `i`, carried by the last body added (a serial chain): `origin =
     /// Φ_{i,i-1}` at `q = 0`, axis `h_i` in frame `i` (normalised by [`build`](Self::build)), and
-    /// the inertia of link `i` in its own frame. The EE frame moves to the new link (identity)
-    /// until [`ee`](Self::ee) says otherwise.
+    /// the inertia of link `i` in its own frame.
     pub fn joint(
-        mut self,
+        self,
         name: &str,
         origin: Transform,
         axis: Vec3,
@@ -57,6 +54,65 @@ impl RobotBuilder {
         inertia: Inertia,
     ) -> Self {
         let parent = self.robot.joints.len();
+        self.push_joint(parent, name, origin, axis, link_name, inertia)
+    }
+
+    /// Appends revolute joint `i` carried by the body named `parent_link` (the base, or a link
+    /// added before), for a tree: `origin = Φ_{i,λ(i)}` at `q = 0` from the parent's frame, the
+    /// rest as [`joint`](Self::joint). Bodies must come depth-first: `parent_link` is the last
+    /// body added or one of its ancestors, so each subtree is a contiguous range of bodies
+    /// ([`build`](Self::build) refuses other orders, and unknown names).
+    pub fn joint_on(
+        self,
+        parent_link: &str,
+        name: &str,
+        origin: Transform,
+        axis: Vec3,
+        link_name: &str,
+        inertia: Inertia,
+    ) -> Self {
+        // an unknown name is reported by `build` (the index is out of range there)
+        let parent = self
+            .robot
+            .link_names
+            .iter()
+            .position(|l| l == parent_link)
+            .unwrap_or(usize::MAX);
+        self.push_joint(parent, name, origin, axis, link_name, inertia)
+    }
+
+    /// [`joint_on`](Self::joint_on) with the parent given by its body index.
+    pub(crate) fn joint_at(
+        self,
+        parent: usize,
+        name: &str,
+        origin: Transform,
+        axis: Vec3,
+        link_name: &str,
+        inertia: Inertia,
+    ) -> Self {
+        self.push_joint(parent, name, origin, axis, link_name, inertia)
+    }
+
+    /// [`end_effector`](Self::end_effector) with the body given by its index.
+    pub(crate) fn end_effector_at(mut self, name: &str, body: usize, transform: Transform) -> Self {
+        self.robot.ees.push(super::EndEffector {
+            link: name.to_string(),
+            body,
+            transform,
+        });
+        self
+    }
+
+    fn push_joint(
+        mut self,
+        parent: usize,
+        name: &str,
+        origin: Transform,
+        axis: Vec3,
+        link_name: &str,
+        inertia: Inertia,
+    ) -> Self {
         self.robot.parents.push(parent);
         self.robot.joints.push(JointModel {
             name: name.to_string(),
@@ -65,17 +121,44 @@ impl RobotBuilder {
         });
         self.robot.link_names.push(link_name.to_string());
         self.robot.inertias.push(inertia);
-        self.robot.ee_body = self.robot.joints.len();
-        self.robot.ee_link = link_name.to_string();
-        self.robot.ee_transform = Transform::identity();
         self
     }
 
-    /// Sets the EE frame `n+1`: `transform = Φ_{n+1,n}` relative to the last link added.
+    /// Adds an end-effector frame on the last body added: `transform = Φ_{e,b}` from that body's
+    /// frame (`Φ_{n+1,n}` on a chain). Without any [`ee`](Self::ee) or
+    /// [`end_effector`](Self::end_effector), [`build`](Self::build) puts one end-effector at the
+    /// origin of every leaf body (the last link of a chain), named after its link.
     pub fn ee(mut self, name: &str, transform: Transform) -> Self {
-        self.robot.ee_link = name.to_string();
-        self.robot.ee_transform = transform;
+        let body = self.robot.joints.len();
+        self.robot.ees.push(super::EndEffector {
+            link: name.to_string(),
+            body,
+            transform,
+        });
         self
+    }
+
+    /// Adds an end-effector frame named `name` on the body named `link` (any body, the base
+    /// included): `transform = Φ_{e,b}` from that body's frame. End-effectors keep the order
+    /// they are added in.
+    pub fn end_effector(mut self, name: &str, link: &str, transform: Transform) -> Self {
+        let body = self
+            .robot
+            .link_names
+            .iter()
+            .position(|l| l == link)
+            .unwrap_or(usize::MAX);
+        self.robot.ees.push(super::EndEffector {
+            link: name.to_string(),
+            body,
+            transform,
+        });
+        self
+    }
+
+    /// Rebuilds a model from its parts (tests and the crate's own derived models).
+    pub(crate) fn from_robot(robot: Robot) -> Self {
+        Self { robot }
     }
 
     /// Names the frames of the model's links, for viewers and [`crate::algorithms::frame_poses`]
@@ -123,8 +206,11 @@ impl RobotBuilder {
             check_transform(&joint.origin)
                 .map_err(|m| invalid(format!("joint '{}': origin {m}", joint.name)))?;
         }
-        check_transform(&self.robot.ee_transform)
-            .map_err(|m| invalid(format!("EE frame '{}': {m}", self.robot.ee_link)))?;
+        check_tree(&self.robot).map_err(invalid)?;
+        if self.robot.ees.is_empty() {
+            self.robot.ees = leaf_end_effectors(&self.robot);
+        }
+        check_end_effectors(&self.robot).map_err(invalid)?;
         for (inertia, link) in self.robot.inertias.iter().zip(&self.robot.link_names) {
             check_inertia(inertia.mass, &inertia.com, &inertia.inertia_about_com()).map_err(
                 |message| Error::InvalidInertia {
@@ -142,6 +228,69 @@ impl RobotBuilder {
         check_mass_matrix(&self.robot)?;
         Ok(self.robot)
     }
+}
+
+/// Every joint hangs from a body that exists, in depth-first order: the parent of body `i` is
+/// body `i − 1` or one of its ancestors (so each subtree is a contiguous range of bodies).
+fn check_tree(robot: &Robot) -> std::result::Result<(), String> {
+    for i in 1..robot.parents.len() {
+        let parent = robot.parents[i];
+        let name = &robot.joints[i - 1].name;
+        if parent >= i {
+            return Err(format!(
+                "joint '{name}': its parent link is not defined before it (parents must be added \
+                 before their children)"
+            ));
+        }
+        let on_path = parent == i - 1
+            || robot
+                .path_to_base(i - 1)
+                .any(|b| robot.parents[b] == parent);
+        if !on_path {
+            return Err(format!(
+                "joint '{name}' hangs from '{}', whose subtree was already closed by '{}': add \
+                 the bodies depth-first (each branch complete before the next)",
+                robot.link_names[parent],
+                robot.link_names[i - 1]
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// One end-effector at the origin of every leaf body, named after its link.
+fn leaf_end_effectors(robot: &Robot) -> Vec<super::EndEffector> {
+    let mut has_child = vec![false; robot.parents.len()];
+    for &p in &robot.parents[1..] {
+        has_child[p] = true;
+    }
+    (0..robot.parents.len())
+        .filter(|&b| !has_child[b])
+        .map(|b| super::EndEffector {
+            link: robot.link_names[b].clone(),
+            body: b,
+            transform: Transform::identity(),
+        })
+        .collect()
+}
+
+/// End-effectors on bodies that exist, with unique names and valid placements.
+fn check_end_effectors(robot: &Robot) -> std::result::Result<(), String> {
+    let mut names = std::collections::HashSet::new();
+    for ee in &robot.ees {
+        if ee.body > robot.joints.len() {
+            return Err(format!(
+                "end-effector '{}' is placed on a link that is not defined (links: {})",
+                ee.link,
+                robot.link_names.join(", ")
+            ));
+        }
+        if !names.insert(ee.link.as_str()) {
+            return Err(format!("end-effector '{}' is named twice", ee.link));
+        }
+        check_transform(&ee.transform).map_err(|m| format!("EE frame '{}': {m}", ee.link))?;
+    }
+    Ok(())
 }
 
 /// The named frames and visuals refer to bodies and frames that exist, parents first, with
@@ -379,7 +528,8 @@ impl Robot {
         RobotBuilder { robot }.build()
     }
 
-    /// This robot holding a rigid payload at its end-effector: `payload` (its mass, centre of
+    /// This robot holding a rigid payload at its end-effector (a robot with several end-effectors
+    /// is an error that lists them): `payload` (its mass, centre of
     /// mass and rotational inertia about the EE origin, all in the EE frame) is joined to the
     /// body that carries the EE frame, as a fixed link merged into it would be. Validated like any new model. For
     /// dispersing a grasped object's mass in a campaign.
@@ -395,10 +545,17 @@ impl Robot {
     /// # Ok::<(), orbitflex::Error>(())
     /// ```
     pub fn with_payload(&self, payload: Inertia) -> Result<Robot> {
+        self.with_payload_at(payload, self.ee_choice(None)?)
+    }
+
+    /// [`with_payload`](Self::with_payload) at end-effector `ee` (an index into
+    /// [`Robot::ee_links`]), for a robot with several.
+    pub fn with_payload_at(&self, payload: Inertia, ee: usize) -> Result<Robot> {
         let mut robot = self.clone();
-        let ee = robot.ee_body;
-        let held = payload.transformed_to_parent(&robot.ee_transform);
-        robot.inertias[ee] = robot.inertias[ee].add(&held);
+        let ee = &robot.ees[robot.ee_choice(Some(ee))?];
+        let held = payload.transformed_to_parent(&ee.transform);
+        let body = ee.body;
+        robot.inertias[body] = robot.inertias[body].add(&held);
         RobotBuilder { robot }.build()
     }
 }

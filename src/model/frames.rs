@@ -10,7 +10,9 @@
 //! [`crate::algorithms::Data`] are in joint frames; [`Robot::joint_frame_rotation`] maps them back.
 
 use super::Robot;
-use crate::spatial::{rotation_about_axis, ArticulatedInertia, Inertia, Mat3, Transform, Vec3};
+use crate::spatial::{
+    rotation_about_axis, ArticulatedInertia, Force, Inertia, Mat3, Transform, Vec3,
+};
 
 /// The model in joint frames (module docs), derived from the public link-frame model when a
 /// [`Robot`] is built.
@@ -26,8 +28,8 @@ pub(crate) struct JointFrames {
     pub(crate) inertias: Vec<Inertia>,
     /// The same in the block form of the ABA, where each body's recursion starts.
     pub(crate) articulated: Vec<ArticulatedInertia>,
-    /// `Φ_{n+1,e}` from the joint frame of the EE body.
-    pub(crate) ee_transform: Transform,
+    /// Per end-effector, `Φ_{e,b}` from the joint frame of the body carrying it.
+    pub(crate) ee_transforms: Vec<Transform>,
     /// `Q_i`: link-frame components to joint-frame components (index 0 is the base, `𝟙`).
     pub(crate) rotations: Vec<Mat3>,
     /// Per named frame ([`Robot::frames`]): its placement from the joint frame of its body.
@@ -89,7 +91,11 @@ impl JointFrames {
             .map(|(i, inertia)| inertia.transformed_to_parent(&back(i)))
             .collect::<Vec<_>>();
         let articulated = inertias.iter().map(ArticulatedInertia::from).collect();
-        let ee_transform = robot.ee_transform.compose(&back(robot.ee_body));
+        let ee_transforms = robot
+            .ees
+            .iter()
+            .map(|e| e.transform.compose(&back(e.body)))
+            .collect();
         let link_frames = robot
             .link_frames
             .iter()
@@ -101,7 +107,7 @@ impl JointFrames {
             tilts,
             inertias,
             articulated,
-            ee_transform,
+            ee_transforms,
             rotations,
         }
     }
@@ -185,10 +191,20 @@ impl Robot {
         &self.frames.articulated
     }
 
-    /// `Φ_{n+1,e}` from the joint frame of the EE body.
+    /// `Φ_{e,b}` of end-effector `e` from the joint frame of its body.
     #[inline(always)]
-    pub(crate) fn frame_ee_transform(&self) -> &Transform {
-        &self.frames.ee_transform
+    pub(crate) fn frame_ee_transform(&self, e: usize) -> &Transform {
+        &self.frames.ee_transforms[e]
+    }
+
+    /// Adds every end-effector wrench, `Φ_{e,b}ᵀ f_e`, to the force of the body carrying it
+    /// (joint frames): `ee_wrench` is `[f_1; …; f_k]` or empty (A.8, A.12).
+    #[inline(always)]
+    pub(crate) fn add_ee_wrenches(&self, forces: &mut [Force], ee_wrench: &[f64]) {
+        for (e, w) in ee_wrench.chunks_exact(6).enumerate() {
+            forces[self.ees[e].body] +=
+                self.frames.ee_transforms[e].apply_force_transpose(&Force::from_slice(w));
+        }
     }
 
     /// Each named frame's placement from the joint frame of its body.

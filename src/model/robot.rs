@@ -2,7 +2,7 @@
 
 use crate::spatial::{rotation_about_axis, Inertia, Transform, Vec3};
 
-/// One revolute joint `i` of the chain: it connects body `i-1` (parent) to body `i` (child).
+/// One revolute joint `i`: it connects body `parents()[i]` (`i − 1` on a chain) to body `i`.
 #[derive(Debug, Clone, PartialEq)]
 pub struct JointModel {
     /// Joint name (from the URDF, or given to the builder).
@@ -23,13 +23,26 @@ impl JointModel {
     }
 }
 
-/// A floating-base chain of revolute joints: base `B` (body 0), links `1..=n`, and the EE frame
-/// `n+1` rigidly attached to the EE body (link `n` of the chain).
+/// One end-effector: a named frame rigidly attached to a body, `Φ_{e,b}` from that body's frame.
+#[derive(Debug, Clone, PartialEq)]
+pub struct EndEffector {
+    /// The name of the EE frame (the URDF link whose frame it is).
+    pub link: String,
+    /// The body carrying it (`0` is the base).
+    pub body: usize,
+    /// `Φ_{e,b}`: the EE frame seen from the frame of its body (constant).
+    pub transform: Transform,
+}
+
+/// A floating base carrying a tree of revolute joints: base `B` (body 0), links `1..=n`, and
+/// `k ≥ 1` end-effector frames, each rigidly attached to one body. A serial chain is the tree
+/// whose only end-effector is the EE frame `n+1` on link `n`.
 ///
-/// Bodies are numbered so that each parent comes before its children: body `i` hangs from body
-/// [`parents()[i]`](Robot::parents) through joint `i`. Every recursion reads the parent from there
-/// rather than assuming `i − 1`, so the loops already work on a tree; the models built today are
-/// chains (`parents()[i] = i − 1`).
+/// Bodies are numbered depth-first from the base (pre-order), so each parent comes before its
+/// children and every subtree is a contiguous range: body `i` hangs from body
+/// [`parents()[i]`](Robot::parents) through joint `i`, and its subtree is
+/// `i..i + subtree_sizes()[i]`. Every recursion reads the parent from there rather than
+/// assuming `i − 1`. On a chain `parents()[i] = i − 1`.
 ///
 /// Built by [`crate::RobotBuilder`] or loaded from a URDF; validated on construction (physical
 /// inertias, unit axes, a positive-definite mass matrix at `q = 0`). Immutable afterwards.
@@ -42,10 +55,8 @@ pub struct Robot {
     /// `parents[i]` for body `i ≥ 1`; `parents[0] = 0` is unused.
     pub(crate) parents: Vec<usize>,
     pub(crate) inertias: Vec<Inertia>,
-    /// The body carrying the EE frame.
-    pub(crate) ee_body: usize,
-    pub(crate) ee_link: String,
-    pub(crate) ee_transform: Transform,
+    /// The end-effectors, at least one, in the order of `ee_links`.
+    pub(crate) ees: Vec<EndEffector>,
     /// The same model in joint frames (`super::frames`), derived by [`crate::RobotBuilder::build`].
     pub(crate) frames: super::JointFrames,
     /// One named frame per URDF link, depth-first (`super::visual`).
@@ -73,12 +84,12 @@ impl Robot {
         &self.source
     }
 
-    /// Joint names in chain order, base to EE.
+    /// Joint names in body order (depth-first from the base; base to EE on a chain).
     pub fn joint_names(&self) -> Vec<&str> {
         self.joints.iter().map(|j| j.name.as_str()).collect()
     }
 
-    /// The joints in chain order.
+    /// The joints in body order.
     pub fn joints(&self) -> &[JointModel] {
         &self.joints
     }
@@ -105,10 +116,10 @@ impl Robot {
         })
     }
 
-    /// The body that carries the EE frame `n+1`.
+    /// The body that carries the first end-effector's frame (the EE frame `n+1` of a chain).
     #[inline]
     pub fn ee_body(&self) -> usize {
-        self.ee_body
+        self.ees[0].body
     }
 
     /// Spatial inertia of body `i` about its own origin in its own frame (A.9); `0` is the base.
@@ -116,14 +127,101 @@ impl Robot {
         &self.inertias
     }
 
-    /// Name of the link whose frame is the EE frame `n+1`.
+    /// Name of the first end-effector's link (the EE link of a chain).
     pub fn ee_link(&self) -> &str {
-        &self.ee_link
+        &self.ees[0].link
     }
 
-    /// `Φ_{n+1,e}`: the EE frame in the frame of the EE body `e` (constant).
+    /// `Φ_{e,b}` of the first end-effector: its frame in the frame of the body carrying it.
     pub fn ee_transform(&self) -> &Transform {
-        &self.ee_transform
+        &self.ees[0].transform
+    }
+
+    /// The end-effectors, in order: wrenches `[f_1; …; f_k]`, stacked Jacobians and the block
+    /// columns of the operator `B` all follow it.
+    pub fn end_effectors(&self) -> &[EndEffector] {
+        &self.ees
+    }
+
+    /// The end-effector links' names, in [`end_effectors`](Self::end_effectors) order.
+    pub fn ee_links(&self) -> Vec<&str> {
+        self.ees.iter().map(|e| e.link.as_str()).collect()
+    }
+
+    /// The index of the end-effector named `name` in [`ee_links`](Self::ee_links).
+    pub fn ee_index(&self, name: &str) -> crate::Result<usize> {
+        self.ees
+            .iter()
+            .position(|e| e.link == name)
+            .ok_or_else(|| crate::Error::InvalidArgument {
+                what: "ee".into(),
+                message: format!(
+                    "no end-effector named {name:?}; the end-effectors are {}",
+                    self.ee_list()
+                ),
+            })
+    }
+
+    /// Picks one end-effector: `Some(k)` checked against the count, or `None` when the robot has
+    /// exactly one (an error that lists them otherwise).
+    pub fn ee_choice(&self, ee: Option<usize>) -> crate::Result<usize> {
+        let k = self.ees.len();
+        match ee {
+            Some(e) if e < k => Ok(e),
+            Some(e) => Err(crate::Error::InvalidArgument {
+                what: "ee".into(),
+                message: format!(
+                    "end-effector index {e} is out of range: the robot has {k} ({})",
+                    self.ee_list()
+                ),
+            }),
+            None if k == 1 => Ok(0),
+            None => Err(crate::Error::InvalidArgument {
+                what: "ee".into(),
+                message: format!(
+                    "the robot has {k} end-effectors ({}); say which one with ee= (a name or an \
+                     index)",
+                    self.ee_list()
+                ),
+            }),
+        }
+    }
+
+    fn ee_list(&self) -> String {
+        self.ees
+            .iter()
+            .map(|e| format!("'{}'", e.link))
+            .collect::<Vec<_>>()
+            .join(", ")
+    }
+
+    /// Whether the joints form one serial chain (`parents()[i] = i − 1` for every body).
+    #[inline]
+    pub fn is_chain(&self) -> bool {
+        self.parents
+            .iter()
+            .enumerate()
+            .skip(1)
+            .all(|(i, &p)| p == i - 1)
+    }
+
+    /// The number of bodies in each body's subtree (itself included); the subtree of body `i` is
+    /// the contiguous range `i..i + subtree_sizes()[i]` (bodies are numbered depth-first).
+    pub fn subtree_sizes(&self) -> Vec<usize> {
+        let mut sizes = vec![1; self.parents.len()];
+        for i in (1..sizes.len()).rev() {
+            sizes[self.parents[i]] += sizes[i];
+        }
+        sizes
+    }
+
+    /// The children of each body, in order.
+    pub fn children(&self) -> Vec<Vec<usize>> {
+        let mut children = vec![Vec::new(); self.parents.len()];
+        for i in 1..self.parents.len() {
+            children[self.parents[i]].push(i);
+        }
+        children
     }
 
     /// Total mass of base and links (kg).

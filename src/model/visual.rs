@@ -385,7 +385,7 @@ impl Robot {
     pub fn scene(&self, search: &MeshSearch) -> Scene {
         let mut scene = Scene::default();
         let frames = self.link_frames.len();
-        let children = self.children();
+        let children = self.frame_children();
         let mut has_visual = vec![false; frames];
         let mut stand_in = vec![false; frames];
         let mut numbers = vec![0usize; frames];
@@ -467,7 +467,7 @@ impl Robot {
     }
 
     /// The child frames of each frame.
-    fn children(&self) -> Vec<Vec<usize>> {
+    fn frame_children(&self) -> Vec<Vec<usize>> {
         let mut children = vec![Vec::new(); self.link_frames.len()];
         for (k, frame) in self.link_frames.iter().enumerate() {
             if let Some(parent) = frame.parent {
@@ -481,7 +481,7 @@ impl Robot {
     /// link's origin (a sphere for a leaf), whatever its visuals. Viewers draw the motor-side
     /// "ghost" arm with it.
     pub fn skeleton(&self) -> Vec<Shape> {
-        let children = self.children();
+        let children = self.frame_children();
         (0..self.link_frames.len())
             .flat_map(|frame| {
                 self.default_shapes(&children[frame])
@@ -541,14 +541,16 @@ pub(crate) fn body_frames(robot: &Robot) -> Vec<LinkFrame> {
             },
         })
         .collect();
-    if !robot.link_names.contains(&robot.ee_link) {
-        frames.push(LinkFrame {
-            name: robot.ee_link.clone(),
-            body: robot.ee_body,
-            placement: robot.ee_transform,
-            parent: Some(robot.ee_body),
-            joint_origin: robot.ee_transform,
-        });
+    for ee in &robot.ees {
+        if !robot.link_names.contains(&ee.link) {
+            frames.push(LinkFrame {
+                name: ee.link.clone(),
+                body: ee.body,
+                placement: ee.transform,
+                parent: Some(ee.body),
+                joint_origin: ee.transform,
+            });
+        }
     }
     frames
 }

@@ -74,27 +74,38 @@ impl PyFlexibleArm {
 /// The owned inputs of one call, lent out as [`Inputs`].
 struct InputArgs {
     u: Vec<f64>,
-    loads: Loads,
+    base_wrench: Vec<f64>,
+    /// `[f_1; …; f_k]`, or empty for none.
+    ee_wrench: Vec<f64>,
 }
 
 impl InputArgs {
     fn parse(
-        n: usize,
+        robot: &crate::Robot,
         u: Option<&Bound<'_, PyAny>>,
         base_wrench: Option<&Bound<'_, PyAny>>,
         ee_wrench: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Self> {
-        let fb = vector_or(base_wrench, "base_wrench", 6, 0.0)?;
-        let f = vector_or(ee_wrench, "ee_wrench", 6, 0.0)?;
-        Ok(Self {
-            u: vector_or(u, "u", n, 0.0)?,
-            loads: Loads::from_slices(Some(&fb), Some(&f))?,
-        })
+        let k = robot.end_effectors().len();
+        let ee = super::convert::ee_wrench_arg(robot, ee_wrench)?;
+        let args = Self {
+            u: vector_or(u, "u", robot.dof(), 0.0)?,
+            base_wrench: vector_or(base_wrench, "base_wrench", 6, 0.0)?,
+            ee_wrench: match ee {
+                Some(f) => vector(&f, "ee_wrench", Some(6 * k))?,
+                None => Vec::new(),
+            },
+        };
+        args.inputs().loads.check_for(robot)?;
+        Ok(args)
     }
     fn inputs(&self) -> Inputs<'_> {
         Inputs {
             u: &self.u,
-            loads: self.loads,
+            loads: Loads {
+                base_wrench: crate::spatial::Force::from_slice(&self.base_wrench),
+                ee_wrench: &self.ee_wrench,
+            },
         }
     }
 }
@@ -275,7 +286,7 @@ impl PyFlexibleArm {
         ee_wrench: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyArray1<f64>>> {
         let x = vector(x, "x", Some(self.arm.layout().len()))?;
-        let inputs = InputArgs::parse(self.n(), u, base_wrench, ee_wrench)?;
+        let inputs = InputArgs::parse(self.arm.robot(), u, base_wrench, ee_wrench)?;
         let mut xdot = vec![0.0; x.len()];
         self.arm
             .derivative(&mut self.ws(), &x, &inputs.inputs(), &mut xdot)?;
@@ -295,7 +306,7 @@ impl PyFlexibleArm {
     ) -> PyResult<Bound<'py, PyArray1<f64>>> {
         let mut x = vector(x, "x", Some(self.arm.layout().len()))?;
         let dt = real(dt, "dt")?;
-        let inputs = InputArgs::parse(self.n(), u, base_wrench, ee_wrench)?;
+        let inputs = InputArgs::parse(self.arm.robot(), u, base_wrench, ee_wrench)?;
         self.arm
             .step(&mut self.ws(), &mut x, dt, &inputs.inputs())?;
         Ok(array1(py, &x))
@@ -350,7 +361,7 @@ impl PyFlexibleArm {
     }
 
     /// The Jacobians of :meth:`derivative` in tangent coordinates, as a dict: ``"x"``
-    /// (12+4n, 12+4n), ``"u"`` (12+4n, n), ``"base_wrench"`` and ``"ee_wrench"`` (12+4n, 6):
+    /// (12+4n, 12+4n), ``"u"`` (12+4n, n), ``"base_wrench"`` (12+4n, 6) and ``"ee_wrench"`` (12+4n, 6k):
     /// ``d(dx)/dt = F dx + G du + …`` for ``x = x̄ ⊕ dx`` (see :meth:`integrate`).
     #[pyo3(signature = (x, u=None, base_wrench=None, ee_wrench=None))]
     fn derivative_jacobians<'py>(
@@ -362,7 +373,7 @@ impl PyFlexibleArm {
         ee_wrench: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyDict>> {
         let x = vector(x, "x", Some(self.arm.layout().len()))?;
-        let inputs = InputArgs::parse(self.n(), u, base_wrench, ee_wrench)?;
+        let inputs = InputArgs::parse(self.arm.robot(), u, base_wrench, ee_wrench)?;
         let j = self
             .arm
             .derivative_jacobians(&mut self.ws(), &x, &inputs.inputs())?;
@@ -384,7 +395,7 @@ impl PyFlexibleArm {
     ) -> PyResult<Bound<'py, PyDict>> {
         let x = vector(x, "x", Some(self.arm.layout().len()))?;
         let dt = real(dt, "dt")?;
-        let inputs = InputArgs::parse(self.n(), u, base_wrench, ee_wrench)?;
+        let inputs = InputArgs::parse(self.arm.robot(), u, base_wrench, ee_wrench)?;
         let j = self
             .arm
             .step_jacobians(&mut self.ws(), &x, dt, &inputs.inputs())?;
@@ -401,7 +412,7 @@ impl PyFlexibleArm {
         u: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<MatrixPair<'py>> {
         let x = vector(x, "x", Some(self.arm.layout().len()))?;
-        let inputs = InputArgs::parse(self.n(), u, None, None)?;
+        let inputs = InputArgs::parse(self.arm.robot(), u, None, None)?;
         let j = self
             .arm
             .derivative_jacobians(&mut self.ws(), &x, &inputs.inputs())?;
@@ -502,21 +513,27 @@ impl PyFlexibleArm {
     }
 
     /// EE pose ``[position (m); quaternion (x, y, z, w), w ≥ 0]`` in the inertial frame at
-    /// state ``x``.
+    /// state ``x``. ``ee``: an end-effector link name or an index into ``robot.ee_links``;
+    /// ``None`` is the only one (an error listing them when the robot has several).
+    #[pyo3(signature = (x, ee=None))]
     fn ee_pose<'py>(
         &self,
         py: Python<'py>,
         x: &Bound<'py, PyAny>,
+        ee: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        let e = super::convert::ee_arg(self.arm.robot(), ee)?;
         let x = self.state_arg(x, "x")?;
-        Ok(array1(py, &self.arm.ee_pose(&x)))
+        Ok(array1(py, &self.arm.ee_pose(&x, e)))
     }
 
     /// Integrates ``steps`` RK4 steps of ``dt`` seconds from ``x0`` and returns a ``Trajectory``.
     ///
     /// ``u``: None (zero), a constant (n,), a table (steps, n) with one row per step, a callable
     /// ``u(t, x) -> (n,)`` called once per step, or an ``orbitflex.MotorPD`` (runs in Rust
-    /// without the GIL). ``base_wrench`` / ``ee_wrench``: None, (6,) or (steps, 6). ``progress``:
+    /// without the GIL). ``base_wrench`` / ``ee_wrench``: None, (6,) or (steps, 6); with k
+    /// end-effectors ``ee_wrench`` is (k, 6) or (steps, k, 6), or a dict from EE link name to
+    /// (6,) or (steps, 6). ``progress``:
     /// an optional callable ``progress(done, steps)`` called about every thousand steps and at
     /// the end.
     ///
@@ -587,7 +604,11 @@ impl PyFlexibleArm {
             };
         let wrenches = Wrenches {
             base: schedule(base_wrench, "base_wrench", 6)?,
-            ee: schedule(ee_wrench, "ee_wrench", 6)?,
+            ee: schedule(
+                super::convert::ee_wrench_arg(arm.robot(), ee_wrench)?.as_ref(),
+                "ee_wrench",
+                6 * arm.robot().end_effectors().len(),
+            )?,
         };
         let mut controller = RunController::parse(u, arm.dof())?;
         integrate::check_run(arm, &x0, dt, steps, controller.controller(), &wrenches)?;

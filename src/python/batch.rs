@@ -276,7 +276,9 @@ fn run_watched(
 ///   table for every run is (1, steps, n)); or one ``MotorPD`` (each run starts from a copy) or
 ///   a sequence of B. A Python callable is refused: the runs go without the GIL;
 /// - ``base_wrench`` (base frame, applied to the base) and ``ee_wrench`` (EE frame, exerted by
-///   the EE): as ``u`` with 6 (``[moment (N·m); force (N)]``) in place of n.
+///   the EE): as ``u`` with 6 (``[moment (N·m); force (N)]``) in place of n; with k
+///   end-effectors, ``ee_wrench`` rows are (k, 6) (so (runs, k, 6), (runs, steps, k, 6), …), or a
+///   dict from EE link name to such arrays with 6 in place of (k, 6).
 ///
 /// ``threads=None`` uses every core (at most 1024 threads). ``record_every=k`` (None: 1) keeps rows 0, k, 2k, … and
 /// the final row. ``keep_rows=False`` keeps only the per-run summaries and final states (no rows), for
@@ -322,7 +324,10 @@ pub(crate) fn py_simulate_batch<'py>(
     let x0 = Array::parse(x0s, "x0s")?;
     let control = Control::parse(u, n)?;
     let fb = optional(base_wrench, "base_wrench", 6)?;
-    let fee = optional(ee_wrench, "ee_wrench", 6)?;
+    let ee_robot = arm_refs[0].robot();
+    let k6 = 6 * ee_robot.end_effectors().len();
+    let ee_wrench = super::convert::ee_wrench_arg(ee_robot, ee_wrench)?;
+    let fee = optional(ee_wrench.as_ref(), "ee_wrench", k6)?;
     let shared_arm = arm_or_arms.is_instance_of::<PyFlexibleArm>();
     let runs = count_runs(&[
         ("arm_or_arms", (!shared_arm).then_some(arm_refs.len())),
@@ -366,7 +371,7 @@ pub(crate) fn py_simulate_batch<'py>(
             Control::Pd(..) => BatchControl::Pd(PerRun::Each(&all_pds)),
         },
         base_wrench: input_or_zero(&fb, "base_wrench", runs, steps, 6)?,
-        ee_wrench: input_or_zero(&fee, "ee_wrench", runs, steps, 6)?,
+        ee_wrench: input_or_zero(&fee, "ee_wrench", runs, steps, k6)?,
     };
     let settings = BatchSettings {
         dt,

@@ -248,3 +248,125 @@ pub fn positive_count(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<usize> {
         _ => Err(wrong()),
     }
 }
+
+/// ``ee_wrench`` as the Python functions take it, with one row of `6k` numbers per call or step
+/// (`k` end-effectors): `None` for none; for a robot with one end-effector, the argument as
+/// given; for several, `(…, k, 6)` reshaped to `(…, 6k)`; a dict from end-effector link name to
+/// `(…, 6)` (every value the same shape; end-effectors left out get zero) stacked the same way.
+pub(crate) fn ee_wrench_arg<'py>(
+    robot: &crate::Robot,
+    obj: Option<&Bound<'py, PyAny>>,
+) -> PyResult<Option<Bound<'py, PyAny>>> {
+    use super::batched::shape_and_values;
+    let Some(obj) = obj.filter(|o| !o.is_none()) else {
+        return Ok(None);
+    };
+    let k = robot.end_effectors().len();
+    let py = obj.py();
+    let (lead, flat) = if let Ok(dict) = obj.downcast::<pyo3::types::PyDict>() {
+        let mut lead: Option<Vec<usize>> = None;
+        let mut parts = Vec::with_capacity(dict.len());
+        for (key, value) in dict.iter() {
+            let name: String = key.extract().map_err(|_| {
+                ModelError::new_err(format!(
+                    "ee_wrench: a dict's keys are end-effector link names ({}); given a key of \
+                     type {}",
+                    robot.ee_links().join(", "),
+                    key.get_type()
+                        .name()
+                        .map(|n| n.to_string())
+                        .unwrap_or_default()
+                ))
+            })?;
+            let e = robot.ee_index(&name).map_err(|_| {
+                ModelError::new_err(format!(
+                    "ee_wrench: no end-effector named {name:?}; the end-effectors are {}",
+                    robot.ee_links().join(", ")
+                ))
+            })?;
+            let what = format!("ee_wrench[{name:?}]");
+            let (shape, values) = shape_and_values(&value, &what)?;
+            check_finite(&what, &values)?;
+            if shape.last() != Some(&6) {
+                return Err(ModelError::new_err(format!(
+                    "{what}: expected [moment; force], shape (6,) or (rows, 6), given shape \
+                     {shape:?}"
+                )));
+            }
+            let here = shape[..shape.len() - 1].to_vec();
+            match &lead {
+                Some(first) if *first != here => {
+                    return Err(ModelError::new_err(format!(
+                        "{what}: shape {shape:?} differs from the other entries' (every entry \
+                         of the dict must have the same shape)"
+                    )))
+                }
+                _ => lead = Some(here),
+            }
+            parts.push((e, values));
+        }
+        let lead = lead.unwrap_or_default();
+        let rows: usize = lead.iter().product();
+        let mut flat = vec![0.0; rows * 6 * k];
+        for (e, values) in parts {
+            for r in 0..rows {
+                flat[r * 6 * k + 6 * e..r * 6 * k + 6 * e + 6]
+                    .copy_from_slice(&values[6 * r..6 * r + 6]);
+            }
+        }
+        (lead, flat)
+    } else if k == 1 {
+        return Ok(Some(obj.clone()));
+    } else {
+        let (shape, values) = shape_and_values(obj, "ee_wrench")?;
+        let d = shape.len();
+        if d < 2 || shape[d - 2..] != [k, 6] {
+            return Err(ModelError::new_err(format!(
+                "ee_wrench: the robot has {k} end-effectors ({}); give one [moment; force] row \
+                 each, shape ({k}, 6) (or (rows, {k}, 6) where rows are allowed), or a dict from \
+                 link name to (6,); given shape {shape:?}",
+                robot.ee_links().join(", ")
+            )));
+        }
+        (shape[..d - 2].to_vec(), values)
+    };
+    let mut shape = lead;
+    shape.push(6 * k);
+    let array = PyArray1::from_vec(py, flat);
+    Ok(Some(array.reshape(shape)?.into_any()))
+}
+
+/// The ``ee=`` argument: an end-effector link name, an index into ``ee_links``, or ``None`` for
+/// the only end-effector (an error listing them when there are several).
+pub(crate) fn ee_arg(robot: &crate::Robot, ee: Option<&Bound<'_, PyAny>>) -> PyResult<usize> {
+    let Some(ee) = ee.filter(|o| !o.is_none()) else {
+        return Ok(robot.ee_choice(None)?);
+    };
+    if let Ok(name) = ee.extract::<String>() {
+        return Ok(robot.ee_index(&name)?);
+    }
+    if ee.is_instance_of::<pyo3::types::PyBool>() {
+        return Err(ModelError::new_err(
+            "ee: expected an end-effector link name or index, given a bool",
+        ));
+    }
+    match ee.extract::<i64>() {
+        Ok(i) if i >= 0 => Ok(robot.ee_choice(Some(i as usize))?),
+        Ok(i) => Err(ModelError::new_err(format!(
+            "ee: expected an index from 0 to {}, given {i}",
+            robot.end_effectors().len() - 1
+        ))),
+        Err(_) if ee.is_instance_of::<pyo3::types::PyInt>() => Err(ModelError::new_err(format!(
+            "ee: expected an index from 0 to {}, given {}",
+            robot.end_effectors().len() - 1,
+            ee.str().map(|s| s.to_string()).unwrap_or_default()
+        ))),
+        Err(_) => Err(ModelError::new_err(format!(
+            "ee: expected an end-effector link name (str) or index (int), given {}",
+            ee.get_type()
+                .name()
+                .map(|n| n.to_string())
+                .unwrap_or_default()
+        ))),
+    }
+}

@@ -209,6 +209,13 @@ impl PyFlexibleJoints {
         Ok(Self::from_rust(FlexibleJoints::defaults_for(&robot.robot)?))
     }
 
+    /// The built-in dual-arm servicer's joint parameters (see
+    /// ``orbitflex.models.dual_arm_joints``).
+    #[staticmethod]
+    fn dual_arm() -> Self {
+        Self::from_rust(FlexibleJoints::dual_arm())
+    }
+
     /// The built-in arm's joint parameters (see ``orbitflex.models.space_arm_joints``).
     #[staticmethod]
     fn space_arm() -> Self {

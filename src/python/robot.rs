@@ -13,9 +13,11 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use std::sync::Mutex;
 
-/// A floating-base serial chain loaded from URDF (model §1, §7).
+/// A floating base carrying a chain or a tree of revolute joints, loaded from URDF (model §1,
+/// §2.7, §7), with one or more end-effectors (:attr:`ee_links`).
 ///
-/// Conventions: base twist ``[ω_B; v_B]`` in the base frame; joint order base to EE; spatial
+/// Conventions: base twist ``[ω_B; v_B]`` in the base frame; joints depth-first from the base
+/// (base to EE on a chain; :attr:`parents` gives the tree); spatial
 /// vectors ``[angular; linear]``; base acceleration ``α_B`` is classical (the derivative of the
 /// base-frame components of ``ω`` and of the origin velocity, expressed in the base frame); SI units.
 #[pyclass(name = "Robot", module = "orbitflex", frozen)]
@@ -38,6 +40,15 @@ impl PyRobot {
 
     fn data(&self) -> std::sync::MutexGuard<'_, Data> {
         self.data.lock().unwrap_or_else(|p| p.into_inner())
+    }
+
+    /// One call's ``ee_wrench`` as `[f_1; …; f_k]` (empty for ``None``).
+    fn ee_wrench(&self, obj: Option<&Bound<'_, PyAny>>) -> PyResult<Vec<f64>> {
+        let k6 = 6 * self.robot.end_effectors().len();
+        match super::convert::ee_wrench_arg(&self.robot, obj)? {
+            Some(f) => vector(&f, "ee_wrench", Some(k6)),
+            None => Ok(Vec::new()),
+        }
     }
 
     /// `q`, `V_B` and `q̇` as vectors of the robot's sizes, checked.
@@ -101,26 +112,35 @@ fn inertia_matrix(inertia: &Bound<'_, PyAny>) -> PyResult<crate::spatial::Mat3> 
     }
 }
 
-fn options(ee_link: Option<String>, locked_joints: Option<Vec<String>>) -> UrdfOptions {
+fn options(
+    ee_link: Option<String>,
+    locked_joints: Option<Vec<String>>,
+    ee_links: Option<Vec<String>>,
+) -> UrdfOptions {
     UrdfOptions {
         ee_link,
         locked_joints: locked_joints.unwrap_or_default(),
+        ee_links: ee_links.unwrap_or_default(),
     }
 }
 
 #[pymethods]
 impl PyRobot {
-    /// Loads a URDF file. ``ee_link`` names the EE link (default: the unique leaf);
-    /// ``locked_joints`` are held at zero and treated as fixed (e.g. gripper fingers).
+    /// Loads a URDF file. The model is a tree of revolute and continuous joints on the root
+    /// link (the base), numbered depth-first. ``ee_links`` names the end-effector links, in the
+    /// order wrenches and Jacobians use (default: every leaf link, depth-first, leaves behind a
+    /// locked joint left out); ``ee_link="x"`` means ``ee_links=["x"]``. ``locked_joints`` are
+    /// held at zero and treated as fixed (e.g. gripper fingers, prismatic joints).
     #[staticmethod]
-    #[pyo3(signature = (path, ee_link=None, locked_joints=None))]
+    #[pyo3(signature = (path, ee_link=None, locked_joints=None, ee_links=None))]
     fn from_urdf(
         py: Python<'_>,
         path: std::path::PathBuf,
         ee_link: Option<String>,
         locked_joints: Option<Vec<String>>,
+        ee_links: Option<Vec<String>>,
     ) -> PyResult<Self> {
-        let opts = options(ee_link, locked_joints);
+        let opts = options(ee_link, locked_joints, ee_links);
         Ok(Self::wrap(
             py.allow_threads(|| Robot::from_urdf(&path, &opts))?,
         ))
@@ -128,14 +148,15 @@ impl PyRobot {
 
     /// Loads a URDF from its XML text; options as :meth:`from_urdf`.
     #[staticmethod]
-    #[pyo3(signature = (xml, ee_link=None, locked_joints=None))]
+    #[pyo3(signature = (xml, ee_link=None, locked_joints=None, ee_links=None))]
     fn from_urdf_string(
         py: Python<'_>,
         xml: &str,
         ee_link: Option<String>,
         locked_joints: Option<Vec<String>>,
+        ee_links: Option<Vec<String>>,
     ) -> PyResult<Self> {
-        let opts = options(ee_link, locked_joints);
+        let opts = options(ee_link, locked_joints, ee_links);
         Ok(Self::wrap(
             py.allow_threads(|| Robot::from_urdf_string(xml, &opts))?,
         ))
@@ -144,13 +165,13 @@ impl PyRobot {
     /// Rebuilds a model from :meth:`__reduce__`'s parts (for pickling).
     #[staticmethod]
     #[allow(clippy::type_complexity)]
-    #[pyo3(signature = (name, source, bodies, joints, ee, appearance=None))]
+    #[pyo3(signature = (name, source, bodies, joints, ees, appearance=None))]
     fn _from_parts(
         name: String,
         source: String,
         bodies: Vec<(String, f64, [f64; 3], [f64; 9])>,
-        joints: Vec<(String, [f64; 3], [f64; 9], [f64; 3])>,
-        ee: (String, [f64; 9], [f64; 3]),
+        joints: Vec<(String, [f64; 3], [f64; 9], [f64; 3], usize)>,
+        ees: Vec<(String, usize, [f64; 9], [f64; 3])>,
         appearance: Option<super::appearance::Appearance>,
     ) -> PyResult<Self> {
         use crate::spatial::{Inertia, Mat3, Transform, Vec3};
@@ -170,8 +191,9 @@ impl PyRobot {
             ));
         }
         let mut builder = crate::RobotBuilder::new(&name, base, inertia(*m, c, i)).source(&source);
-        for ((link, m, c, i), (joint, axis, r, p)) in links.iter().zip(&joints) {
-            builder = builder.joint(
+        for ((link, m, c, i), (joint, axis, r, p, parent)) in links.iter().zip(&joints) {
+            builder = builder.joint_at(
+                *parent,
                 joint,
                 transform(r, p),
                 Vec3::from(*axis),
@@ -179,14 +201,16 @@ impl PyRobot {
                 inertia(*m, c, i),
             );
         }
-        builder = builder.ee(&ee.0, transform(&ee.1, &ee.2));
+        for (name, body, r, p) in &ees {
+            builder = builder.end_effector_at(name, *body, transform(r, p));
+        }
         if let Some(appearance) = appearance {
             builder = super::appearance::rebuild(builder, appearance)?;
         }
         Ok(Self::wrap(builder.build()?))
     }
 
-    /// Pickle support: the model's parts (bodies, joints, EE frame), rebuilt and re-validated
+    /// Pickle support: the model's parts (bodies, joints with their parents, end-effectors), rebuilt and re-validated
     /// by ``Robot._from_parts``.
     fn __reduce__<'py>(slf: &Bound<'py, Self>) -> PyResult<(PyObject, PyObject)> {
         let py = slf.py();
@@ -211,13 +235,21 @@ impl PyRobot {
                     vec3(&j.origin.translation),
                 )
             })
+            .zip(&robot.parents()[1..])
+            .map(|((name, axis, r, p), &parent)| (name, axis, r, p, parent))
             .collect();
-        let ee = robot.ee_transform();
-        let ee = (
-            robot.ee_link().to_string(),
-            rows(&ee.rotation),
-            vec3(&ee.translation),
-        );
+        let ee: Vec<_> = robot
+            .end_effectors()
+            .iter()
+            .map(|e| {
+                (
+                    e.link.clone(),
+                    e.body,
+                    rows(&e.transform.rotation),
+                    vec3(&e.transform.translation),
+                )
+            })
+            .collect();
         let args = (
             robot.name().to_string(),
             robot.source().to_string(),
@@ -237,6 +269,12 @@ impl PyRobot {
     #[staticmethod]
     fn space_arm() -> Self {
         Self::wrap(Robot::space_arm())
+    }
+
+    /// The built-in dual-arm servicer (see ``orbitflex.models.dual_arm``).
+    #[staticmethod]
+    fn dual_arm() -> Self {
+        Self::wrap(Robot::dual_arm())
     }
 
     /// Number of joints ``n``.
@@ -267,10 +305,41 @@ impl PyRobot {
         self.robot.name().to_string()
     }
 
-    /// The EE link name.
+    /// The EE link name of a robot with one end-effector (an error listing them when it has
+    /// several: see :attr:`ee_links`).
     #[getter]
-    fn ee_link(&self) -> String {
-        self.robot.ee_link().to_string()
+    fn ee_link(&self) -> PyResult<String> {
+        let e = self.robot.ee_choice(None)?;
+        Ok(self.robot.ee_links()[e].to_string())
+    }
+
+    /// The end-effector link names, in the order ``ee_wrench`` rows, stacked Jacobians and the
+    /// operator ``B`` use.
+    #[getter]
+    fn ee_links(&self) -> Vec<String> {
+        self.robot
+            .ee_links()
+            .iter()
+            .map(|s| s.to_string())
+            .collect()
+    }
+
+    /// The body carrying each end-effector, in :attr:`ee_links` order: ``0`` is the base and
+    /// ``i + 1`` the child link of joint ``i`` (the rows of :meth:`body_poses`).
+    #[getter]
+    fn ee_bodies(&self) -> Vec<usize> {
+        self.robot.end_effectors().iter().map(|e| e.body).collect()
+    }
+
+    /// Each joint's parent joint index, ``-1`` where the parent is the base: a list of ``n``
+    /// ints. Joints are numbered depth-first from the base, so ``parents[i] < i``; on a serial
+    /// chain ``parents == [-1, 0, 1, …, n-2]``.
+    #[getter]
+    fn parents(&self) -> Vec<i64> {
+        self.robot.parents()[1..]
+            .iter()
+            .map(|&p| p as i64 - 1)
+            .collect()
     }
 
     /// Total mass of base and links (kg).
@@ -303,19 +372,22 @@ impl PyRobot {
         Ok(Self::wrap(self.robot.with_base_inertia(inertia)?))
     }
 
-    /// This robot holding a rigid payload at its end-effector, joined to the last link as a
-    /// merged fixed link would be: ``mass`` (kg), ``com`` its centre of mass in the EE frame (m,
+    /// This robot holding a rigid payload at an end-effector, joined to the body carrying it as
+    /// a merged fixed link would be: ``mass`` (kg), ``com`` its centre of mass in the EE frame (m,
     /// default the EE origin) and ``inertia`` about that centre in EE axes (kg·m²; three
-    /// principal moments or a 3×3 matrix; default zero, a point mass). For example, a grasped
+    /// principal moments or a 3×3 matrix; default zero, a point mass). ``ee``: which
+    /// end-effector (a link name or an index; ``None`` is the only one). For example, a grasped
     /// object whose mass a campaign disperses.
-    #[pyo3(signature = (mass, inertia=None, com=None))]
+    #[pyo3(signature = (mass, inertia=None, com=None, ee=None))]
     fn with_payload(
         &self,
         mass: &Bound<'_, PyAny>,
         inertia: Option<&Bound<'_, PyAny>>,
         com: Option<&Bound<'_, PyAny>>,
+        ee: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Self> {
         use crate::spatial::{Inertia, Mat3, Vec3};
+        let e = super::convert::ee_arg(&self.robot, ee)?;
         let mass = super::convert::real(mass, "mass")?;
         let com = Vec3::from_column_slice(&vector_or(com, "com", 3, 0.0)?);
         let about_com = match inertia.filter(|o| !o.is_none()) {
@@ -330,12 +402,13 @@ impl PyRobot {
         crate::args::check_finite("com", com.as_slice())?;
         crate::args::check_finite("inertia", about_com.as_slice())?;
         let payload = Inertia::from_com(mass, com, about_com);
-        Ok(Self::wrap(self.robot.with_payload(payload)?))
+        Ok(Self::wrap(self.robot.with_payload_at(payload, e)?))
     }
 
     /// Inertial poses ``[position (m); quaternion (x, y, z, w), w ≥ 0]`` of the base, of each
     /// body (the child link of each joint, after merging fixed links) and of the EE frame, shape
-    /// (n+2, 7), for the base pose ``[r_B; quat_B]`` and joint angles ``q``.
+    /// (n+2, 7) (n+1+k rows with k end-effectors: every EE frame in ``ee_links`` order), for the
+    /// base pose ``[r_B; quat_B]`` and joint angles ``q``.
     fn body_poses<'py>(
         &self,
         py: Python<'py>,
@@ -542,26 +615,35 @@ impl PyRobot {
     }
 
     /// EE Jacobian ``J``, shape (6, n): joint rates to EE twist ``[ω; v]`` in the EE frame,
-    /// base at rest (model §2, ``J = Bᵀ Φ H``).
+    /// base at rest (model §2, ``J = Bᵀ Φ H``); columns of joints that do not move the EE are
+    /// zero. ``ee``: an end-effector link name or an index into :attr:`ee_links`; ``None`` is the
+    /// only one (an error listing them when the robot has several).
+    #[pyo3(signature = (q, ee=None))]
     fn ee_jacobian<'py>(
         &self,
         py: Python<'py>,
         q: &Bound<'py, PyAny>,
+        ee: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        let e = super::convert::ee_arg(&self.robot, ee)?;
         let q = vector(q, "q", Some(self.robot.dof()))?;
         let mut data = self.data();
-        algorithms::ee_jacobian(&self.robot, &mut data, &q)?;
+        algorithms::ee_jacobian(&self.robot, &mut data, &q, e)?;
         Ok(array2(py, &data.jacobian))
     }
 
-    /// ``Φ_{n+1,B}``, shape (6, 6): base twist to EE twist (each in its own frame).
+    /// ``Φ_{e,B}``, shape (6, 6): base twist to the twist of end-effector ``ee`` (each in its
+    /// own frame; ``ee`` as in :meth:`ee_jacobian`).
+    #[pyo3(signature = (q, ee=None))]
     fn ee_base_operator<'py>(
         &self,
         py: Python<'py>,
         q: &Bound<'py, PyAny>,
+        ee: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        let e = super::convert::ee_arg(&self.robot, ee)?;
         let q = vector(q, "q", Some(self.robot.dof()))?;
-        Ok(array2(py, &self.robot.ee_base_operator(&q)?))
+        Ok(array2(py, &self.robot.ee_base_operator(&q, Some(e))?))
     }
 
     /// Forward dynamics ``[α_B; q̈]``, shape (6+n,) (A.19). ``tau``: joint torques (N·m);
@@ -589,13 +671,15 @@ impl PyRobot {
     ) -> PyResult<Bound<'py, PyAny>> {
         let n = self.robot.dof();
         let method = super::convert::method(method)?;
+        let ee = super::convert::ee_wrench_arg(&self.robot, ee_wrench)?;
+        let k6 = 6 * self.robot.end_effectors().len();
         let args = [
             ("q", Some(q), n),
             ("base_twist", Some(base_twist), 6),
             ("qd", Some(qd), n),
             ("tau", Some(tau), n),
             ("base_wrench", base_wrench, 6),
-            ("ee_wrench", ee_wrench, 6),
+            ("ee_wrench", ee.as_ref(), k6),
         ];
         match call_args(&args)? {
             Call::Batch(b) => {
@@ -652,13 +736,15 @@ impl PyRobot {
     ) -> PyResult<Bound<'py, PyAny>> {
         let n = self.robot.dof();
         let method = super::convert::method(method)?;
+        let ee = super::convert::ee_wrench_arg(&self.robot, ee_wrench)?;
+        let k6 = 6 * self.robot.end_effectors().len();
         let args = [
             ("q", Some(q), n),
             ("base_twist", Some(base_twist), 6),
             ("qd", Some(qd), n),
             ("base_acc", Some(base_acc), 6),
             ("qdd", Some(qdd), n),
-            ("ee_wrench", ee_wrench, 6),
+            ("ee_wrench", ee.as_ref(), k6),
         ];
         match call_args(&args)? {
             Call::Batch(b) => {
@@ -700,7 +786,9 @@ impl PyRobot {
     /// The paper's dense operators at this state, as a dict of numpy arrays: ``Phi``, ``H``,
     /// ``M``, ``a``, ``b``, ``B``, ``Phi_hat1``, ``Phi_hat2``, ``M_b``, ``M_rb``, ``M_br``,
     /// ``M_r``, ``C_B``, ``C_r``, ``J``, and also ``M_B``, ``b_B`` and ``Phi_n1_B``
-    /// (``Φ_{n+1,B}``). Stacked quantities have six rows per link (A.13–A.19).
+    /// (``Φ_{n+1,B}``). Stacked quantities have six rows per link (A.13–A.19). With ``k``
+    /// end-effectors (model §2.7) ``B`` is (6n, 6k), ``J`` (6k, n) and ``Phi_n1_B`` (6k, 6), one
+    /// block per end-effector in :attr:`ee_links` order.
     fn operators<'py>(
         &self,
         py: Python<'py>,
@@ -733,20 +821,25 @@ impl PyRobot {
     }
 
     /// The generalized Jacobian of the free-floating arm with zero momentum, shape (6, n):
-    /// ``V_{n+1} = (J − Φ_{n+1,B} M_b⁻¹ M_rb) q̇``, the EE twist ``[ω; v]`` (EE frame) that joint
-    /// rates give once the base has reacted.
+    /// ``V_e = (J_e − Φ_{e,B} M_b⁻¹ M_rb) q̇``, the twist ``[ω; v]`` of end-effector ``ee`` (its
+    /// own frame; ``ee`` as in :meth:`ee_jacobian`) that joint rates give once the base has
+    /// reacted.
+    #[pyo3(signature = (q, ee=None))]
     fn generalized_jacobian<'py>(
         &self,
         py: Python<'py>,
         q: &Bound<'py, PyAny>,
+        ee: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        let e = super::convert::ee_arg(&self.robot, ee)?;
         let q = vector(q, "q", Some(self.robot.dof()))?;
-        Ok(array2(py, &self.robot.generalized_jacobian(&q)?))
+        Ok(array2(py, &self.robot.generalized_jacobian(&q, Some(e))?))
     }
 
     /// Derivatives of :meth:`forward_dynamics` ``[α_B; q̈]``, as a dict of arrays: ``"q"``
     /// (6+n, n), ``"v"`` (6+n, 6+n) with respect to ``[base_twist; qd]``, ``"tau"`` (6+n, n),
-    /// ``"base_wrench"`` (6+n, 6) and ``"ee_wrench"`` (6+n, 6). Analytical, O(n²).
+    /// ``"base_wrench"`` (6+n, 6) and ``"ee_wrench"`` (6+n, 6k), one 6-column block per
+    /// end-effector in ``ee_links`` order. Analytical, O(n²).
     #[pyo3(signature = (q, base_twist, qd, tau, base_wrench=None, ee_wrench=None))]
     #[allow(clippy::too_many_arguments)]
     fn forward_dynamics_derivatives<'py>(
@@ -762,7 +855,7 @@ impl PyRobot {
         let state = self.state(q, base_twist, qd)?;
         let tau = vector(tau, "tau", Some(self.robot.dof()))?;
         let fb = vector_or(base_wrench, "base_wrench", 6, 0.0)?;
-        let f = vector_or(ee_wrench, "ee_wrench", 6, 0.0)?;
+        let f = self.ee_wrench(ee_wrench)?;
         let loads = Loads::from_slices(Some(&fb), Some(&f))?;
         let mut data = self.data();
         let d = algorithms::aba_derivatives(&self.robot, &mut data, &state.rigid(), &tau, &loads)?;
@@ -778,7 +871,7 @@ impl PyRobot {
     /// Derivatives of :meth:`inverse_dynamics` ``[f_B; τ]``, as a dict of arrays: ``"q"``
     /// (6+n, n), ``"v"`` (6+n, 6+n) with respect to ``[base_twist; qd]`` (the classical base
     /// acceleration held), ``"a"`` (6+n, 6+n) with respect to ``[base_acc; qdd]`` (the mass
-    /// matrix) and ``"ee_wrench"`` (6+n, 6). Analytical, O(n²).
+    /// matrix) and ``"ee_wrench"`` (6+n, 6k), one block per end-effector. Analytical, O(n²).
     #[pyo3(signature = (q, base_twist, qd, base_acc, qdd, ee_wrench=None))]
     #[allow(clippy::too_many_arguments)]
     fn inverse_dynamics_derivatives<'py>(
@@ -794,7 +887,7 @@ impl PyRobot {
         let state = self.state(q, base_twist, qd)?;
         let acc = vector(base_acc, "base_acc", Some(6))?;
         let qdd = vector(qdd, "qdd", Some(self.robot.dof()))?;
-        let f = vector_or(ee_wrench, "ee_wrench", 6, 0.0)?;
+        let f = self.ee_wrench(ee_wrench)?;
         let mut data = self.data();
         let rigid = state.rigid();
         let d = algorithms::rnea_derivatives(&self.robot, &mut data, &rigid, &acc, &qdd, &f)?;
@@ -845,12 +938,15 @@ impl PyRobot {
     }
 
     fn __repr__(&self) -> String {
+        let ee = match self.robot.ee_links().as_slice() {
+            [one] => format!("ee_link={one:?}"),
+            many => format!("ee_links={many:?}"),
+        };
         format!(
-            "Robot(name={:?}, dof={}, base={:?}, ee_link={:?}, total_mass={:.3} kg)",
+            "Robot(name={:?}, dof={}, base={:?}, {ee}, total_mass={:.3} kg)",
             self.robot.name(),
             self.robot.dof(),
             self.robot.body_names()[0],
-            self.robot.ee_link(),
             self.robot.total_mass()
         )
     }

@@ -22,7 +22,8 @@ use std::io::Write;
 /// ``spring_torque`` ``k (θ − q) + d (θ̇ − q̇)`` (N·m), and, computed once on first access,
 /// ``momentum`` (k, 6) ``[angular (N·m·s) about the inertial origin; linear (N·s)]`` in the
 /// inertial frame, ``energy`` (k,) in J (rigid kinetic + motor kinetic + spring), ``ee_pose``
-/// (k, 7) ``[position (m); quat (x, y, z, w)]`` in the inertial frame.
+/// (k, 7) ``[position (m); quat (x, y, z, w)]`` in the inertial frame ((k, e, 7) for a robot with
+/// ``e`` end-effectors).
 #[pyclass(name = "Trajectory", module = "orbitflex", frozen)]
 pub struct PyTrajectory {
     arm: Py<PyFlexibleArm>,
@@ -231,15 +232,24 @@ impl PyTrajectory {
             })
             .map(|a| a.clone_ref(py))
     }
-    /// EE ``[position (m); quat (x, y, z, w), w ≥ 0]`` in the inertial frame, (k, 7).
+    /// EE ``[position (m); quat (x, y, z, w), w ≥ 0]`` in the inertial frame: (rows, 7) for a
+    /// robot with one end-effector, (rows, k, 7) for ``k`` end-effectors in ``robot.ee_links``
+    /// order.
     #[getter]
-    fn ee_pose(&self, py: Python<'_>) -> PyResult<Py<PyArray2<f64>>> {
-        self.ee_pose
+    fn ee_pose(&self, py: Python<'_>) -> PyResult<Py<PyAny>> {
+        let k = self.arm.get().arm.robot().end_effectors().len();
+        let flat = self
+            .ee_pose
             .get_or_try_init(py, || {
                 let values = self.along(py, |arm, rows| rows.ee_pose(arm))?;
-                frozen_rows(py, self.rows(py), 7, values)
-            })
-            .map(|a| a.clone_ref(py))
+                frozen_rows(py, self.rows(py), 7 * k, values)
+            })?
+            .clone_ref(py);
+        if k == 1 {
+            return Ok(flat.into_any());
+        }
+        let rows = flat.bind(py).shape()[0];
+        Ok(flat.bind(py).reshape([rows, k, 7])?.into_any().unbind())
     }
 
     /// Inertial poses of every frame of ``arm.robot.frame_names`` at every row, shape

@@ -96,7 +96,7 @@ def test_columns_and_a_row_made_by_hand(reference):
     assert row["settling_time"] == pytest.approx(expected, abs=0, nan_ok=True)
     q0, q1 = traj.base_pose[0, 3:], traj.base_pose[-1, 3:]
     assert row["base_attitude_change"] == pytest.approx(2 * np.arccos(min(1.0, abs(q0 @ q1))), rel=1e-12)
-    assert row["ee_error"] == pytest.approx(np.linalg.norm(arm.ee_pose(traj.x[-1])[:3] - c.nominal_ee()), rel=1e-12)
+    assert row["ee_error"] == pytest.approx(np.linalg.norm(arm.ee_pose(traj.x[-1])[:3] - c.nominal_ee()[0]), rel=1e-12)
 
 
 def test_a_failing_run_is_a_row_not_a_crash():
@@ -333,3 +333,21 @@ def test_cli_errors_are_one_line(tmp_path, args, message):
     assert done.returncode == 2, (done.stdout, done.stderr)
     assert message in done.stderr, done.stderr
     assert "Traceback" not in done.stderr
+
+
+def test_campaign_on_the_dual_arm_with_a_payload_on_one_arm():
+    # a tree: the payload goes to the end-effector named by payload_ee, and ee_error covers both
+    c = Campaign(goal=[0.2] * 7 + [0.0] * 7, kp=800.0, kd=80.0, dt=1e-3, duration=0.2, slew_time=0.1,
+                 runs=3, robot=orbitflex.models.dual_arm(), joints=orbitflex.models.dual_arm_joints(),
+                 payload_mass=20.0, payload_ee="right_ee",
+                 dispersions=[Dispersion("payload_mass", "uniform", low=10.0, high=30.0)])
+    assert c.nominal_ee().shape == (2, 3)
+    table = c.run()
+    assert list(table["ok"]) == [True] * 3
+    assert (table["ee_error"] > 0).all()
+    # without payload_ee, which end-effector holds it is ambiguous: a clear error
+    bad = Campaign(goal=0.1, kp=800.0, kd=80.0, dt=1e-3, duration=0.05, slew_time=0.02, runs=1,
+                   robot=orbitflex.models.dual_arm(), joints=orbitflex.models.dual_arm_joints(),
+                   payload_mass=20.0)
+    with pytest.raises(orbitflex.ModelError, match="2 end-effectors"):
+        bad.run()

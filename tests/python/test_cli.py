@@ -500,7 +500,7 @@ BRANCHED_URDF = URDF.replace("</robot>", """
 </robot>""")
 
 
-@pytest.mark.parametrize("case", ["unknown_ee_link", "unknown_locked", "prismatic", "two_leaves", "branch"])
+@pytest.mark.parametrize("case", ["unknown_ee_link", "unknown_locked", "prismatic", "unknown_ee_links", "both"])
 def test_messages_name_the_flags_not_python_keywords(model_files, tmp_path, case):
     urdf, params = model_files
     branched = tmp_path / "branched.urdf"
@@ -509,8 +509,10 @@ def test_messages_name_the_flags_not_python_keywords(model_files, tmp_path, case
         "unknown_ee_link": ([urdf, "--ee-link", "gripper"], "--ee-link"),
         "unknown_locked": ([urdf, "--locked-joints", "finger_slide,nope"], "--locked-joints"),
         "prismatic": ([urdf], "--locked-joints"),
-        "two_leaves": ([branched], "--ee-link"),
-        "branch": ([branched, "--locked-joints", "finger_slide", "--ee-link", "fore"], "--locked-joints"),
+        "unknown_ee_links": ([branched, "--locked-joints", "finger_slide", "--ee-links", "fore,nope"],
+                             "--ee-links"),
+        "both": ([branched, "--locked-joints", "finger_slide", "--ee-link", "fore", "--ee-links", "fore"],
+                 "--ee-link"),
     }[case]
     result = run_cli("simulate", *args, "--params", params, "--duration", "0.05",
                      "--out", tmp_path / "o", "--quiet", cwd=tmp_path)
@@ -542,11 +544,13 @@ def test_links_named_like_keywords_keep_their_names(model_files, tmp_path):
     urdf, params = model_files
     branched = tmp_path / "branched.urdf"
     branched.write_text(BRANCHED_URDF.replace('"antenna"', '"ee_link"'))
-    result = run_cli("simulate", branched, "--params", params, "--duration", "0.05",
-                     "--out", tmp_path / "o", "--quiet", cwd=tmp_path)
+    result = run_cli("simulate", branched, "--locked-joints", "finger_slide", "--ee-link", "gripper",
+                     "--params", params, "--duration", "0.05", "--out", tmp_path / "o", "--quiet",
+                     cwd=tmp_path)
     assert_clean_error(result, flag="--ee-link")
-    assert "candidate leaf links ('finger', 'ee_link')" in result.stderr, result.stderr
-    assert "pass --ee-link to choose one" in result.stderr
+    # the listing of the file's links keeps the link's own name
+    assert "unknown link 'gripper'; the file has: " in result.stderr, result.stderr
+    assert result.stderr.rstrip().endswith(", ee_link"), result.stderr
 
 
 # ---------------------------------------------------------------------------------------------
@@ -905,3 +909,23 @@ def test_memory_estimate_counts_the_kept_rows():
     assert parts["reference tables"] == 2 * 1000 * 7 * 8  # per step, whatever is kept
     assert parts["record"] == 101 * (14 + 28) * 8 + 100 * 7 * 8
     assert [cli.recorded_rows(s, k) for s, k in ((1000, 10), (1001, 10), (5, 9), (0, 3))] == [101, 102, 2, 1]
+
+
+def test_simulate_a_branched_urdf_reports_every_end_effector(tmp_path):
+    # the dual-arm servicer's URDF, loaded from the file: two arms, two end-effectors
+    urdf = Path(__file__).resolve().parents[2] / "models" / "dual_arm.urdf"
+    if not urdf.exists():
+        pytest.skip("needs the source tree")
+    out = tmp_path / "o"
+    result = run_cli("simulate", urdf, "--duration", "0.2", "--out", out, "--no-animation", cwd=tmp_path)
+    assert result.returncode == 0, result.stderr[-2000:]
+    summary = json.loads((out / "summary.json").read_text())
+    assert set(summary["ee_travel_m"]) == {"left_ee", "right_ee"}
+    assert all(v >= 0 for v in summary["ee_travel_m"].values())
+    assert (out / "ee_path.png").stat().st_size > 10_000
+    # --ee-links picks and orders them
+    result = run_cli("simulate", urdf, "--ee-links", "right_ee", "--duration", "0.05", "--out", out,
+                     "--no-animation", "--no-plots", cwd=tmp_path)
+    assert result.returncode == 0, result.stderr[-2000:]
+    summary = json.loads((out / "summary.json").read_text())
+    assert isinstance(summary["ee_travel_m"], float)

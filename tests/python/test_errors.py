@@ -182,10 +182,10 @@ URDF_ERRORS = [
                      joint("slider", "l1", "l2", kind=kind)),
                 ["'slider'", kind, "locked_joints"])
       for kind in ["prismatic", "planar", "floating"]],
-    urdf_case("several-leaves-without-ee_link",
+    urdf_case("unknown-ee_links-entry-lists-links",
               urdf(BASE, link("l1"), link("tip_a"), link("tip_b"), joint("j1", "base", "l1"),
                    joint("ja", "l1", "tip_a"), joint("jb", "l1", "tip_b")),
-              ["tip_a", "tip_b", "ee_link"]),
+              ["'tip_c'", "ee_links", "tip_a", "tip_b"], ee_links=["tip_a", "tip_c"]),
     urdf_case("unknown-ee_link-lists-links", chain3(), ["gripper", "base", "l1", "l2", "l3"],
               ee_link="gripper"),
     urdf_case("unknown-locked-joint-lists-joints", chain3(), ["finger", "j1", "j2", "j3"],
@@ -571,18 +571,26 @@ def test_locked_prismatic_joint_loads(loader):
     assert robot.total_mass == pytest.approx(52.0)
 
 
-def test_branching_moving_joint_off_the_chain(loader):
+def test_a_branch_is_an_arm_of_a_tree(loader):
     load, source = loader
     xml = urdf(BASE, link("l1"), link("l2"), link("side_link"),
                joint("j1", "base", "l1"), joint("j2", "l1", "l2"),
                joint("side", "l1", "side_link"))
-    msg = raised(ModelError, lambda: load(xml, ee_link="l2"))
-    assert source in msg
-    assert "'side'" in msg
-    assert "'j1'" not in msg and "'j2'" not in msg  # it blames the branch, not the chain
-    # locking the branch (as the message suggests) makes a valid serial chain
+    # every leaf is an end-effector; joints depth-first, children in file order
+    robot = load(xml)
+    assert robot.joint_names == ["j1", "j2", "side"]
+    assert robot.parents == [-1, 0, 0]
+    assert robot.ee_links == ["l2", "side_link"]
+    msg = raised(ModelError, lambda: robot.ee_link)
+    assert "2 end-effectors ('l2', 'side_link')" in msg
+    # ee_link keeps meaning one end-effector; the branch still moves
+    robot = load(xml, ee_link="l2")
+    assert robot.ee_links == ["l2"] and robot.ee_link == "l2" and robot.dof == 3
+    # locking the branch gives the serial chain
     robot = load(xml, ee_link="l2", locked_joints=["side"])
-    assert robot.joint_names == ["j1", "j2"]
+    assert robot.joint_names == ["j1", "j2"] and robot.parents == [-1, 0]
+    msg = raised(ModelError, lambda: load(xml, ee_link="l2", ee_links=["l2"]))
+    assert source in msg or "not both" in msg
 
 
 def test_massless_middle_link_is_fine(loader):

@@ -55,12 +55,17 @@ def test_disconnected_cycles_are_errors_not_hangs_or_panics(xml, ee):
 def test_locked_branch_leaves_are_not_ee_candidates():
     xml = urdf(["base", "a", "tool", "jaw"],
                [("j1", "revolute", "base", "a"), ("tool_fix", "fixed", "a", "tool"), ("jaw", "prismatic", "a", "jaw")])
-    with pytest.raises(ModelError, match=r"2 candidate leaf links \('tool', 'jaw'\).*locked_joints"):
+    # the prismatic jaw cannot move, wherever it is: the message says to lock it
+    with pytest.raises(ModelError, match=r"joint 'jaw' has type 'prismatic'.*locked_joints"):
         orbitflex.Robot.from_urdf_string(xml)
     with pytest.raises(ModelError, match="lock it"):
         orbitflex.Robot.from_urdf_string(xml, ee_link="tool")
+    # locked, its leaf is no end-effector: the tool is the only one
     robot = orbitflex.Robot.from_urdf_string(xml, locked_joints=["jaw"])
-    assert robot.ee_link == "tool" and robot.dof == 1
+    assert robot.ee_link == "tool" and robot.ee_links == ["tool"] and robot.dof == 1
+    # named, it is one
+    robot = orbitflex.Robot.from_urdf_string(xml, locked_joints=["jaw"], ee_links=["tool", "jaw"])
+    assert robot.ee_links == ["tool", "jaw"]
     assert robot.total_mass == pytest.approx(4.0)  # the locked jaw's mass is merged, not dropped
 
 

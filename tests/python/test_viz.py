@@ -489,3 +489,25 @@ def test_extra_shapes_are_drawn_and_checked(tmp_path):
     for shape, message in bad:
         with pytest.raises(ValueError, match=message):
             traj.animate(tmp_path / "x.html", shapes=[shape])
+
+
+@needs_chromium
+def test_dual_arm_page_draws_a_trail_per_end_effector(tmp_path):
+    traj = short_run(orbitflex.models.dual_arm(), steps=400)
+    page = traj.animate(tmp_path / "dual.html", ghost=True)
+    html = page.read_text("utf-8")
+    assert '"trails": 2' in html
+    end = float(traj.t[-1])
+    url = page.resolve().as_uri()
+    dom = _dom(f"{url}#t={end}")
+    assert "ready" in dom.split("</title>")[0], dom[:2000]
+    assert "t = 2.00 s / 2.00 s" in dom
+    first = _pixels(_render(url, tmp_path, "d0"))
+    last = _pixels(_render(f"{url}#t={end}", tmp_path, "dT"))
+    scene = (slice(60, 520), slice(0, 900))
+    for image in (first, last):
+        assert image[scene].std() > 10, "blank render"
+    changed = np.abs(first[scene] - last[scene]).max(axis=2) > 30
+    assert 300 < changed.sum() < 0.5 * changed.size, changed.sum()
+    # (the time label is written after both trails are extended: it reads t = 2.00 s only if
+    # the second trail exists as a line, above)

@@ -23,10 +23,11 @@ pub(super) struct Bodies<'a> {
     pub placement: HashMap<&'a str, (usize, Transform)>,
 }
 
-/// Walks the tree from the root. A fixed or locked joint places its child link in its parent's
-/// body (frames composed); a moving joint starts a new body. `chain` holds every moving joint,
-/// so the bodies come out in chain order.
-pub(super) fn merge<'a>(tree: &Tree<'a>, chain: &[&'a Joint], source: &str) -> Result<Bodies<'a>> {
+/// Walks the tree depth-first from the root, children in file order. A fixed or locked joint
+/// places its child link in its parent's body (frames composed); a moving joint starts a new
+/// body. Bodies are numbered in the order the walk meets them (pre-order), so each parent comes
+/// before its children and every subtree is a contiguous range.
+pub(super) fn merge<'a>(tree: &Tree<'a>, source: &str) -> Result<Bodies<'a>> {
     let mut placement: HashMap<&str, (usize, Transform)> = HashMap::new();
     let mut bodies = vec![Body {
         link: tree.root,
@@ -34,35 +35,27 @@ pub(super) fn merge<'a>(tree: &Tree<'a>, chain: &[&'a Joint], source: &str) -> R
         inertia: Inertia::zero(),
     }];
     placement.insert(tree.root, (0, Transform::identity()));
-    let mut stack = vec![tree.root];
-    while let Some(parent) = stack.pop() {
-        let (parent_body, parent_in_body) = placement[parent];
-        for joint in tree.children(parent) {
-            let child = joint.child.as_str();
-            // Φ_{child,body} at q = 0: the joint origin composed with the parent's placement.
-            let own = pose_transform(&joint.origin);
-            check_length(&own.translation).map_err(|m| Error::InvalidModel {
-                source_name: source.to_string(),
-                message: format!("joint '{}': origin xyz {m}", joint.name),
-            })?;
-            let origin = own.compose(&parent_in_body);
-            if tree.is_fixed(joint) {
-                placement.insert(child, (parent_body, origin));
-            } else {
-                bodies.push(Body {
-                    link: child,
-                    joint: Some((joint, origin)),
-                    inertia: Inertia::zero(),
-                });
-                placement.insert(child, (bodies.len() - 1, Transform::identity()));
-            }
-            stack.push(child);
+    for link in tree.depth_first().into_iter().skip(1) {
+        let joint = tree.parent_joint[link];
+        let (parent_body, parent_in_body) = placement[joint.parent.as_str()];
+        // Φ_{child,body} at q = 0: the joint origin composed with the parent's placement.
+        let own = pose_transform(&joint.origin);
+        check_length(&own.translation).map_err(|m| Error::InvalidModel {
+            source_name: source.to_string(),
+            message: format!("joint '{}': origin xyz {m}", joint.name),
+        })?;
+        let origin = own.compose(&parent_in_body);
+        if tree.is_fixed(joint) {
+            placement.insert(link, (parent_body, origin));
+        } else {
+            bodies.push(Body {
+                link,
+                joint: Some((joint, origin)),
+                inertia: Inertia::zero(),
+            });
+            placement.insert(link, (bodies.len() - 1, Transform::identity()));
         }
     }
-    debug_assert_eq!(
-        bodies.len(),
-        1 + chain.iter().filter(|j| !tree.is_fixed(j)).count()
-    );
     for link in &tree.urdf.links {
         let (body, in_body) = placement[link.name.as_str()];
         let inertia = link_inertia(link, source)?.transformed_to_parent(&in_body);

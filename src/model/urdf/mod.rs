@@ -3,18 +3,19 @@
 //! 1. [`parse`]: XML text to URDF elements;
 //! 2. [`tree`]: links and joints into one kinematic tree, checked (one root, one parent per link,
 //!    every name defined, every link reached);
-//! 3. [`chain`]: the EE link and the joints from the root to it; every other moving joint is an
-//!    error;
+//! 3. [`ees`]: the end-effector links (those asked for, or every leaf), and the check that every
+//!    moving joint is revolute or continuous;
 //! 4. [`merge`]: fixed and locked joints merged away, so each link belongs to a body with its
-//!    inertia added in;
+//!    inertia added in; bodies numbered depth-first from the root;
 //! 5. [`frames`]: one named frame per link, depth-first, placed on its body, and the visuals;
 //! 6. the model: the bodies, joints and frames handed to [`RobotBuilder`], which validates the
 //!    result.
 //!
-//! The root link is the base `B`. Revolute and continuous joints on the chain are the degrees of
-//! freedom; fixed joints, and joints named in `locked_joints` (held at zero), are merged.
+//! The root link is the base `B`. Revolute and continuous joints are the degrees of freedom, on a
+//! chain or on a tree of several arms; fixed joints, and joints named in `locked_joints` (held at
+//! zero), are merged.
 
-mod chain;
+mod ees;
 mod frames;
 mod merge;
 mod parse;
@@ -28,9 +29,13 @@ use std::path::Path;
 /// Options for URDF loading.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct UrdfOptions {
-    /// The link whose frame is the EE frame; `None` picks the unique leaf link of the tree, not
-    /// counting leaves behind a locked joint.
+    /// The link whose frame is the EE frame, for one end-effector: the same as
+    /// `ee_links = vec![link]`. Give at most one of `ee_link` and `ee_links`.
     pub ee_link: Option<String>,
+    /// The end-effector links, in the order wrenches and Jacobians use. Empty (and no `ee_link`):
+    /// every leaf link, depth-first from the root, not counting leaves behind a locked joint
+    /// unless they are all there is.
+    pub ee_links: Vec<String>,
     /// Joints held at zero and treated as fixed (any type), e.g. gripper fingers.
     pub locked_joints: Vec<String>,
 }
@@ -79,23 +84,37 @@ impl Robot {
 fn load(xml: &str, source: &str, options: &UrdfOptions) -> Result<Robot> {
     let urdf = parse::parse(xml, source)?;
     let tree = tree::Tree::new(&urdf, &options.locked_joints, source)?;
-    let ee_link = chain::ee_link(&tree, options.ee_link.as_deref(), source)?;
-    let chain = chain::chain(&tree, ee_link, source)?;
-    let bodies = merge::merge(&tree, &chain, source)?;
+    let asked: Vec<String> = match (&options.ee_link, options.ee_links.as_slice()) {
+        (Some(_), [_, ..]) => {
+            return Err(crate::Error::InvalidArgument {
+                what: "ee_link".into(),
+                message: "give ee_link (one end-effector) or ee_links (several), not both".into(),
+            })
+        }
+        (Some(link), []) => vec![link.clone()],
+        (None, links) => links.to_vec(),
+    };
+    let option = if options.ee_link.is_some() {
+        "link (ee_link)"
+    } else {
+        "link (ee_links)"
+    };
+    let ee_links = ees::ee_links(&tree, &asked, option, source)?;
+    ees::check_joint_kinds(&tree, source)?;
+    let bodies = merge::merge(&tree, source)?;
 
     let base = &bodies.bodies[0];
     let mut builder = RobotBuilder::new(&urdf.name, base.link, base.inertia).source(source);
     for body in &bodies.bodies[1..] {
         let (joint, origin) = body.joint.expect("every body after the base has a joint");
         let axis = Vec3::from(joint.axis);
-        builder = builder.joint(&joint.name, origin, axis, body.link, body.inertia);
+        let parent = bodies.placement[joint.parent.as_str()].0;
+        builder = builder.joint_at(parent, &joint.name, origin, axis, body.link, body.inertia);
     }
-    let (ee_body, ee_in_body) = bodies.placement[ee_link];
-    debug_assert_eq!(ee_body, bodies.bodies.len() - 1);
+    for link in ee_links {
+        let (body, in_body) = bodies.placement[link];
+        builder = builder.end_effector_at(link, body, in_body);
+    }
     let (frames, visuals) = frames::frames(&tree, &bodies);
-    builder
-        .ee(ee_link, ee_in_body)
-        .frames(frames)
-        .visuals(visuals)
-        .build()
+    builder.frames(frames).visuals(visuals).build()
 }

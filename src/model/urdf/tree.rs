@@ -152,14 +152,24 @@ impl<'a> Tree<'a> {
         joint.kind == JointKind::Fixed || self.locked.contains(joint.name.as_str())
     }
 
-    /// Leaf links: links that are no joint's parent, in file order.
+    /// Leaf links (links that are no joint's parent), depth-first from the root, children in
+    /// file order: the order the bodies are numbered in.
     pub fn leaves(&self) -> Vec<&'a str> {
-        self.urdf
-            .links
-            .iter()
-            .map(|l| l.name.as_str())
+        self.depth_first()
+            .into_iter()
             .filter(|l| !self.child_joints.contains_key(l))
             .collect()
+    }
+
+    /// Every link, depth-first from the root (pre-order), children in file order.
+    pub fn depth_first(&self) -> Vec<&'a str> {
+        let mut order = Vec::with_capacity(self.urdf.links.len());
+        let mut stack = vec![self.root];
+        while let Some(link) = stack.pop() {
+            order.push(link);
+            stack.extend(self.children(link).iter().rev().map(|j| j.child.as_str()));
+        }
+        order
     }
 
     /// Every link name, comma-separated, for messages.
