@@ -88,7 +88,8 @@ fn main() {
     let tau: Vec<f64> = (0..n).map(|i| 1.0 + 0.1 * i as f64).collect();
     let twist = [0.05, -0.04, 0.03, 0.01, -0.02, 0.03];
     let (acc, qdd) = ([0.1; 6], vec![0.1; n]);
-    let zero6 = [0.0; 6];
+    // a zero wrench on every end-effector (as Pinocchio's rnea gets no external force)
+    let zero_ee = vec![0.0; 6 * robot.end_effectors().len()];
     println!("model {} n {}", args[0], n);
 
     let mut data = Data::new(&robot);
@@ -131,7 +132,7 @@ fn main() {
                         &RigidState::new(black_box(&q), &twist, &qd),
                         &acc,
                         &qdd,
-                        &zero6,
+                        &zero_ee,
                     )
                     .unwrap()[0],
                 );
@@ -168,8 +169,9 @@ fn main() {
         let state = RigidState::new(&q, &twist, &qd);
         let t = median_ns(
             || {
-                let d = algorithms::rnea_derivatives(&robot, &mut data, &state, &acc, &qdd, &zero6)
-                    .unwrap();
+                let d =
+                    algorithms::rnea_derivatives(&robot, &mut data, &state, &acc, &qdd, &zero_ee)
+                        .unwrap();
                 black_box(d.id_q[(0, 0)]);
             },
             4_000,

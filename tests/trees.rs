@@ -103,6 +103,8 @@ fn recursive_algorithms_equal_the_tree_operator_form() {
 #[test]
 fn on_a_chain_the_operators_keep_their_shapes() {
     let robot = random_chain(5, 2);
+    assert!(robot.is_chain());
+    assert!(!random_tree_all_leaves(SHAPES[2], 2).is_chain());
     let (q, v, qd) = random_state(&robot, 2);
     let ops = Operators::new(&robot, &RigidState::new(&q, &v, &qd)).unwrap();
     assert_eq!(ops.b_ee.shape(), (30, 6));
@@ -212,6 +214,9 @@ fn branched_urdf_loads_depth_first_with_every_leaf() {
     assert_eq!(robot.joint_names(), ["ja1", "ja2", "jb1", "jb2"]);
     assert_eq!(robot.parents(), [0, 0, 1, 0, 3]);
     assert_eq!(robot.subtree_sizes(), [5, 2, 1, 2, 1]);
+    let children: Vec<Vec<usize>> = vec![vec![1, 3], vec![2], vec![], vec![4], vec![]];
+    assert_eq!(robot.children(), children);
+    assert!(!robot.is_chain());
     assert_eq!(robot.ee_links(), ["a2", "tip_b"]);
     assert_eq!(robot.end_effectors()[1].body, 4);
     assert_eq!(

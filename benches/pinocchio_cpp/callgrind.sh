@@ -1,10 +1,12 @@
 #!/usr/bin/env bash
 # Instructions per call (callgrind's Ir) of orbitflex and of each Pinocchio C++ build of run.sh,
-# on panda and the space arm: aba, rnea, crba, one RK4 step, aba_derivatives, rnea_derivatives.
+# on panda and the space arm (MODELS as in run.sh: also dual_arm, solo12): aba, rnea, crba, one
+# RK4 step, aba_derivatives, rnea_derivatives.
 # Instruction counts do not move with the machine's load, unlike the times of run.sh.
 #
 #   bash benches/pinocchio_cpp/callgrind.sh              # BUILDS, CLANGXX as in run.sh
 #   ITERS=200 bash benches/pinocchio_cpp/callgrind.sh    # calls per block (default 100)
+#   MODELS="dual_arm solo12" bash benches/pinocchio_cpp/callgrind.sh
 #
 # Method. Each program is run under `valgrind --tool=callgrind` for one measurement only
 # (`--only NAME --iters N`), twice: with `--blocks 1` and with `--blocks 3`. The two runs do the
@@ -40,10 +42,15 @@ robots=$prefix/share/example-robot-data/robots
 space=$out/space_arm.urdf
 python3 -c "import orbitflex; open('$space', 'w').write(orbitflex.models.space_arm_urdf())" 2>/dev/null ||
   cp "$root/models/space_arm.urdf" "$space"
+# MODELS picks the models (default: the two 7-joint arms of the tables); the branched ones are
+# the dual-arm servicer (two 7-joint arms on the bus) and solo12 (a quadruped: four 3-joint legs)
 declare -A model_args=(
   [panda]="$robots/panda_description/urdf/panda.urdf panda_hand_tcp panda_finger_joint1 panda_finger_joint2"
   [space_arm]="$space -"
+  [dual_arm]="$root/models/dual_arm.urdf -"
+  [solo12]="$robots/solo_description/robots/solo12.urdf -"
 )
+read -r -a models <<<"${MODELS:-panda space_arm}"
 # orbitflex's name, then Pinocchio's
 quantities="aba:aba_local rnea:rnea crba:crba_local rk4_step:rk4_step aba_derivatives:aba_derivatives rnea_derivatives:rnea_derivatives"
 
@@ -59,7 +66,7 @@ total_ir() { # total_ir OUTFILE PROGRAM ARGS...: run under callgrind, print the 
 
 results=$work/results.txt
 : >"$results"
-for model in panda space_arm; do
+for model in "${models[@]}"; do
   # shellcheck disable=SC2086
   set -- ${model_args[$model]}
   for q in $quantities; do
@@ -79,10 +86,11 @@ for model in panda space_arm; do
   done
 done
 
-python3 - "$results" "${builds[*]}" "$iters" <<'EOF'
+python3 - "$results" "${builds[*]}" "$iters" "${models[*]}" <<'EOF'
 import sys
 
 results, builds, iters = sys.argv[1], sys.argv[2].split(), sys.argv[3]
+models = sys.argv[4].split()
 ir = {}
 for line in open(results):
     model, name, side, value = line.split()
@@ -98,7 +106,7 @@ def fmt(v):
     return f"{int(v):,}" if v.isdigit() else v
 
 
-for model in ("panda", "space_arm"):
+for model in models:
     for name, label in labels.items():
         ours = ir.get((model, name, "rust"), "n/a")
         theirs = {b: ir.get((model, name, b), "n/a") for b in builds}
