@@ -132,11 +132,11 @@ impl<'a> Loads<'a> {
     /// (or none).
     #[inline]
     pub fn check_for(&self, robot: &crate::Robot) -> Result<()> {
-        let k = robot.end_effectors().len();
-        if !self.ee_wrench.is_empty() && self.ee_wrench.len() != 6 * k {
-            return Err(ee_wrench_length_error(robot, self.ee_wrench.len()));
+        let base = self.base_wrench.to_array();
+        if !base.iter().all(|v| v.is_finite()) {
+            return check_finite("base_wrench", &base);
         }
-        self.check()
+        check_ee_wrench(robot, self.ee_wrench)
     }
 }
 

@@ -54,7 +54,7 @@ impl RobotBuilder {
         inertia: Inertia,
     ) -> Self {
         let parent = self.robot.joints.len();
-        self.push_joint(parent, name, origin, axis, link_name, inertia)
+        self.joint_at(parent, name, origin, axis, link_name, inertia)
     }
 
     /// Appends revolute joint `i` carried by the body named `parent_link` (the base, or a link
@@ -71,40 +71,12 @@ impl RobotBuilder {
         link_name: &str,
         inertia: Inertia,
     ) -> Self {
-        // an unknown name is reported by `build` (the index is out of range there)
-        let parent = self
-            .robot
-            .link_names
-            .iter()
-            .position(|l| l == parent_link)
-            .unwrap_or(usize::MAX);
-        self.push_joint(parent, name, origin, axis, link_name, inertia)
+        let parent = self.body_named(parent_link);
+        self.joint_at(parent, name, origin, axis, link_name, inertia)
     }
 
     /// [`joint_on`](Self::joint_on) with the parent given by its body index.
     pub(crate) fn joint_at(
-        self,
-        parent: usize,
-        name: &str,
-        origin: Transform,
-        axis: Vec3,
-        link_name: &str,
-        inertia: Inertia,
-    ) -> Self {
-        self.push_joint(parent, name, origin, axis, link_name, inertia)
-    }
-
-    /// [`end_effector`](Self::end_effector) with the body given by its index.
-    pub(crate) fn end_effector_at(mut self, name: &str, body: usize, transform: Transform) -> Self {
-        self.robot.ees.push(super::EndEffector {
-            link: name.to_string(),
-            body,
-            transform,
-        });
-        self
-    }
-
-    fn push_joint(
         mut self,
         parent: usize,
         name: &str,
@@ -124,12 +96,8 @@ impl RobotBuilder {
         self
     }
 
-    /// Adds an end-effector frame on the last body added: `transform = Φ_{e,b}` from that body's
-    /// frame (`Φ_{n+1,n}` on a chain). Without any [`ee`](Self::ee) or
-    /// [`end_effector`](Self::end_effector), [`build`](Self::build) puts one end-effector at the
-    /// origin of every leaf body (the last link of a chain), named after its link.
-    pub fn ee(mut self, name: &str, transform: Transform) -> Self {
-        let body = self.robot.joints.len();
+    /// [`end_effector`](Self::end_effector) with the body given by its index.
+    pub(crate) fn end_effector_at(mut self, name: &str, body: usize, transform: Transform) -> Self {
         self.robot.ees.push(super::EndEffector {
             link: name.to_string(),
             body,
@@ -138,22 +106,31 @@ impl RobotBuilder {
         self
     }
 
-    /// Adds an end-effector frame named `name` on the body named `link` (any body, the base
-    /// included): `transform = Φ_{e,b}` from that body's frame. End-effectors keep the order
-    /// they are added in.
-    pub fn end_effector(mut self, name: &str, link: &str, transform: Transform) -> Self {
-        let body = self
-            .robot
+    /// The index of the body named `link`; an unknown name gives an index out of range, which
+    /// [`build`](Self::build) reports.
+    fn body_named(&self, link: &str) -> usize {
+        self.robot
             .link_names
             .iter()
             .position(|l| l == link)
-            .unwrap_or(usize::MAX);
-        self.robot.ees.push(super::EndEffector {
-            link: name.to_string(),
-            body,
-            transform,
-        });
-        self
+            .unwrap_or(usize::MAX)
+    }
+
+    /// Adds an end-effector frame on the last body added: `transform = Φ_{e,b}` from that body's
+    /// frame (`Φ_{n+1,n}` on a chain). Without any [`ee`](Self::ee) or
+    /// [`end_effector`](Self::end_effector), [`build`](Self::build) puts one end-effector at the
+    /// origin of every leaf body (the last link of a chain), named after its link.
+    pub fn ee(self, name: &str, transform: Transform) -> Self {
+        let body = self.robot.joints.len();
+        self.end_effector_at(name, body, transform)
+    }
+
+    /// Adds an end-effector frame named `name` on the body named `link` (any body, the base
+    /// included): `transform = Φ_{e,b}` from that body's frame. End-effectors keep the order
+    /// they are added in.
+    pub fn end_effector(self, name: &str, link: &str, transform: Transform) -> Self {
+        let body = self.body_named(link);
+        self.end_effector_at(name, body, transform)
     }
 
     /// Rebuilds a model from its parts (tests and the crate's own derived models).
