@@ -194,9 +194,10 @@ def write_json(path: Path, arm: FlexibleArm, q: Array, modes: analysis.Modes, ar
         "overdamped_eigenvalues_per_s": [float(v) for v in modes.overdamped],
     }
     if sweep is not None:
-        doc["sweep"] = {"joint": args.sweep[0], "angle_rad": sweep.configurations[:, arm.robot.joint_names.index(
-            args.sweep[0])].tolist(), "frequency_hz": np.where(np.isnan(sweep.frequency_hz), None,
-                                                               sweep.frequency_hz).tolist()}
+        column = arm.robot.joint_names.index(args.sweep[0])
+        doc["sweep"] = {"joint": args.sweep[0], "angle_rad": sweep.configurations[:, column].tolist(),
+                        "frequency_hz": [[None if math.isnan(v) else float(v) for v in row]
+                                         for row in sweep.frequency_hz]}
     path.write_text(json.dumps(doc, indent=2))
     return path
 
