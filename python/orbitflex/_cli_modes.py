@@ -75,9 +75,10 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
                    help="undamped modes (K φ = ω² M φ) instead of the state matrix's damped ones")
     p.add_argument("--sweep", metavar=("JOINT", "FROM", "TO", "N"), nargs=4, default=None,
                    help="sweep JOINT's angle from FROM to TO rad in N steps: campbell.png")
-    p.add_argument("--inputs", default="motor_torque",
+    p.add_argument("--inputs", default=None,
                    help="inputs of bode.png and the .mat: motor_torque, base_wrench, ee_wrench, "
-                        "theta_ref (default %(default)s; comma-separated for several)")
+                        "theta_ref (default motor_torque, or ee_wrench with --motors clamped; "
+                        "comma-separated for several)")
     p.add_argument("--outputs", default="q",
                    help="outputs: q, theta, deflection, spring_torque, ee_position, base_attitude, "
                         "base_position (default %(default)s; comma-separated for several)")
@@ -126,6 +127,8 @@ def command(args: argparse.Namespace) -> int:
     robot = arm.robot
     q = per_joint(args.q, "--q", robot, default=0.0)
     pd = controller(arm, args)
+    if args.inputs is None:
+        args.inputs = "ee_wrench" if args.motors == "clamped" else "motor_torque"
     inputs = [s.strip() for s in args.inputs.split(",") if s.strip()]
     outputs = [s.strip() for s in args.outputs.split(",") if s.strip()]
     x = arm.state(q=q)
