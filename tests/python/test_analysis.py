@@ -304,3 +304,17 @@ def test_cli_modes(tmp_path, capsys):
                        (["modes", "--motors", "clamped", "--kp", "10"], "--motors")):
         assert main(argv + ["--out", str(out), "--no-plots"]) == 2
         assert f"orbitflex: error: {flag}:" in capsys.readouterr().err
+
+
+def test_docs_modes_example_runs(tmp_path, monkeypatch):
+    """docs/modes.md's Python example runs as written."""
+    import pathlib
+    import re
+
+    page = pathlib.Path(__file__).resolve().parents[2] / "docs" / "modes.md"
+    if not page.exists():
+        pytest.skip("needs the source tree")
+    monkeypatch.chdir(tmp_path)
+    for block in re.findall(r"```python\n(.*?)```", page.read_text(), flags=re.S):
+        exec(compile(block, "docs/modes.md", "exec"), {"__name__": "docs"})
+    assert (tmp_path / "arm.mat").exists()
