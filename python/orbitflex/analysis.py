@@ -252,10 +252,10 @@ def sweep(arm: FlexibleArm, configurations: npt.ArrayLike, *, u: Any = None, bas
     if q.ndim != 2 or q.shape[1] not in (n, arm.state_size):
         raise _core.ModelError(f"configurations: expected shape (N, {n}) (angles) or (N, {arm.state_size}) "
                                f"(states), given shape {q.shape}")
-    states = q if q.shape[1] == arm.state_size and arm.state_size != n else np.array([arm.state(q=row) for row in q])
+    states = q if q.shape[1] == arm.state_size else np.array([arm.state(q=row) for row in q]).reshape(-1, arm.state_size)
     if threads is not None and (not isinstance(threads, int) or threads < 1):
         raise _core.ModelError(f"threads: expected an integer >= 1 or None, given {threads!r}")
-    rows = _core._sweep(arm, states.reshape(-1, arm.state_size), _spec(u, base, motors, damping=damping), threads)
+    rows = _core._sweep(arm, states, _spec(u, base, motors, damping=damping), threads)
     modes = [_modes_from(d, arm, base, motors, isinstance(u, MotorPD)) for d in rows]
     width = max([len(m) for m in modes] + [0]) if count is None else count
 

@@ -88,15 +88,19 @@ def held_state_matrix_from_pinocchio(arm, x, model):
     return A
 
 
-def test_held_base_matches_pinocchio_fixed_base(tmp_path):
+@pytest.mark.parametrize("name", ["space_arm", "dual_arm"])
+def test_held_base_matches_pinocchio_fixed_base(tmp_path, name):
     """The held base's state matrix equals the one assembled from Pinocchio's fixed-base model
-    (the URDF without a free-flyer) to 1e-9, at a state with moving links and deflected springs;
-    and its eigenvalues equal numpy's of that matrix to 1e-9."""
-    path = tmp_path / "space_arm.urdf"
-    path.write_text(orbitflex.models.space_arm_urdf())
+    (the URDF without a free-flyer) to 1e-9, at a state with moving links and deflected springs,
+    on a chain and a tree; its eigenvalues equal numpy's of that matrix to 1e-9, and every shape
+    satisfies ``A v = λ v`` to 1e-9."""
+    path = tmp_path / f"{name}.urdf"
+    path.write_text(getattr(orbitflex.models, f"{name}_urdf")())
     model = pin.buildModelFromUrdf(str(path))
     model.gravity.linear[:] = 0
-    arm = space_arm()
+    base = ARMS[name]()
+    k, j, _, _ = base.parameters
+    arm = orbitflex.FlexibleArm(base.robot, orbitflex.FlexibleJoints(k, j, damping=0.2, motor_damping=1.0))
     n = arm.dof
     rng = np.random.default_rng(7)
     q = rng.uniform(-1, 1, n)
@@ -110,6 +114,10 @@ def test_held_base_matches_pinocchio_fixed_base(tmp_path):
     lambdas = -m.damping_ratio * m.natural_frequency_hz * 2 * np.pi + 1j * m.frequency_hz * 2 * np.pi
     for lam in lambdas:
         assert abs(nearest(reference, lam) - lam) < 1e-9 * abs(lam)
+    for v, lam in zip(m.shapes.T, lambdas):
+        kept = v[ss.tangent_index]
+        assert np.linalg.norm(ss.A @ kept - lam * kept) < 1e-9 * np.linalg.norm(ss.A) * np.linalg.norm(kept)
+        assert np.abs(np.delete(v, ss.tangent_index)).max() == 0
 
 
 def test_frequency_response_equals_the_dense_formula():
