@@ -6,7 +6,7 @@
 // Loops run over joint and eigenvalue indices shared by several arrays.
 #![allow(clippy::needless_range_loop)]
 
-use super::linear::{check_spec, jacobians, LinearSpec, Motors, Tangent};
+use super::linear::{check_spec, state_space, LinearSpec, Motors, Tangent};
 use crate::algorithms;
 use crate::error::{Error, Result};
 use crate::flex::{ArmWorkspace, FlexibleArm};
@@ -279,10 +279,15 @@ fn state_matrix_modes(
     mech: &Mechanics,
 ) -> Result<Modes> {
     let t = Tangent { n: arm.dof() };
-    let full = jacobians(arm, ws, x, spec)?;
-    let keep = t.kept(spec.base, spec.motors);
-    let a = DMatrix::from_fn(keep.len(), keep.len(), |r, c| full.f[(keep[r], keep[c])]);
-    let eig = crate::linalg::eigen(&a).ok_or_else(|| no_convergence("eigenvalues"))?;
+    // the model's A alone: no inputs or outputs
+    let bare = LinearSpec {
+        inputs: &[],
+        outputs: &[],
+        ..*spec
+    };
+    let ss = state_space(arm, ws, x, &bare)?;
+    let keep = &ss.tangent_index;
+    let eig = crate::linalg::eigen(&ss.a).ok_or_else(|| no_convergence("eigenvalues"))?;
     let r = mech.rigid.ncols();
     let rigid_mass = (r > 0)
         .then(|| (mech.rigid.transpose() * &mech.mass * &mech.rigid).cholesky())
