@@ -185,3 +185,48 @@ impl HessenbergForm {
 pub fn frequency_response(ss: &StateSpace, freqs_hz: &[f64]) -> Result<Vec<DMatrix<C64>>> {
     HessenbergForm::new(ss).evaluate(freqs_hz)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// At 0 Hz, `−A` of two undamped oscillators has zeros on its diagonal: the elimination must
+    /// exchange rows k and k+1 to solve it; without the exchange it would report a pole that is
+    /// not there. The result equals `C (−A)⁻¹ B` in closed form.
+    #[test]
+    fn zero_diagonal_needs_the_row_exchange() {
+        // ẍ₁ = −4 x₁ + u₁ and ẍ₂ = −9 x₂ + u₂, the outputs x₁, x₂
+        let a = DMatrix::from_row_slice(
+            4,
+            4,
+            &[
+                0.0, 1.0, 0.0, 0.0, //
+                -4.0, 0.0, 0.0, 0.0, //
+                0.0, 0.0, 0.0, 1.0, //
+                0.0, 0.0, -9.0, 0.0,
+            ],
+        );
+        let b = DMatrix::from_row_slice(4, 2, &[0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0]);
+        let c = DMatrix::from_row_slice(2, 4, &[1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0]);
+        let ss = StateSpace {
+            a,
+            b,
+            c,
+            d: DMatrix::zeros(2, 2),
+            states: vec![],
+            inputs: vec![],
+            outputs: vec![],
+            tangent_index: vec![],
+        };
+        // static gains 1/4 and 1/9; at 1/(2π) Hz (ω = 1): 1/(4 − 1), 1/(9 − 1)
+        let h = frequency_response(&ss, &[0.0, 1.0 / std::f64::consts::TAU]).unwrap();
+        for (m, (g1, g2)) in h.iter().zip([(0.25, 1.0 / 9.0), (1.0 / 3.0, 0.125)]) {
+            assert!((m[(0, 0)] - C64::new(g1, 0.0)).norm() < 1e-15);
+            assert!((m[(1, 1)] - C64::new(g2, 0.0)).norm() < 1e-15);
+            assert!(m[(0, 1)].norm() < 1e-15 && m[(1, 0)].norm() < 1e-15);
+        }
+        // at ω = 2 the first oscillator has its pole
+        let err = frequency_response(&ss, &[1.0 / std::f64::consts::PI]).unwrap_err();
+        assert!(err.to_string().contains("is a pole"), "{err}");
+    }
+}
