@@ -291,7 +291,8 @@ fn shapes_satisfy_the_eigen_equation_and_rigid_counts_are_exact() {
 }
 
 /// Without damping, at rest with relaxed springs, the state matrix's modes are the undamped
-/// pencil's: `λ = ±iω` to round-off, for every base/motor combination.
+/// pencil's: `λ = ±iω` to round-off, for every base/motor combination, open loop and under a
+/// motor PD without derivative gain (its `k_p` stiffens the motors).
 #[test]
 fn damped_and_undamped_modes_agree_without_damping() {
     let robot = random_chain(5, 31);
@@ -301,13 +302,22 @@ fn damped_and_undamped_modes_agree_without_damping() {
         FlexibleJoints::new(p.stiffness, p.motor_inertia, vec![0.0; n], vec![0.0; n]).unwrap();
     let arm = FlexibleArm::new(robot, joints).unwrap();
     let x = state(&arm, 31, true);
-    for (base, motors) in [
-        (BaseMode::Free, Motors::Free),
-        (BaseMode::Free, Motors::Clamped),
-        (BaseMode::Held, Motors::Free),
-        (BaseMode::Held, Motors::Clamped),
+    let (kp, kd) = (vec![40.0; n], vec![0.0; n]);
+    let pd = Feedback::MotorPd { kp: &kp, kd: &kd };
+    for (base, motors, feedback) in [
+        (BaseMode::Free, Motors::Free, Feedback::None),
+        (BaseMode::Free, Motors::Clamped, Feedback::None),
+        (BaseMode::Held, Motors::Free, Feedback::None),
+        (BaseMode::Held, Motors::Clamped, Feedback::None),
+        (BaseMode::Free, Motors::Free, pd),
+        (BaseMode::Held, Motors::Free, pd),
     ] {
-        let spec = spec(base, motors);
+        let spec = LinearSpec {
+            base,
+            motors,
+            feedback,
+            ..LinearSpec::default()
+        };
         let damped = modes(&arm, &mut arm.workspace(), &x, &spec, true).unwrap();
         let undamped = modes(&arm, &mut arm.workspace(), &x, &spec, false).unwrap();
         assert_eq!(damped.rigid_body, undamped.rigid_body);
