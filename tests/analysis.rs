@@ -597,3 +597,74 @@ fn impossible_models_are_refused() {
     assert!(OutputGroup::from_name("qq").is_err());
     assert!(Motors::from_name("braked").is_err());
 }
+
+/// The shapes are normalised as documented: the displacement part `z` (in velocity coordinates:
+/// `[δφ_B; R_Bᵀ δr_B; δq; δθ]`) has unit modal mass `zᴴ M z = 1` with `M = diag(𝓜, j)`, its
+/// heaviest component (largest `M_ii |z_i|²`) is real and positive, and the rates are `λ z`.
+#[test]
+fn shapes_have_unit_modal_mass() {
+    let arm = FlexibleArm::new(Robot::space_arm(), FlexibleJoints::space_arm()).unwrap();
+    let n = arm.dof();
+    let q = [0.3, -0.4, 0.2, 1.1, -0.3, 0.5, 0.1];
+    let pose = [0.1, 0.2, 0.3, 0.2, -0.4, 0.3, 0.8];
+    let x = arm
+        .state(&StateSpec {
+            q: Some(&q),
+            base_pose: Some(&pose),
+            ..StateSpec::default()
+        })
+        .unwrap();
+    let mut data = Data::new(arm.robot());
+    let rigid = algorithms::crba(arm.robot(), &mut data, &q)
+        .unwrap()
+        .clone();
+    let mut mass = DMatrix::zeros(6 + 2 * n, 6 + 2 * n);
+    mass.view_mut((0, 0), (6 + n, 6 + n)).copy_from(&rigid);
+    for i in 0..n {
+        mass[(6 + n + i, 6 + n + i)] = arm.joints().motor_inertia[i];
+    }
+    let r = nalgebra::UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(
+        pose[6], pose[3], pose[4], pose[5],
+    ))
+    .to_rotation_matrix()
+    .into_inner();
+    for damped in [true, false] {
+        let m = modes(
+            &arm,
+            &mut arm.workspace(),
+            &x,
+            &LinearSpec::default(),
+            damped,
+        )
+        .unwrap();
+        for j in 0..m.frequency_hz.len() {
+            let v = m.shapes.column(j);
+            let lin = r.transpose().map(|a| Complex::new(a, 0.0)) * v.fixed_rows::<3>(0);
+            let z = DVector::from_fn(6 + 2 * n, |i, _| match i {
+                0..=2 => v[3 + i],
+                3..=5 => lin[i - 3],
+                _ => v[i],
+            });
+            let mz = mass.map(|a| Complex::new(a, 0.0)) * &z;
+            let modal_mass = z.dotc(&mz);
+            assert!((modal_mass.re - 1.0).abs() < 1e-12 && modal_mass.im.abs() < 1e-12);
+            let heaviest = (0..z.len())
+                .max_by(|&a, &b| {
+                    (mass[(a, a)] * z[a].norm_sqr()).total_cmp(&(mass[(b, b)] * z[b].norm_sqr()))
+                })
+                .unwrap();
+            assert!(z[heaviest].re > 0.0 && z[heaviest].im.abs() < 1e-14 * z[heaviest].re);
+            let lambda = Complex::new(
+                -m.damping_ratio[j] * m.natural_frequency_hz[j] * TAU,
+                m.frequency_hz[j] * TAU,
+            );
+            // rates: δq̇ = λ δq, δθ̇ = λ δθ
+            for i in 0..2 * n {
+                let (disp, rate) = (v[6 + i], v[12 + 2 * n + i]);
+                assert!(
+                    (rate - lambda * disp).norm() < 1e-9 * (lambda.norm() * disp.norm()).max(1e-12)
+                );
+            }
+        }
+    }
+}

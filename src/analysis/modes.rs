@@ -412,3 +412,43 @@ fn undamped_modes(arm: &FlexibleArm, mech: &Mechanics) -> Result<Modes> {
         damped: false,
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::testing::random_chain;
+    use crate::FlexibleJoints;
+
+    /// One joint on a held base, motors free: the rigid-body basis is link and motor turning
+    /// together, `v = [1, 1]`, and the share of a displacement `z` in it is
+    /// `(vᵀ M z)² / (vᵀ M v · zᵀ M z)`: 1 for `v`, 0 for the `M`-orthogonal `[j, −I]`, and
+    /// `I / (I + j)` for the link alone.
+    #[test]
+    fn rigid_share_is_the_m_orthogonal_projection() {
+        let arm = FlexibleArm::new(
+            random_chain(1, 3),
+            FlexibleJoints::uniform(1, 100.0, 0.7, 0.0, 0.0).unwrap(),
+        )
+        .unwrap();
+        let spec = LinearSpec {
+            base: BaseMode::Held,
+            ..LinearSpec::default()
+        };
+        let mut ws = arm.workspace();
+        let mech = mechanics(&arm, &mut ws, &arm.rest_state(), &spec).unwrap();
+        let (i, j) = (mech.mass[(0, 0)], mech.mass[(1, 1)]);
+        assert_eq!(j, 0.7);
+        let rigid_mass = (mech.rigid.transpose() * &mech.mass * &mech.rigid).cholesky();
+        let share = |a: f64, b: f64| {
+            let z = DVector::from_vec(vec![Complex::new(a, 0.0), Complex::new(0.0, b)]);
+            mech.rigid_share(&z, &rigid_mass)
+        };
+        assert!((share(1.0, 0.0) - i / (i + j)).abs() < 1e-14);
+        let z = DVector::from_vec(vec![Complex::new(2.0, 0.0), Complex::new(2.0, 0.0)]);
+        assert!((mech.rigid_share(&z, &rigid_mass) - 1.0).abs() < 1e-14);
+        let z = DVector::from_vec(vec![Complex::new(j, 0.0), Complex::new(-i, 0.0)]);
+        assert!(mech.rigid_share(&z, &rigid_mass).abs() < 1e-14);
+        // no rigid-body modes: no share
+        assert_eq!(mech.rigid_share(&z, &None), 0.0);
+    }
+}
