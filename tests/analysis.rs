@@ -112,6 +112,20 @@ fn one_flexible_joint_matches_its_closed_forms() {
     )
     .unwrap();
     assert!(rel(m.damping_ratio[0], zeta) < 1e-10);
+    // past critical damping (ζ = 2) the mode decays without oscillating: no frequency, and its
+    // two real eigenvalues ω_n (−ζ ± √(ζ² − 1)) listed as overdamped, slowest first
+    let d = 4.0 * (k * LINK_INERTIA).sqrt();
+    let arm = one_joint(k, j, d, 0.0);
+    let clamped = spec(BaseMode::Held, Motors::Clamped);
+    let m = modes(&arm, &mut ws_for(&arm), &x, &clamped, true).unwrap();
+    assert!(m.frequency_hz.is_empty() && m.shapes.ncols() == 0);
+    let (omega, zeta) = ((k / LINK_INERTIA).sqrt(), 2.0_f64);
+    let root = (zeta * zeta - 1.0).sqrt();
+    let want = [omega * (-zeta + root), omega * (-zeta - root)];
+    assert_eq!(m.overdamped.len(), 2);
+    for (got, want) in m.overdamped.iter().zip(want) {
+        assert!(rel(*got, want) < 1e-10, "{got} vs {want}");
+    }
 }
 
 fn ws_for(arm: &FlexibleArm) -> orbitflex::ArmWorkspace {
@@ -326,6 +340,22 @@ fn damped_and_undamped_modes_agree_without_damping() {
             assert!(rel(*a, *b) < 1e-9, "{base:?} {motors:?}: {a} vs {b}");
         }
         assert!(damped.damping_ratio.iter().all(|z| z.abs() < 1e-9));
+        assert_eq!(undamped.natural_frequency_hz, undamped.frequency_hz);
+        // every eigenvalue, sorted by modulus, in conjugate pairs: ±iω and 2r zeros
+        for m in [&damped, &undamped] {
+            let e = &m.eigenvalues;
+            assert_eq!(e.len(), 2 * (m.rigid_body + m.frequency_hz.len()));
+            assert!(e.windows(2).all(|w| w[0].norm() <= w[1].norm()));
+            for lambda in e {
+                let tolerance = 1e-9 * lambda.norm();
+                let paired = e.iter().any(|o| (o - lambda.conj()).norm() <= tolerance);
+                assert!(paired, "{lambda} has no conjugate");
+            }
+        }
+        let structural = undamped.eigenvalues.iter().skip(2 * undamped.rigid_body);
+        for (f, lambda) in undamped.frequency_hz.iter().zip(structural.step_by(2)) {
+            assert!(rel(lambda.norm() / TAU, *f) < 1e-12);
+        }
         // the same shapes, up to a phase each (both have unit modal mass)
         for j in 0..damped.frequency_hz.len() {
             let (u, v) = (damped.shapes.column(j), undamped.shapes.column(j));

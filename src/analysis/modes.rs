@@ -313,11 +313,9 @@ fn state_matrix_modes(
     for &j in &order {
         let size = if eig.values[j].im > 0.0 { 2 } else { 1 };
         if size <= left {
+            // (its conjugate, with Im λ < 0, is never reported on its own)
             left -= size;
             rigid[j] = true;
-            if size == 2 {
-                rigid[j + 1] = true;
-            }
         }
     }
     let mut oscillatory = Vec::new();
