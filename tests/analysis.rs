@@ -698,3 +698,39 @@ fn shapes_have_unit_modal_mass() {
         }
     }
 }
+
+/// Every group and setting parses back from its name, and the names are the documented ones.
+#[test]
+fn names_round_trip() {
+    for g in InputGroup::ALL {
+        assert_eq!(InputGroup::from_name(g.name()).unwrap(), g);
+    }
+    for g in OutputGroup::ALL {
+        assert_eq!(OutputGroup::from_name(g.name()).unwrap(), g);
+    }
+    for m in [Motors::Free, Motors::Clamped] {
+        assert_eq!(Motors::from_name(m.name()).unwrap(), m);
+    }
+    let names: Vec<&str> = OutputGroup::ALL.iter().map(|g| g.name()).collect();
+    assert_eq!(
+        names,
+        [
+            "q",
+            "theta",
+            "deflection",
+            "spring_torque",
+            "ee_position",
+            "base_attitude",
+            "base_position"
+        ]
+    );
+    let names: Vec<&str> = InputGroup::ALL.iter().map(|g| g.name()).collect();
+    assert_eq!(
+        names,
+        ["motor_torque", "theta_ref", "base_wrench", "ee_wrench"]
+    );
+    assert_eq!(
+        (Motors::Free.name(), Motors::Clamped.name()),
+        ("free", "clamped")
+    );
+}

@@ -80,10 +80,7 @@ impl InputGroup {
 
     /// Parses a group's name.
     pub fn from_name(name: &str) -> Result<Self> {
-        Self::ALL
-            .into_iter()
-            .find(|g| g.name() == name)
-            .ok_or_else(|| unknown_name("inputs", name, Self::ALL.map(Self::name).as_slice()))
+        by_name("inputs", name, &Self::ALL, Self::name)
     }
 }
 
@@ -134,21 +131,30 @@ impl OutputGroup {
 
     /// Parses a group's name.
     pub fn from_name(name: &str) -> Result<Self> {
-        Self::ALL
-            .into_iter()
-            .find(|g| g.name() == name)
-            .ok_or_else(|| unknown_name("outputs", name, Self::ALL.map(Self::name).as_slice()))
+        by_name("outputs", name, &Self::ALL, Self::name)
     }
 }
 
-fn unknown_name(what: &str, name: &str, known: &[&str]) -> Error {
-    Error::InvalidArgument {
-        what: what.into(),
-        message: format!(
-            "unknown name {name:?}; expected one of {}",
-            known.join(", ")
-        ),
-    }
+/// The member of `all` called `name`, or an error for the argument `what` that lists the names.
+fn by_name<T: Copy>(
+    what: &str,
+    name: &str,
+    all: &[T],
+    name_of: fn(T) -> &'static str,
+) -> Result<T> {
+    all.iter()
+        .copied()
+        .find(|&g| name_of(g) == name)
+        .ok_or_else(|| Error::InvalidArgument {
+            what: what.into(),
+            message: format!(
+                "unknown name {name:?}; expected one of {}",
+                all.iter()
+                    .map(|&g| name_of(g))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ),
+        })
 }
 
 /// What the linear model describes: the base, the motors, the feedback closing the loop, and
