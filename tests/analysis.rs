@@ -285,6 +285,8 @@ fn shapes_satisfy_the_eigen_equation_and_rigid_counts_are_exact() {
                 let structural = if closed { 2 * n } else { n };
                 assert_eq!(m.frequency_hz.len() + m.overdamped.len() / 2, structural);
                 assert_eq!(m.eigenvalues.len(), ss.a.nrows());
+                assert_eq!(m.shapes.nrows(), arm.tangent_size());
+                assert_eq!(ss.states.len(), ss.a.nrows());
                 let a = ss.a.map(|v| Complex::new(v, 0.0));
                 for (j, f) in m.frequency_hz.iter().enumerate() {
                     let lambda = Complex::new(
