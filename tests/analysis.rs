@@ -10,7 +10,9 @@ use orbitflex::analysis::{
 };
 use orbitflex::integrate::Feedback;
 use orbitflex::planning::BaseMode;
-use orbitflex::testing::{random_chain, random_joints, random_tree, Rng, TREE_THREE_ARMS};
+use orbitflex::testing::{
+    random_chain, random_joints, random_tree, random_tree_all_leaves, Rng, TREE_THREE_ARMS,
+};
 use orbitflex::{FlexibleArm, FlexibleJoints, RigidState, Robot, StateSpec, UrdfOptions};
 use std::f64::consts::TAU;
 
@@ -190,7 +192,7 @@ fn held_acceleration(arm: &FlexibleArm, data: &mut Data, y: &[f64], f: &[f64]) -
 fn held_base_linearisation_matches_finite_differences() {
     for (robot, seed) in [
         (random_chain(5, 11), 11),
-        (random_tree(TREE_THREE_ARMS, 12), 12),
+        (random_tree_all_leaves(TREE_THREE_ARMS.0, 12), 12),
     ] {
         let n = robot.dof();
         let k = robot.end_effectors().len();
@@ -735,4 +737,52 @@ fn names_round_trip() {
         (Motors::Free.name(), Motors::Clamped.name()),
         ("free", "clamped")
     );
+}
+
+/// The motor PD closed into `A`: the `θ̈` rows equal central differences of the derivative with
+/// `u = k_p (θ_ref − θ) − k_d θ̇` evaluated at each perturbed state (along the tangent, with
+/// `x ⊕ dx`), at a moving state, free base.
+#[test]
+fn closed_loop_rows_match_finite_differences() {
+    let robot = random_chain(4, 51);
+    let n = robot.dof();
+    let arm = FlexibleArm::new(robot, random_joints(n, 51)).unwrap();
+    let x = state(&arm, 51, false);
+    let (kp, kd) = (vec![30.0, 45.0, 60.0, 75.0], vec![3.0, 1.0, 4.0, 1.5]);
+    let reference = [0.1, -0.2, 0.3, 0.0];
+    let spec = LinearSpec {
+        feedback: Feedback::MotorPd { kp: &kp, kd: &kd },
+        ..LinearSpec::default()
+    };
+    let ss = state_space(&arm, &mut arm.workspace(), &x, &spec).unwrap();
+    let layout = arm.layout();
+    let mut ws = arm.workspace();
+    let mut theta_ddot = |dx: &[f64]| {
+        let y = arm.integrate(&x, dx).unwrap();
+        let s = layout.split(&y);
+        let u: Vec<f64> = (0..n)
+            .map(|i| kp[i] * (reference[i] - s.theta[i]) - kd[i] * s.theta_dot[i])
+            .collect();
+        let mut ydot = vec![0.0; y.len()];
+        arm.derivative(&mut ws, &y, &orbitflex::Inputs::torques(&u), &mut ydot)
+            .unwrap();
+        ydot[layout.theta_dot()].to_vec()
+    };
+    let t = arm.tangent_size();
+    let h = 1e-6;
+    for c in 0..t {
+        let mut dx = vec![0.0; t];
+        dx[c] = h;
+        let plus = theta_ddot(&dx);
+        dx[c] = -h;
+        let minus = theta_ddot(&dx);
+        for i in 0..n {
+            let want = (plus[i] - minus[i]) / (2.0 * h);
+            let got = ss.a[(12 + 3 * n + i, c)];
+            assert!(
+                (got - want).abs() < 1e-6 * want.abs().max(1.0),
+                "row {i}, column {c}: {got} vs {want}"
+            );
+        }
+    }
 }
