@@ -231,6 +231,17 @@ fn held_base_linearisation_matches_finite_differences() {
             "{}",
             (&ss.a - &fd).amax() / scale
         );
+        // the motor torque columns: θ̈_i = (u_i − …)/j_i
+        for i in 0..n {
+            for r in 0..4 * n {
+                let want = if r == 3 * n + i {
+                    1.0 / arm.joints().motor_inertia[i]
+                } else {
+                    0.0
+                };
+                assert_eq!(ss.b[(r, 6 * k + i)], want);
+            }
+        }
         // the EE wrench columns
         for c in 0..6 * k {
             let mut f = vec![0.0; 6 * k];
@@ -755,6 +766,23 @@ fn closed_loop_rows_match_finite_differences() {
         ..LinearSpec::default()
     };
     let ss = state_space(&arm, &mut arm.workspace(), &x, &spec).unwrap();
+    // the reference as an input: ∂θ̈_i/∂θ_ref,i = k_p,i / j_i
+    let with_reference = LinearSpec {
+        inputs: &[InputGroup::ThetaRef, InputGroup::MotorTorque],
+        ..spec
+    };
+    let b = state_space(&arm, &mut arm.workspace(), &x, &with_reference)
+        .unwrap()
+        .b;
+    for i in 0..n {
+        let j = arm.joints().motor_inertia[i];
+        for r in 0..ss.a.nrows() {
+            let at = r == 12 + 3 * n + i;
+            let (reference, torque) = if at { (kp[i] / j, 1.0 / j) } else { (0.0, 0.0) };
+            assert!((b[(r, i)] - reference).abs() <= 1e-15 * reference.abs());
+            assert_eq!(b[(r, n + i)], torque);
+        }
+    }
     let layout = arm.layout();
     let mut ws = arm.workspace();
     let mut theta_ddot = |dx: &[f64]| {
@@ -782,6 +810,63 @@ fn closed_loop_rows_match_finite_differences() {
             assert!(
                 (got - want).abs() < 1e-6 * want.abs().max(1.0),
                 "row {i}, column {c}: {got} vs {want}"
+            );
+        }
+    }
+}
+
+/// Every output row of `C` against central differences of the output's own definition along the
+/// tangent (`x ⊕ dx`): angles, deflections, spring torques (rates included), the end-effectors'
+/// inertial positions (`FlexibleArm::ee_pose`), the base's small rotation (the tangent's `δφ_B`,
+/// `x ⊖ y`) and position, at a turned, moving base, on a tree with several end-effectors.
+#[test]
+fn output_rows_match_finite_differences() {
+    let robot = random_tree_all_leaves(TREE_THREE_ARMS.0, 61);
+    let n = robot.dof();
+    let k = robot.end_effectors().len();
+    assert!(k > 1);
+    let arm = FlexibleArm::new(robot, random_joints(n, 61)).unwrap();
+    let x = state(&arm, 61, false);
+    let spec = LinearSpec {
+        outputs: &OutputGroup::ALL,
+        ..LinearSpec::default()
+    };
+    let ss = state_space(&arm, &mut arm.workspace(), &x, &spec).unwrap();
+    assert_eq!(ss.c.nrows(), 4 * n + 3 * k + 6);
+    let layout = arm.layout();
+    let p = arm.joints().clone();
+    let outputs = |dx: &[f64]| {
+        let y = arm.integrate(&x, dx).unwrap();
+        let s = layout.split(&y);
+        let mut out: Vec<f64> = s.q.to_vec();
+        out.extend_from_slice(s.theta);
+        out.extend((0..n).map(|i| s.theta[i] - s.q[i]));
+        out.extend((0..n).map(|i| {
+            p.stiffness[i] * (s.theta[i] - s.q[i]) + p.damping[i] * (s.theta_dot[i] - s.qd[i])
+        }));
+        for e in 0..k {
+            out.extend_from_slice(&arm.ee_pose(&y, e)[..3]);
+        }
+        out.extend_from_slice(&arm.difference(&x, &y).unwrap()[3..6]);
+        out.extend_from_slice(s.position);
+        out
+    };
+    let t = arm.tangent_size();
+    let h = 1e-6;
+    for c in 0..t {
+        let mut dx = vec![0.0; t];
+        dx[c] = h;
+        let plus = outputs(&dx);
+        dx[c] = -h;
+        let minus = outputs(&dx);
+        for (r, (a, b)) in plus.iter().zip(&minus).enumerate() {
+            let want = (a - b) / (2.0 * h);
+            let got = ss.c[(r, c)];
+            assert!(
+                (got - want).abs() < 1e-7 * want.abs().max(1.0),
+                "{} / {}: {got} vs {want}",
+                ss.outputs[r],
+                ss.states[c]
             );
         }
     }
