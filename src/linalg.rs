@@ -514,8 +514,9 @@ fn schur_vectors(t: &mut DMatrix<f64>, values: &[Complex<f64>]) -> DMatrix<f64> 
             let mut i = j;
             while i > 0 {
                 i -= 1;
-                if i > 0 && values[i].im < 0.0 {
-                    // rows i − 1, i: a 2×2 block (solved when i − 1 is reached)
+                if values[i].im < 0.0 {
+                    // rows i − 1, i: a 2×2 block (solved when i − 1 is reached; a pair's
+                    // second eigenvalue is never at row 0)
                     continue;
                 }
                 if values[i].im > 0.0 {
