@@ -8,6 +8,7 @@
 //! Robotics and AI, 2022, whose equations are numbered (A.1)–(A.19).
 
 pub mod algorithms;
+pub mod analysis;
 pub mod args;
 pub mod dynamics;
 pub mod error;

@@ -38,7 +38,7 @@ from ._core import (
     plan_slew,
     simulate_batch,
 )
-from . import models
+from . import analysis, models
 
 __all__ = [
     "Robot",
@@ -54,6 +54,7 @@ __all__ = [
     "ModelError",
     "SimulationError",
     "models",
+    "analysis",
     "SPACE_ARM_URDF",
     "DUAL_ARM_URDF",
     "__version__",

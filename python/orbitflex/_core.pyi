@@ -8,6 +8,8 @@ from typing import Any, Callable, Dict, List, Mapping, Optional, Sequence, Tuple
 import numpy as np
 import numpy.typing as npt
 
+from orbitflex.analysis import Modes, StateSpace
+
 __all__ = [
     "BatchTrajectory",
     "FlexibleArm",
@@ -24,6 +26,10 @@ __all__ = [
     "__version__",
     "plan_slew",
     "simulate_batch",
+    "_frequency_response",
+    "_modes",
+    "_state_space",
+    "_sweep",
 ]
 
 _Array = npt.NDArray[np.float64]
@@ -136,6 +142,10 @@ _Controller = Union[None, _ArrayLike, Callable[[float, _Array], _ArrayLike], Mot
 @final
 class FlexibleArm:
     def __new__(cls, robot: Robot, joints: FlexibleJoints, method: str = "recursive") -> FlexibleArm: ...
+    # defined in orbitflex.analysis and attached to the class when orbitflex is imported
+    def modes(self, x: _ArrayLike, u: Any = None, base: str = "free", motors: str = "free", *, damping: bool = True) -> Modes: ...
+    def frequency_response(self, x: _ArrayLike, freqs_hz: _ArrayLike, inputs: Union[str, Sequence[str]] = "motor_torque", outputs: Union[str, Sequence[str]] = "q", u: Any = None, base: str = "free", motors: str = "free") -> npt.NDArray[np.complex128]: ...
+    def state_space(self, x: _ArrayLike, u: Any = None, inputs: Union[str, Sequence[str]] = "motor_torque", outputs: Union[str, Sequence[str]] = "q", base: str = "free", motors: str = "free") -> StateSpace: ...
     @property
     def robot(self) -> Robot: ...
     @property
@@ -314,3 +324,8 @@ class Plan:
 
 def plan_slew(arm: FlexibleArm, q_goal: _ArrayLike, q_start: Optional[_ArrayLike] = None, limits: Optional[Limits] = None, base: str = "held", waypoints: Optional[_ArrayLike] = None) -> Plan: ...
 def simulate_batch(arm_or_arms: Union[FlexibleArm, Sequence[FlexibleArm]], x0s: _ArrayLike, dt: float, steps: int, u: Union[None, _ArrayLike, MotorPD, Sequence[MotorPD]] = None, base_wrench: Optional[_ArrayLike] = None, ee_wrench: Optional[_Wrench] = None, threads: Optional[int] = None, record_every: Optional[int] = None, *, keep_rows: bool = True, progress: Optional[Callable[[int, int], Any]] = None) -> BatchTrajectory: ...
+# private: the linear analysis, wrapped by orbitflex.analysis
+def _state_space(arm: FlexibleArm, x: _ArrayLike, spec: Dict[str, Any]) -> Dict[str, Any]: ...
+def _modes(arm: FlexibleArm, x: _ArrayLike, spec: Dict[str, Any]) -> Dict[str, Any]: ...
+def _frequency_response(arm: FlexibleArm, x: _ArrayLike, freqs_hz: _ArrayLike, spec: Dict[str, Any]) -> npt.NDArray[np.complex128]: ...
+def _sweep(arm: FlexibleArm, states: _ArrayLike, spec: Dict[str, Any], threads: Optional[int]) -> List[Dict[str, Any]]: ...

@@ -12,6 +12,8 @@ and as if they were rigid, runs both plans on the flexible arm and compares them
 limits, plans it again as if the joints were rigid, tracks both on the flexible arm, and writes
 the plans, the comparison, ``plan_summary.json`` and plots.
 
+``modes`` prints the structural modes of an arm and draws them (``_cli_modes``).
+
 ``campaign`` runs a Monte-Carlo campaign file (:mod:`orbitflex.campaign`) locally or on a Dask
 cluster (``--scheduler``) and writes the per-run table ``runs.parquet``, ``summary.csv``
 (percentiles), ``log.jsonl`` and ``histograms.png``.
@@ -1776,7 +1778,7 @@ def build_parser() -> Parser:
     parser = Parser(prog="orbitflex", description="Flexible-joint space manipulator simulation: a "
                     "free-floating slew of an arm on a spacecraft bus.")
     parser.add_argument("--version", action="version", version=f"orbitflex {__version__}")
-    sub = parser.add_subparsers(dest="command", metavar="{demo,simulate,plan,campaign}")
+    sub = parser.add_subparsers(dest="command", metavar="{demo,simulate,plan,campaign,modes}")
     demo = sub.add_parser("demo", help="simulate the built-in space arm (bus + 7-joint arm), free floating",
                           description="Simulates the built-in space arm (a 500 kg bus with a 7-joint arm) "
                                       "slewing free-floating, and writes the trajectory, a summary and plots.")
@@ -1815,6 +1817,9 @@ def build_parser() -> Parser:
                       help="threads per batch (default: every core here, 1 per Dask task)")
     camp.add_argument("--no-plots", action="store_true", help="skip histograms.png")
     camp.add_argument("--no-progress", action="store_true", help="no progress bar")
+    from . import _cli_modes  # `orbitflex modes` lives in its own module
+
+    _cli_modes.add_parser(sub)
     return parser
 
 
@@ -1897,6 +1902,10 @@ def main(argv: Optional[List[str]] = None) -> int:
             return plan_command(args)
         if args.command == "campaign":
             return campaign_command(args)
+        if args.command == "modes":
+            from . import _cli_modes
+
+            return _cli_modes.command(args)
         if args.dt > args.duration:
             raise CliError("--dt", f"expected at most --duration ({args.duration:g} s), given {args.dt:g}")
         job = demo_job(args) if args.command == "demo" else simulate_job(args)

@@ -9,11 +9,13 @@
 //!
 //! One file per class: `robot` (`Robot`), `joints` (`FlexibleJoints`), `control` (`MotorPD`,
 //! input schedules, Python controllers), `arm` (`FlexibleArm`), `trajectory` (`Trajectory`),
-//! `plan` (`Limits`, `Plan`, `plan_slew`), `batch` (`simulate_batch`, `BatchTrajectory`);
+//! `plan` (`Limits`, `Plan`, `plan_slew`), `batch` (`simulate_batch`, `BatchTrajectory`); `analysis` (the linear analysis's private
+//! functions, wrapped by `orbitflex.analysis`);
 //! `batched` gives the per-call dynamics their leading batch axis and `out=`; `run` drives a
 //! simulation with or without the GIL; `errors` maps [`crate::Error`] onto the Python
 //! exceptions; `convert` turns numpy arrays into Rust values.
 
+mod analysis;
 mod appearance;
 mod arm;
 mod batch;
@@ -47,5 +49,9 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<batch::PyBatchTrajectory>()?;
     m.add_function(wrap_pyfunction!(plan::py_plan_slew, m)?)?;
     m.add_function(wrap_pyfunction!(batch::py_simulate_batch, m)?)?;
+    m.add_function(wrap_pyfunction!(analysis::py_state_space, m)?)?;
+    m.add_function(wrap_pyfunction!(analysis::py_modes, m)?)?;
+    m.add_function(wrap_pyfunction!(analysis::py_frequency_response, m)?)?;
+    m.add_function(wrap_pyfunction!(analysis::py_sweep, m)?)?;
     Ok(())
 }

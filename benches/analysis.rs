@@ -1,0 +1,95 @@
+//! Criterion benchmarks of the linear analysis (docs/modes.md, "Cost"), on the built-in 7-joint
+//! space arm (free base and motors, 40 states) at one configuration; models, workspaces and
+//! inputs are built outside `b.iter`. Groups:
+//! - `eigen`: eigenvalues and eigenvectors of the 40 × 40 state matrix (`linalg::eigen`);
+//! - `modes`: `analysis::modes`, damped (state matrix) and undamped (pencil), per base and motors;
+//! - `frequency_response`: 7 inputs × 7 outputs at 1000 frequencies (Laub's method);
+//! - `sweep`: the modes at 100 configurations over the elbow angle, on one thread.
+//!
+//! `cargo bench --bench analysis`.
+
+use criterion::{criterion_group, criterion_main, Criterion};
+use orbitflex::analysis::{
+    frequency_response, modes, state_space, sweep, InputGroup, LinearSpec, Motors, OutputGroup,
+};
+use orbitflex::planning::BaseMode;
+use orbitflex::{FlexibleArm, FlexibleJoints, Robot, StateSpec};
+use std::hint::black_box;
+use std::time::Duration;
+
+const Q: [f64; 7] = [0.3, -0.4, 0.2, 1.1, -0.3, 0.5, 0.1];
+
+fn arm() -> FlexibleArm {
+    FlexibleArm::new(Robot::space_arm(), FlexibleJoints::space_arm()).unwrap()
+}
+
+fn benches(c: &mut Criterion) {
+    let arm = arm();
+    let mut ws = arm.workspace();
+    let x = arm
+        .state(&StateSpec {
+            q: Some(&Q),
+            ..StateSpec::default()
+        })
+        .unwrap();
+    let free = LinearSpec::default();
+    let a = state_space(&arm, &mut ws, &x, &free).unwrap().a;
+    c.bench_function("eigen/state_matrix_40", |b| {
+        b.iter(|| orbitflex::linalg::eigen(black_box(&a)).unwrap())
+    });
+    let mut group = c.benchmark_group("modes");
+    for (base, motors, name) in [
+        (BaseMode::Free, Motors::Free, "free_free"),
+        (BaseMode::Free, Motors::Clamped, "free_clamped"),
+        (BaseMode::Held, Motors::Free, "held_free"),
+    ] {
+        let spec = LinearSpec {
+            base,
+            motors,
+            ..LinearSpec::default()
+        };
+        for (damped, kind) in [(true, "damped"), (false, "undamped")] {
+            group.bench_function(format!("{name}/{kind}"), |b| {
+                b.iter(|| modes(&arm, &mut ws, black_box(&x), &spec, damped).unwrap())
+            });
+        }
+    }
+    group.finish();
+    let spec = LinearSpec {
+        inputs: &[InputGroup::MotorTorque],
+        outputs: &[OutputGroup::Q],
+        ..LinearSpec::default()
+    };
+    let ss = state_space(&arm, &mut ws, &x, &spec).unwrap();
+    let freqs: Vec<f64> = (0..1000)
+        .map(|i| 0.1 * 1000f64.powf(i as f64 / 999.0))
+        .collect();
+    let mut group = c.benchmark_group("frequency_response");
+    group.sample_size(20);
+    group.bench_function("7x7_1000_frequencies", |b| {
+        b.iter(|| frequency_response(black_box(&ss), &freqs).unwrap())
+    });
+    group.finish();
+    let mut states = Vec::new();
+    for i in 0..100 {
+        let mut q = Q;
+        q[3] = 2.5 * i as f64 / 99.0;
+        states.extend(
+            arm.state(&StateSpec {
+                q: Some(&q),
+                ..StateSpec::default()
+            })
+            .unwrap(),
+        );
+    }
+    let mut group = c.benchmark_group("sweep");
+    group.sample_size(10);
+    group.measurement_time(Duration::from_secs(5));
+    group.bench_function("100_configurations_1_thread", |b| {
+        b.iter(|| sweep(&arm, black_box(&states), &free, true, Some(1)).unwrap())
+    });
+    group.finish();
+}
+
+criterion_group!(analysis_benches, benches);
+criterion_main!(analysis_benches);
