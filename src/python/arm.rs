@@ -9,6 +9,7 @@ use super::joints::PyFlexibleJoints;
 use super::robot::PyRobot;
 use super::run::{deliver, record_releasing_gil, record_with_gil, Progress, Stream};
 use super::trajectory::PyTrajectory;
+use super::workspaces::{Lent, Pool};
 use crate::args::Loads;
 use crate::error::Error;
 use crate::flex::{ArmWorkspace, FlexibleArm, Inputs, StateSpec};
@@ -19,7 +20,6 @@ use pyo3::exceptions::PyRuntimeWarning;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyTuple};
 use std::ffi::CString;
-use std::sync::{Mutex, MutexGuard};
 
 /// Rows per chunk given to ``on_rows`` by default.
 const CHUNK_ROWS: usize = 1024;
@@ -53,12 +53,14 @@ pub struct PyFlexibleArm {
     pub(crate) arm: FlexibleArm,
     robot: Py<PyRobot>,
     joints: Py<PyFlexibleJoints>,
-    ws: Mutex<ArmWorkspace>,
+    /// Workspaces, one lent to each call in flight (see `workspaces`).
+    workspaces: Pool<ArmWorkspace>,
 }
 
 impl PyFlexibleArm {
-    fn ws(&self) -> MutexGuard<'_, ArmWorkspace> {
-        self.ws.lock().unwrap_or_else(|p| p.into_inner())
+    /// A workspace of this call's own.
+    fn ws(&self) -> Lent<'_, ArmWorkspace> {
+        self.workspaces.take(|| self.arm.workspace())
     }
     fn n(&self) -> usize {
         self.arm.dof()
@@ -168,12 +170,11 @@ impl PyFlexibleArm {
         let params = joints.get().resolve(robot.get().robot.dof())?;
         let arm = FlexibleArm::new(robot.get().robot.clone(), params)?
             .with_method(super::convert::method(method)?);
-        let ws = Mutex::new(arm.workspace());
         Ok(Self {
+            workspaces: Pool::with(arm.workspace()),
             arm,
             robot: robot.unbind(),
             joints: joints.unbind(),
-            ws,
         })
     }
 

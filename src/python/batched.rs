@@ -4,6 +4,7 @@
 
 use super::convert::{aligned_copy, as_float_array, direct_values, vector_or};
 use super::errors::ModelError;
+use super::workspaces::Pool;
 use crate::algorithms::Data;
 use crate::error::Error;
 use crate::model::Robot;
@@ -291,24 +292,9 @@ pub(crate) fn single_matrix<'py>(
     }
 }
 
-/// Workspaces kept between batched calls, one per piece of a batch in flight, so that a call
-/// allocates none once the pool has grown to its size.
-#[derive(Default)]
-pub(crate) struct Spares(std::sync::Mutex<Vec<Data>>);
-
-impl Spares {
-    fn take(&self, robot: &Robot) -> Data {
-        let spare = self.0.lock().unwrap_or_else(|p| p.into_inner()).pop();
-        spare.unwrap_or_else(|| Data::new(robot))
-    }
-    fn give(&self, data: Data) {
-        self.0.lock().unwrap_or_else(|p| p.into_inner()).push(data);
-    }
-}
-
 /// Evaluates `f(data, row, out_row)` for every row of a batch of `rows` rows of `width`
 /// numbers, in parallel on rayon's pool without the GIL, into a buffer of its own: the rows are
-/// cut into a few contiguous pieces per thread, each run with a workspace from `spares`. The
+/// cut into a few contiguous pieces per thread, each run with a workspace from `workspaces`. The
 /// result goes to a new array of `shape`, or is copied into `out` (checked first) once the GIL
 /// is back, so no numpy array is touched without it. The first error (lowest row) is raised,
 /// naming its row.
@@ -316,7 +302,7 @@ impl Spares {
 pub(crate) fn evaluate<'py>(
     py: Python<'py>,
     robot: &Robot,
-    spares: &Spares,
+    workspaces: &Pool<Data>,
     out: Option<&Bound<'py, PyAny>>,
     shape: &[usize],
     rows: usize,
@@ -344,7 +330,7 @@ pub(crate) fn evaluate<'py>(
                 .par_chunks_mut(per_piece * width)
                 .enumerate()
                 .map(|(piece, block)| {
-                    let mut data = spares.take(robot);
+                    let mut data = workspaces.take(|| Data::new(robot));
                     let first = piece * per_piece;
                     let result =
                         block
@@ -353,7 +339,6 @@ pub(crate) fn evaluate<'py>(
                             .try_for_each(|(k, out)| {
                                 f(&mut data, first + k, out).map_err(|e| in_row(first + k, e))
                             });
-                    spares.give(data);
                     result
                 })
                 .find_map_first(Result::err)

@@ -26,6 +26,7 @@ mod plan;
 mod robot;
 mod run;
 mod trajectory;
+mod workspaces;
 
 use pyo3::prelude::*;
 

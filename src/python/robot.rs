@@ -1,17 +1,15 @@
 //! `orbitflex.Robot`.
 
-use super::batched::{
-    call_args, evaluate, single_array, single_matrix, single_vector, Call, Spares,
-};
+use super::batched::{call_args, evaluate, single_array, single_matrix, single_vector, Call};
 use super::convert::{array1, array2, vector, vector_or};
 use super::errors::ModelError;
+use super::workspaces::{Lent, Pool};
 use crate::algorithms::{self, Data};
 use crate::args::{check_base_pose, Loads, RigidState};
 use crate::model::{Robot, UrdfOptions};
 use numpy::{PyArray1, PyArray2};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
-use std::sync::Mutex;
 
 /// A floating base carrying a chain or a tree of revolute joints, loaded from URDF (model §1,
 /// §2.7, §7), with one or more end-effectors (:attr:`ee_links`).
@@ -23,23 +21,22 @@ use std::sync::Mutex;
 #[pyclass(name = "Robot", module = "orbitflex", frozen)]
 pub struct PyRobot {
     pub(crate) robot: Robot,
-    data: Mutex<Data>,
-    /// Workspaces for batched calls.
-    spares: Spares,
+    /// Workspaces, one lent to each call in flight (see `workspaces`: no lock is held during
+    /// a call, so threads never wait for each other).
+    workspaces: Pool<Data>,
 }
 
 impl PyRobot {
     pub(crate) fn wrap(robot: Robot) -> Self {
-        let data = Mutex::new(Data::new(&robot));
         Self {
+            workspaces: Pool::with(Data::new(&robot)),
             robot,
-            data,
-            spares: Spares::default(),
         }
     }
 
-    fn data(&self) -> std::sync::MutexGuard<'_, Data> {
-        self.data.lock().unwrap_or_else(|p| p.into_inner())
+    /// A workspace of this call's own.
+    fn data(&self) -> Lent<'_, Data> {
+        self.workspaces.take(|| Data::new(&self.robot))
     }
 
     /// One call's ``ee_wrench`` as `[f_1; …; f_k]` (empty for ``None``).
@@ -467,7 +464,7 @@ impl PyRobot {
                 evaluate(
                     py,
                     robot,
-                    &self.spares,
+                    &self.workspaces,
                     out,
                     &shape,
                     b.rows,
@@ -546,7 +543,7 @@ impl PyRobot {
                 evaluate(
                     py,
                     robot,
-                    &self.spares,
+                    &self.workspaces,
                     out,
                     &shape,
                     b.rows,
@@ -593,7 +590,7 @@ impl PyRobot {
                 evaluate(
                     py,
                     robot,
-                    &self.spares,
+                    &self.workspaces,
                     out,
                     &shape,
                     b.rows,
@@ -688,7 +685,7 @@ impl PyRobot {
                 evaluate(
                     py,
                     robot,
-                    &self.spares,
+                    &self.workspaces,
                     out,
                     &shape,
                     b.rows,
@@ -753,7 +750,7 @@ impl PyRobot {
                 evaluate(
                     py,
                     robot,
-                    &self.spares,
+                    &self.workspaces,
                     out,
                     &shape,
                     b.rows,
