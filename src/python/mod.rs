@@ -22,6 +22,7 @@ mod control;
 mod convert;
 mod errors;
 mod joints;
+mod parallel;
 mod plan;
 mod robot;
 mod run;
