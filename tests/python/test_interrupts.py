@@ -116,3 +116,21 @@ def test_ctrl_c_stops_a_batch_of_a_large_model_between_steps():
                                                      threads=2, keep_rows=False), 1.0)
         """)
     assert latency < LIMIT
+
+
+def test_ctrl_c_stops_planning_a_large_arm():
+    # planning a 300-joint arm through two waypoints takes seconds: the planner looks for the
+    # flag before every trial duration
+    latency = run("""
+        parts = ['<link name="l0"><inertial><mass value="500"/><inertia ixx="50" iyy="50" izz="50" ixy="0" ixz="0" iyz="0"/></inertial></link>']
+        for i in range(300):
+            axis = "0 0 1" if i % 2 else "0 1 0"
+            parts.append(f'<link name="l{i+1}"><inertial><origin xyz="0.1 0 0"/><mass value="1"/><inertia ixx="0.01" iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial></link>')
+            parts.append(f'<joint name="j{i}" type="revolute"><parent link="l{i}"/><child link="l{i+1}"/><origin xyz="0.2 0 0"/><axis xyz="{axis}"/></joint>')
+        robot = orbitflex.Robot.from_urdf_string('<robot name="long">' + "".join(parts) + '</robot>')
+        arm = orbitflex.FlexibleArm(robot, orbitflex.FlexibleJoints(1e4, 0.1, 1.0))
+        stops = [np.full(300, 0.05), np.full(300, 0.1)]
+        interrupted(lambda: orbitflex.plan_slew(arm, np.full(300, 0.2), limits=orbitflex.Limits(100.0, 1.0),
+                                                waypoints=stops), 0.3)
+        """)
+    assert latency < LIMIT
