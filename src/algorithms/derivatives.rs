@@ -54,6 +54,7 @@ use super::data::{check_data, Data};
 use crate::args::{check_vector, Loads, RigidState};
 use crate::error::Result;
 use crate::model::Robot;
+use crate::overflow::check_result;
 use crate::spatial::{skew, Force, Inertia, Mat3, Mat6, Motion, Transform, Vec3};
 use nalgebra::DMatrix;
 
@@ -271,6 +272,20 @@ pub fn rnea_derivatives<'a>(
     );
     ee_force_map(robot, &mut d);
     data.derivatives = d;
+    let d = &data.derivatives;
+    let [twist, qd] = crate::dynamics::rates(state);
+    // ∂ID/∂f depends on q alone (the EE Jacobians), finite for any finite q
+    check_result(
+        "inverse_dynamics_derivatives",
+        &[d.id_q.as_slice(), d.id_v.as_slice()],
+        &[
+            twist,
+            qd,
+            ("base_acc", base_acc, 1),
+            ("qdd", qdd, 1),
+            ("ee_wrench", ee_wrench, 1),
+        ],
+    )?;
     Ok(&data.derivatives)
 }
 
@@ -279,7 +294,8 @@ pub fn rnea_derivatives<'a>(
 /// `fd_base_wrench`, `fd_ee_wrench`; the inverse-dynamics derivatives at `a = FD` are left in
 /// `id_q`, `id_v`, `id_ee_wrench`). `data.ddq` holds the forward dynamics.
 ///
-/// The first call allocates the O(n²) outputs; later calls reuse them.
+/// The first call allocates the O(n²) outputs; later calls reuse them. Derivatives that
+/// overflow (inputs too large for floating point) are an error naming the input.
 pub fn aba_derivatives<'a>(
     robot: &Robot,
     data: &'a mut Data,
@@ -287,6 +303,35 @@ pub fn aba_derivatives<'a>(
     tau: &[f64],
     loads: &Loads,
 ) -> Result<&'a Derivatives> {
+    aba_derivatives_into(robot, data, state, tau, loads)?;
+    let d = &data.derivatives;
+    let base_wrench = loads.base_wrench.to_array();
+    let [twist, qd] = crate::dynamics::rates(state);
+    // ∂FD/∂τ, ∂FD/∂f_B and ∂FD/∂f are columns of 𝓜⁻¹ and depend on q alone, finite for any
+    // finite q: only the blocks that grow with the inputs are scanned
+    check_result(
+        "forward_dynamics_derivatives",
+        &[data.ddq.as_slice(), d.fd_q.as_slice(), d.fd_v.as_slice()],
+        &[
+            twist,
+            qd,
+            ("tau", tau, 1),
+            ("base_wrench", &base_wrench, 1),
+            ("ee_wrench", loads.ee_wrench, 1),
+        ],
+    )?;
+    Ok(&data.derivatives)
+}
+
+/// [`aba_derivatives`] into `data.derivatives`, without looking at whether they overflowed
+/// (for callers that check their own, final results).
+pub(crate) fn aba_derivatives_into(
+    robot: &Robot,
+    data: &mut Data,
+    state: &RigidState,
+    tau: &[f64],
+    loads: &Loads,
+) -> Result<()> {
     super::aba(robot, data, state, tau, loads)?;
     let n = robot.dof();
     let k = robot.end_effectors().len();
@@ -347,7 +392,7 @@ pub fn aba_derivatives<'a>(
     }
     d.scratch.rhs = rhs;
     data.derivatives = d;
-    Ok(&data.derivatives)
+    Ok(())
 }
 
 /// Up to this many joints, `∂FD/∂x = −𝓜⁻¹ ∂ID/∂x` is a dense product with the formed `𝓜⁻¹`

@@ -44,6 +44,16 @@ pub struct Jacobians {
 }
 
 impl Jacobians {
+    /// The four blocks' numbers.
+    pub(crate) fn blocks(&self) -> [&[f64]; 4] {
+        [
+            self.x.as_slice(),
+            self.u.as_slice(),
+            self.base_wrench.as_slice(),
+            self.ee_wrench.as_slice(),
+        ]
+    }
+
     fn zeros(rows: usize, state_columns: usize, n: usize, k: usize) -> Self {
         Self {
             x: DMatrix::zeros(rows, state_columns),
@@ -483,7 +493,7 @@ fn jacobians_into(
     let s = layout.split(x);
     arm.spring_torque(x, &mut ws.tau);
     let rigid = RigidState::new(s.q, s.base_twist, s.qd);
-    algorithms::aba_derivatives(arm.robot(), &mut ws.data, &rigid, &ws.tau, &inputs.loads)?;
+    algorithms::aba_derivatives_into(arm.robot(), &mut ws.data, &rigid, &ws.tau, &inputs.loads)?;
     let d = &ws.data.derivatives;
     let p = arm.joints();
     out.x.as_mut_slice().fill(0.0);

@@ -499,7 +499,10 @@ impl PyFlexibleArm {
     /// Total energy at state ``x`` (J): rigid kinetic + motor kinetic + spring.
     fn energy(&self, x: &Bound<'_, PyAny>) -> PyResult<f64> {
         let x = self.state_arg(x, "x")?;
-        Ok(self.arm.energy(&mut self.ws(), &x))
+        let e = self.arm.energy(&mut self.ws(), &x);
+        self.arm
+            .check_overflow("energy", &[&[e]], &[("x", &x, 2)])?;
+        Ok(e)
     }
 
     /// Total momentum ``[angular (N·m·s); linear (N·s)]`` at state ``x``, inertial frame, about
@@ -510,7 +513,10 @@ impl PyFlexibleArm {
         x: &Bound<'py, PyAny>,
     ) -> PyResult<Bound<'py, PyArray1<f64>>> {
         let x = self.state_arg(x, "x")?;
-        Ok(array1(py, &self.arm.momentum(&mut self.ws(), &x)))
+        let h = self.arm.momentum(&mut self.ws(), &x);
+        self.arm
+            .check_overflow("momentum", &[&h], &[("x", &x, 1)])?;
+        Ok(array1(py, &h))
     }
 
     /// EE pose ``[position (m); quaternion (x, y, z, w), w ≥ 0]`` in the inertial frame at
@@ -525,7 +531,10 @@ impl PyFlexibleArm {
     ) -> PyResult<Bound<'py, PyArray1<f64>>> {
         let e = super::convert::ee_arg(self.arm.robot(), ee)?;
         let x = self.state_arg(x, "x")?;
-        Ok(array1(py, &self.arm.ee_pose(&x, e)))
+        let pose = self.arm.ee_pose(&x, e);
+        self.arm
+            .check_overflow("ee_pose", &[&pose], &[("x", &x, 1)])?;
+        Ok(array1(py, &pose))
     }
 
     /// Integrates ``steps`` RK4 steps of ``dt`` seconds from ``x0`` and returns a ``Trajectory``.

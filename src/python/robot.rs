@@ -913,10 +913,15 @@ impl PyRobot {
         let state = self.state(q, base_twist, qd)?;
         check_base_pose(&pose)?;
         let h = algorithms::momentum(&self.robot, &mut self.data(), &state.rigid())?;
-        Ok(array1(
-            py,
-            &crate::dynamics::momentum_in_inertial_frame(&pose, &h),
-        ))
+        let h = crate::dynamics::momentum_in_inertial_frame(&pose, &h);
+        let [twist, qd] = crate::dynamics::rates(&state.rigid());
+        let inputs = [
+            (twist.0, twist.1, 1),
+            (qd.0, qd.1, 1),
+            ("base_pose", &pose, 1),
+        ];
+        crate::overflow::check_result("momentum", &[&h], &inputs)?;
+        Ok(array1(py, &h))
     }
 
     /// Kinetic energy of base and links ``½ νᵀ 𝓜 ν`` (J), ``ν = [V_B; q̇]``.
@@ -927,11 +932,10 @@ impl PyRobot {
         qd: &Bound<'_, PyAny>,
     ) -> PyResult<f64> {
         let state = self.state(q, base_twist, qd)?;
-        Ok(algorithms::kinetic_energy(
-            &self.robot,
-            &mut self.data(),
-            &state.rigid(),
-        )?)
+        let e = algorithms::kinetic_energy(&self.robot, &mut self.data(), &state.rigid())?;
+        let rates = crate::dynamics::rates(&state.rigid());
+        crate::overflow::check_result("kinetic_energy", &[&[e]], &rates)?;
+        Ok(e)
     }
 
     fn __repr__(&self) -> String {
