@@ -52,7 +52,7 @@
 
 use super::data::{check_data, Data};
 use crate::args::{check_vector, Loads, RigidState};
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::model::Robot;
 use crate::overflow::check_result;
 use crate::spatial::{skew, Force, Inertia, Mat3, Mat6, Motion, Transform, Vec3};
@@ -127,18 +127,40 @@ struct Scratch {
 }
 
 impl Derivatives {
-    /// Buffers for `n` joints and `k` end-effectors.
-    fn new(n: usize, k: usize) -> Self {
+    /// Buffers for `n` joints and `k` end-effectors, allocated fallibly: the O(n²) ones take
+    /// hundreds of megabytes for a thousand joints.
+    fn try_new(n: usize, k: usize) -> Result<Self> {
         let (rows, bodies) = (6 + n, n + 1);
-        Self {
-            id_q: DMatrix::zeros(rows, n),
-            id_v: DMatrix::zeros(rows, rows),
-            id_ee_wrench: DMatrix::zeros(rows, 6 * k),
-            fd_q: DMatrix::zeros(rows, n),
-            fd_v: DMatrix::zeros(rows, rows),
-            fd_tau: DMatrix::zeros(rows, n),
-            fd_base_wrench: DMatrix::zeros(rows, 6),
-            fd_ee_wrench: DMatrix::zeros(rows, 6 * k),
+        let columns = 3 * n + 18;
+        // the O(n²) buffers: six matrices of rows × (n or rows or 6k), 𝓜⁻¹, the per-direction
+        // forces and motions (48 bytes each) and the right-hand sides
+        let bytes = || -> Option<usize> {
+            let matrices = rows.checked_mul(3 * n + 3 * rows + 6 + 12 * k)?;
+            let directions = bodies.checked_mul(columns)?.checked_mul(2 * 48)?;
+            matrices
+                .checked_add(rows.checked_mul(columns)?)?
+                .checked_mul(8)?
+                .checked_add(directions)
+        };
+        let need = || Error::OutOfMemory {
+            what: "the derivatives".into(),
+            bytes: bytes(),
+            hint: format!(
+                "their buffers grow as n² (n = {n} joints); differentiate a smaller model"
+            ),
+        };
+        let matrix = |r: usize, c: usize| -> Result<DMatrix<f64>> {
+            Ok(DMatrix::from_vec(r, c, filled(r * c, 0.0, &need)?))
+        };
+        Ok(Self {
+            id_q: matrix(rows, n)?,
+            id_v: matrix(rows, rows)?,
+            id_ee_wrench: matrix(rows, 6 * k)?,
+            fd_q: matrix(rows, n)?,
+            fd_v: matrix(rows, rows)?,
+            fd_tau: matrix(rows, n)?,
+            fd_base_wrench: matrix(rows, 6)?,
+            fd_ee_wrench: matrix(rows, 6 * k)?,
             scratch: Scratch {
                 to_body: vec![Transform::identity(); bodies],
                 axis: vec![Motion::zero(); bodies],
@@ -155,21 +177,29 @@ impl Derivatives {
                 angle_force: vec![Force::zero(); bodies],
                 rate_force: vec![Force::zero(); bodies],
                 stamp: vec![0; bodies],
-                inverse: DMatrix::zeros(rows, rows),
+                inverse: matrix(rows, rows)?,
                 u_base: vec![Force::zero(); bodies],
                 inverse_d: vec![0.0; bodies],
                 base_inverse: Mat6::zeros(),
-                column_p: vec![Force::zero(); bodies * (3 * n + 18)],
-                column_acc: vec![Motion::zero(); bodies * (3 * n + 18)],
+                column_p: filled(bodies * columns, Force::zero(), &need)?,
+                column_acc: filled(bodies * columns, Motion::zero(), &need)?,
                 path_c: Vec::new(),
                 path_u: Vec::new(),
                 subtree: Vec::new(),
-                rhs: vec![0.0; rows * (3 * n + 18)],
+                rhs: filled(rows * columns, 0.0, &need)?,
                 tile: Tile::default(),
                 qdd: vec![0.0; n],
             },
-        }
+        })
     }
+}
+
+/// `len` copies of `value`, allocated fallibly: `Err(need())` when they do not fit.
+fn filled<T: Clone>(len: usize, value: T, need: &dyn Fn() -> Error) -> Result<Vec<T>> {
+    let mut v = Vec::new();
+    v.try_reserve_exact(len).map_err(|_| need())?;
+    v.resize(len, value);
+    Ok(v)
 }
 
 /// A spatial inertia about the base origin in base axes, as subtree sums want it: mass `m`,
@@ -257,7 +287,7 @@ pub fn rnea_derivatives<'a>(
     check_vector("base_acc", base_acc, 6)?;
     check_vector("qdd", qdd, robot.dof())?;
     crate::args::check_ee_wrench(robot, ee_wrench)?;
-    let mut d = take_derivatives(data, robot.dof(), robot.end_effectors().len());
+    let mut d = take_derivatives(data, robot.dof(), robot.end_effectors().len())?;
     for i in 1..=robot.dof() {
         data.x[i] = robot.joint_transform(i, state.q[i - 1]);
     }
@@ -335,7 +365,7 @@ pub(crate) fn aba_derivatives_into(
     super::aba(robot, data, state, tau, loads)?;
     let n = robot.dof();
     let k = robot.end_effectors().len();
-    let mut d = take_derivatives(data, n, k);
+    let mut d = take_derivatives(data, n, k)?;
     let acc = Motion::from_slice(&data.ddq.as_slice()[..6]);
     let mut qdd = std::mem::take(&mut d.scratch.qdd);
     qdd.copy_from_slice(&data.ddq.as_slice()[6..]);
@@ -402,12 +432,14 @@ pub(crate) const DENSE_PRODUCTS_UP_TO: usize = 28;
 
 /// The derivative buffers, sized for `n` joints (allocated on first use), moved out of `data`
 /// for the duration of a call.
-fn take_derivatives(data: &mut Data, n: usize, k: usize) -> Derivatives {
+fn take_derivatives(data: &mut Data, n: usize, k: usize) -> Result<Derivatives> {
     let d = &data.derivatives;
     if d.id_q.nrows() != 6 + n || d.id_ee_wrench.ncols() != 6 * k {
-        data.derivatives = Derivatives::new(n, k);
+        // the old buffers go first
+        data.derivatives = Derivatives::default();
+        data.derivatives = Derivatives::try_new(n, k)?;
     }
-    std::mem::take(&mut data.derivatives)
+    Ok(std::mem::take(&mut data.derivatives))
 }
 
 /// `∂ID/∂f = [Φ_{e,B}ᵀ; J_eᵀ]` per end-effector `e`, from the transforms and axes

@@ -24,7 +24,7 @@ use super::arm::{ArmWorkspace, FlexibleArm, Inputs};
 use super::state::{normalise_quaternion, quaternion_product};
 use crate::algorithms;
 use crate::args::RigidState;
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::spatial::{quaternion_to_rotation, skew, Mat3, Vec3};
 use nalgebra::{DMatrix, DMatrixViewMut};
 
@@ -61,6 +61,61 @@ impl Jacobians {
             base_wrench: DMatrix::zeros(rows, 6),
             ee_wrench: DMatrix::zeros(rows, 6 * k),
         }
+    }
+
+    /// [`Jacobians::zeros`], allocated fallibly: `Err(need())` when they do not fit.
+    fn try_zeros(
+        rows: usize,
+        state_columns: usize,
+        n: usize,
+        k: usize,
+        need: &dyn Fn() -> Error,
+    ) -> Result<Self> {
+        Ok(Self {
+            x: try_matrix(rows, state_columns, need)?,
+            u: try_matrix(rows, n, need)?,
+            base_wrench: try_matrix(rows, 6, need)?,
+            ee_wrench: try_matrix(rows, 6 * k, need)?,
+        })
+    }
+}
+
+/// A zero matrix, allocated fallibly.
+fn try_matrix(rows: usize, columns: usize, need: &dyn Fn() -> Error) -> Result<DMatrix<f64>> {
+    let mut values = Vec::new();
+    grow(
+        &mut values,
+        rows.checked_mul(columns).ok_or_else(need)?,
+        need,
+    )?;
+    Ok(DMatrix::from_vec(rows, columns, values))
+}
+
+/// `buffer` resized to `len` (new numbers zero), allocated fallibly.
+fn grow(buffer: &mut Vec<f64>, len: usize, need: &dyn Fn() -> Error) -> Result<()> {
+    buffer
+        .try_reserve_exact(len.saturating_sub(buffer.len()))
+        .map_err(|_| need())?;
+    buffer.resize(len, 0.0);
+    Ok(())
+}
+
+/// The error for Jacobians too large for memory: `call`'s `blocks` buffers of `rows × columns`
+/// numbers for an arm of `n` joints.
+fn too_large(call: &str, n: usize, rows: usize, columns: usize, blocks: usize) -> Error {
+    let advice = match blocks {
+        1 => "linearise a smaller model".to_string(),
+        _ => format!(
+            "it keeps {blocks} blocks of that size; linearise a smaller model, or use \
+             derivative_jacobians (one block)"
+        ),
+    };
+    Error::OutOfMemory {
+        what: call.into(),
+        bytes: rows
+            .checked_mul(columns)
+            .and_then(|size| size.checked_mul(8 * blocks)),
+        hint: format!("the Jacobians of a {n}-joint arm are {rows} × {columns} numbers; {advice}"),
     }
 }
 
@@ -115,7 +170,10 @@ pub(crate) fn derivative_jacobians(
 ) -> Result<Jacobians> {
     let layout = arm.layout();
     let k = arm.robot().end_effectors().len();
-    let mut out = Jacobians::zeros(layout.tangent_len(), layout.tangent_len(), layout.n, k);
+    let t = layout.tangent_len();
+    let c = t + layout.n + 6 + 6 * k;
+    let need = || too_large("derivative_jacobians", layout.n, t, c, 1);
+    let mut out = Jacobians::try_zeros(t, t, layout.n, k, &need)?;
     jacobians_into(arm, ws, x, inputs, Coordinates::Tangent, &mut out)?;
     Ok(out)
 }
@@ -161,10 +219,15 @@ pub(crate) fn step_jacobians_with(
     // the buffers live in the workspace: fresh megabytes per call would cost page faults
     let mut scratch = std::mem::take(&mut ws.jacobians);
     let k = arm.robot().end_effectors().len();
+    // the stage's Jacobians, dk, the previous dk, their sum, the rows of K and the result: six
+    // m × c blocks at most, allocated fallibly (a 1500-joint arm needs 2.7 GB)
+    let c = m + n + 6 + 6 * k;
+    let need = || too_large("step_jacobians", n, m, c, 6);
     if scratch.stage.x.nrows() != m || scratch.stage.ee_wrench.ncols() != 6 * k {
-        scratch.stage = Jacobians::zeros(m, m, n, k);
+        scratch.stage = Jacobians::zeros(0, 0, 0, 0);
+        scratch.stage = Jacobians::try_zeros(m, m, n, k, &need)?;
     }
-    let result = stage_chain(arm, ws, x, dt, inputs, dense_products, &mut scratch);
+    let result = stage_chain(arm, ws, x, dt, inputs, dense_products, &mut scratch, &need);
     ws.jacobians = scratch;
     result
 }
@@ -206,6 +269,7 @@ fn stage_chain(
     inputs: &Inputs,
     dense_products: bool,
     scratch: &mut StepScratch,
+    need: &dyn Fn() -> Error,
 ) -> Result<(Jacobians, Vec<f64>)> {
     let layout = arm.layout();
     let (m, n) = (layout.len(), layout.n);
@@ -222,10 +286,10 @@ fn stage_chain(
     } = scratch;
     // row-major m × c: this stage's dk_s, the previous one, and J = 𝟙 + dt/6 Σ w_s dk_s
     for buffer in [&mut *dk, &mut *previous, &mut *k_rows] {
-        buffer.resize(m * c, 0.0);
+        grow(buffer, m * c, need)?;
     }
     total.clear();
-    total.resize(m * c, 0.0);
+    grow(total, m * c, need)?;
     for r in 0..m {
         total[r * c + r] = 1.0;
     }
@@ -273,7 +337,7 @@ fn stage_chain(
         }
         std::mem::swap(dk, previous);
         if s > 0 && !dense_products {
-            directional_rows(arm, ws, &xs, previous, c, directional, spring);
+            directional_rows(arm, ws, &xs, previous, c, directional, spring, need)?;
         }
         let dense_rows = dk[dense.start * c..dense.end * c].chunks_exact_mut(c);
         for (i, (row, k_row)) in dense_rows.zip(k_rows.chunks_exact(c)).enumerate() {
@@ -319,7 +383,7 @@ fn stage_chain(
         .map(|(x0, s)| x0 + dt / 6.0 * s)
         .collect();
     normalise_quaternion(&mut next[layout.quaternion()]);
-    Ok((to_tangent(arm, x, &next, total, k_rows), next))
+    Ok((to_tangent(arm, x, &next, total, k_rows, need)?, next))
 }
 
 /// The dense rows of `K_s · dk_{s−1}` (the base twist's rate and `q̈`, `6 + n` rows of `c`) as
@@ -335,7 +399,8 @@ fn directional_rows(
     c: usize,
     out: &mut Vec<f64>,
     spring: &mut Vec<f64>,
-) {
+    need: &dyn Fn() -> Error,
+) -> Result<()> {
     let layout = arm.layout();
     let n = layout.n;
     let Blocks {
@@ -348,7 +413,7 @@ fn directional_rows(
     let row = |r: usize| &previous[r * c..(r + 1) * c];
     let p = arm.joints();
     spring.clear();
-    spring.resize(n * c, 0.0);
+    grow(spring, n * c, need)?;
     for i in 0..n {
         let (k, d) = (p.stiffness[i], p.damping[i]);
         let rows = row(q + i)
@@ -362,7 +427,7 @@ fn directional_rows(
         }
     }
     out.clear();
-    out.resize((6 + n) * c, 0.0);
+    grow(out, (6 + n) * c, need)?;
     algorithms::fd_directional(
         arm.robot(),
         &mut ws.data,
@@ -390,6 +455,7 @@ fn directional_rows(
             out[(3 + r) * c + j] += extra[r];
         }
     }
+    Ok(())
 }
 
 /// `A = P(x⁺) J E(x)` for the state columns and `P(x⁺) J` for the inputs, from the raw step
@@ -402,7 +468,8 @@ fn to_tangent(
     next: &[f64],
     total: &[f64],
     rows: &mut Vec<f64>,
-) -> Jacobians {
+    need: &dyn Fn() -> Error,
+) -> Result<Jacobians> {
     let layout = arm.layout();
     let (m, n, t) = (layout.len(), layout.n, layout.tangent_len());
     let k = arm.robot().end_effectors().len();
@@ -426,7 +493,7 @@ fn to_tangent(
     // the result row by row (row-major, t × (t + n + 6 + 6k)), then into the column-major outputs
     let width = t + n + 6 + 6 * k;
     rows.clear();
-    rows.resize(t * width, 0.0);
+    grow(rows, t * width, need)?;
     let mut row = vec![0.0; c];
     for (tr, out_row) in rows.chunks_exact_mut(width).enumerate() {
         match tr {
@@ -451,7 +518,7 @@ fn to_tangent(
         }
         out_row[t..].copy_from_slice(&row[m..]);
     }
-    let mut out = Jacobians::zeros(t, t, n, k);
+    let mut out = Jacobians::try_zeros(t, t, n, k, need)?;
     for (block, offset) in [
         (&mut out.x, 0),
         (&mut out.u, t),
@@ -460,7 +527,7 @@ fn to_tangent(
     ] {
         transpose_rows(rows, width, offset, block);
     }
-    out
+    Ok(out)
 }
 
 /// `out[(i, j)] = rows[i * width + offset + j]` for a column-major `out`, eight rows at a time

@@ -2,7 +2,7 @@
 //! flexible-joint inverse dynamics.
 
 use super::control::{schedule, PyCallable, PyMotorPD};
-use super::convert::{array1, array2, count, positive_count, real, vector, vector_or};
+use super::convert::{array1, count, positive_count, real, try_array2, vector, vector_or};
 use super::errors::simulation_error;
 use super::errors::ModelError;
 use super::joints::PyFlexibleJoints;
@@ -115,16 +115,18 @@ impl InputArgs {
 /// Two matrices, `(F, G)`.
 type MatrixPair<'py> = (Bound<'py, PyArray2<f64>>, Bound<'py, PyArray2<f64>>);
 
-/// The four Jacobians as a dict.
+/// The four Jacobians of `call` as a dict (copied fallibly: a `MemoryError`, not an abort).
 fn jacobians_dict<'py>(
     py: Python<'py>,
-    j: &crate::flex::Jacobians,
+    j: crate::flex::Jacobians,
+    call: &str,
 ) -> PyResult<Bound<'py, PyDict>> {
     let out = PyDict::new(py);
-    out.set_item("x", array2(py, &j.x))?;
-    out.set_item("u", array2(py, &j.u))?;
-    out.set_item("base_wrench", array2(py, &j.base_wrench))?;
-    out.set_item("ee_wrench", array2(py, &j.ee_wrench))?;
+    out.set_item("x", try_array2(py, &j.x, call)?)?;
+    drop(j.x);
+    out.set_item("u", try_array2(py, &j.u, call)?)?;
+    out.set_item("base_wrench", try_array2(py, &j.base_wrench, call)?)?;
+    out.set_item("ee_wrench", try_array2(py, &j.ee_wrench, call)?)?;
     Ok(out)
 }
 
@@ -378,7 +380,7 @@ impl PyFlexibleArm {
         let j = self
             .arm
             .derivative_jacobians(&mut self.ws(), &x, &inputs.inputs())?;
-        jacobians_dict(py, &j)
+        jacobians_dict(py, j, "derivative_jacobians")
     }
 
     /// The Jacobians of one RK4 :meth:`step` of ``dt`` (inputs held), in tangent coordinates at
@@ -400,7 +402,7 @@ impl PyFlexibleArm {
         let j = self
             .arm
             .step_jacobians(&mut self.ws(), &x, dt, &inputs.inputs())?;
-        jacobians_dict(py, &j)
+        jacobians_dict(py, j, "step_jacobians")
     }
 
     /// ``(F, G)`` of :meth:`derivative_jacobians` at ``x`` with torques ``u`` (default zero):
@@ -417,7 +419,10 @@ impl PyFlexibleArm {
         let j = self
             .arm
             .derivative_jacobians(&mut self.ws(), &x, &inputs.inputs())?;
-        Ok((array2(py, &j.x), array2(py, &j.u)))
+        Ok((
+            try_array2(py, &j.x, "linearize")?,
+            try_array2(py, &j.u, "linearize")?,
+        ))
     }
 
     /// Flexible-joint inverse dynamics (differential flatness): what the motors and the base do

@@ -307,11 +307,13 @@ pub(crate) fn evaluate<'py>(
         .filter(|o| !o.is_none())
         .map(|o| checked_out(o, shape))
         .transpose()?;
-    let too_big = || {
-        ModelError::new_err(format!(
-            "the result of {rows} rows of {width} numbers does not fit in memory; give fewer rows \
-             per call"
-        ))
+    let too_big = || -> PyErr {
+        crate::Error::OutOfMemory {
+            what: "the result".into(),
+            bytes: rows.checked_mul(width).and_then(|len| len.checked_mul(8)),
+            hint: format!("it has {rows} rows of {width} numbers; give fewer rows per call"),
+        }
+        .into()
     };
     let len = rows.checked_mul(width).ok_or_else(too_big)?;
     let mut values = Vec::new();

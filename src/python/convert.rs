@@ -171,6 +171,28 @@ pub fn array2<'py, R: nalgebra::Dim, C: nalgebra::Dim, S: nalgebra::RawStorage<f
     row_major(py, rows, cols, data)
 }
 
+/// [`array2`] with its row-major copy allocated fallibly: a matrix too large for memory is a
+/// `MemoryError` naming `what` and the size, not an abort (Jacobians of a large arm are hundreds
+/// of megabytes each).
+pub fn try_array2<'py, R: nalgebra::Dim, C: nalgebra::Dim, S: nalgebra::RawStorage<f64, R, C>>(
+    py: Python<'py>,
+    m: &nalgebra::Matrix<f64, R, C, S>,
+    what: &str,
+) -> PyResult<Bound<'py, PyArray2<f64>>> {
+    let (rows, cols) = m.shape();
+    let mut data = Vec::new();
+    if data.try_reserve_exact(rows * cols).is_err() {
+        return Err(crate::Error::OutOfMemory {
+            what: what.into(),
+            bytes: Some(8 * rows * cols),
+            hint: format!("a copy of this {rows} × {cols} matrix for numpy"),
+        }
+        .into());
+    }
+    data.extend((0..rows).flat_map(|r| (0..cols).map(move |c| m[(r, c)])));
+    Ok(row_major(py, rows, cols, data))
+}
+
 /// A new 2-D numpy array from row-major values.
 pub fn row_major(
     py: Python<'_>,
