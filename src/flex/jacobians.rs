@@ -100,6 +100,15 @@ fn grow(buffer: &mut Vec<f64>, len: usize, need: &dyn Fn() -> Error) -> Result<(
     Ok(())
 }
 
+/// [`too_large`] for [`step_jacobians`]: six blocks of `m × c` (the stage's Jacobians, `dk`,
+/// the previous `dk`, their sum, the rows of `K` and the result).
+fn step_too_large(arm: &FlexibleArm) -> Error {
+    let layout = arm.layout();
+    let (m, n) = (layout.len(), layout.n);
+    let c = m + n + 6 + 6 * arm.robot().end_effectors().len();
+    too_large("step_jacobians", n, m, c, 6)
+}
+
 /// The error for Jacobians too large for memory: `call`'s `blocks` buffers of `rows × columns`
 /// numbers for an arm of `n` joints.
 fn too_large(call: &str, n: usize, rows: usize, columns: usize, blocks: usize) -> Error {
@@ -221,13 +230,12 @@ pub(crate) fn step_jacobians_with(
     let k = arm.robot().end_effectors().len();
     // the stage's Jacobians, dk, the previous dk, their sum, the rows of K and the result: six
     // m × c blocks at most, allocated fallibly (a 1500-joint arm needs 2.7 GB)
-    let c = m + n + 6 + 6 * k;
-    let need = || too_large("step_jacobians", n, m, c, 6);
+    let need = || step_too_large(arm);
     if scratch.stage.x.nrows() != m || scratch.stage.ee_wrench.ncols() != 6 * k {
         scratch.stage = Jacobians::zeros(0, 0, 0, 0);
         scratch.stage = Jacobians::try_zeros(m, m, n, k, &need)?;
     }
-    let result = stage_chain(arm, ws, x, dt, inputs, dense_products, &mut scratch, &need);
+    let result = stage_chain(arm, ws, x, dt, inputs, dense_products, &mut scratch);
     ws.jacobians = scratch;
     result
 }
@@ -269,8 +277,8 @@ fn stage_chain(
     inputs: &Inputs,
     dense_products: bool,
     scratch: &mut StepScratch,
-    need: &dyn Fn() -> Error,
 ) -> Result<(Jacobians, Vec<f64>)> {
+    let need = &|| step_too_large(arm);
     let layout = arm.layout();
     let (m, n) = (layout.len(), layout.n);
     let c = m + n + 6 + 6 * arm.robot().end_effectors().len();
@@ -337,7 +345,7 @@ fn stage_chain(
         }
         std::mem::swap(dk, previous);
         if s > 0 && !dense_products {
-            directional_rows(arm, ws, &xs, previous, c, directional, spring, need)?;
+            directional_rows(arm, ws, &xs, previous, c, directional, spring)?;
         }
         let dense_rows = dk[dense.start * c..dense.end * c].chunks_exact_mut(c);
         for (i, (row, k_row)) in dense_rows.zip(k_rows.chunks_exact(c)).enumerate() {
@@ -399,8 +407,8 @@ fn directional_rows(
     c: usize,
     out: &mut Vec<f64>,
     spring: &mut Vec<f64>,
-    need: &dyn Fn() -> Error,
 ) -> Result<()> {
+    let need = &|| step_too_large(arm);
     let layout = arm.layout();
     let n = layout.n;
     let Blocks {
