@@ -256,13 +256,14 @@ def check_memory(steps: int, n: int, flag: str = "--duration/--dt",
     need, free = sum(parts.values()), free_memory()
     if free is not None and need > free:
         sizes = ", ".join(f"{name} {gb(size)}" for name, size in parts.items())
-        raise CliError(flag, f"{steps:,} steps of {n} joints need about {gb(need)} ({sizes}) but "
+        count = f"{steps:,}" if steps < 1e12 else f"{steps:.3g}"
+        raise CliError(flag, f"{count} steps of {n} joints need about {gb(need)} ({sizes}) but "
                              f"{gb(free)} of memory is free; {advice}")
 
 
-def gb(size: int) -> str:
-    """A size in GB, or TB from 1000 GB."""
-    return f"{size / 1e9:.3g} GB" if size < 1e12 else f"{size / 1e12:,.0f} TB"
+def gb(size: float) -> str:
+    """A size in GB, or TB from 1000 GB (three significant digits: an absurd size stays short)."""
+    return f"{size / 1e9:.3g} GB" if size < 1e12 else f"{size / 1e12:.3g} TB"
 
 
 # ---------------------------------------------------------------------------------------------
@@ -1174,9 +1175,27 @@ def tracking_setup(arm: FlexibleArm, plan: Plan, args: argparse.Namespace) -> Tu
     kp_default, kd_default = servo_gains(arm)
     kp = kp_default if args.kp is None else per_joint(args.kp, "--kp", arm.robot)
     kd = kd_default if args.kd is None else per_joint(args.kd, "--kd", arm.robot)
-    limit = tracking_limit(arm, plan.stops, kp, kd)
+    try:
+        limit = tracking_limit(arm, plan.stops, kp, kd)
+    except ValueError as e:  # gains too large for the eigenvalues to be computed
+        flag = "--kd" if str(e).startswith("kd:") else "--kp"
+        raise CliError(flag, re.sub(r"^k[pd]: ", "", str(e))) from None
     dt, note = tracking_dt(limit, args.dt)
     return dt, kp, kd, limit, note
+
+
+def tracking_steps_flag(args: argparse.Namespace, plan: Plan, dt: float) -> Tuple[str, str]:
+    """The flag that makes the tracking runs too long, and what to do: ``--settle`` when the
+    settling time is what is long, ``--dt`` when it was given, else the gains (a default step
+    below TRACK_DT comes from their RK4 stability limit)."""
+    if args.settle > plan.duration:
+        return "--settle", "shorten --settle"
+    if args.dt is not None or dt >= TRACK_DT:
+        return "--dt", "lengthen --dt or shorten --settle"
+    gains = [flag for flag, given in (("--kp", args.kp), ("--kd", args.kd)) if given is not None]
+    flag = "/".join(gains) or "--dt"
+    return flag, (f"the step, {dt:.3g} s, is that short because of the tracking PD's RK4 stability limit; "
+                  f"lower {flag}")
 
 
 def plan_command(args: argparse.Namespace) -> int:
@@ -1190,9 +1209,12 @@ def plan_command(args: argparse.Namespace) -> int:
         if note:
             print(note)
     steps = math.ceil((1.01 * plan.duration + args.settle) / dt)
-    check_memory(steps, arm.dof, "--dt", "lengthen --dt or shorten --settle")
+    check_memory(steps, arm.dof, *tracking_steps_flag(args, plan, dt))
     try:
         comparison = compare(job.name, plan, dt, kp, kd, args.settle)
+    except ValueError as e:  # a step the runs refuse: longer than a plan that the limits made short
+        flag = "--dt" if args.dt is not None else "--motor-torque/--joint-speed"
+        raise CliError(flag, re.sub(r"^dt: ", "" if flag == "--dt" else "dt = ", str(e))) from None
     except SimulationError as e:
         print(f"orbitflex: the tracking run failed: {failure_reason(e)}; no outputs written (exit code 1)",
               file=sys.stderr)

@@ -773,7 +773,28 @@ impl Plan {
             .map(|(d, l)| l / (d.abs() * sigma(0.5)[1]))
             .fold(f64::INFINITY, f64::min);
         let start = hint.unwrap_or(speed_w).min(1.0 / SHORTEST_TRIED);
+        if start < 1.0 / LONGEST_TRIED {
+            // the speed limit alone asks for longer than any segment is planned
+            return Err(self.unreachable(seg, 1.0 / LONGEST_TRIED));
+        }
         if self.feasible(seg, start) {
+            if hint.is_none() && speed_w > start {
+                // the floor binds, not a limit: a plan of 1 ns would only report a limit that
+                // its values are nowhere near
+                let (_, _, c, joint, value, limit) = self.peak(seg, start);
+                return Err(Error::InvalidArgument {
+                    what: "limits".into(),
+                    message: format!(
+                        "every limit holds even at {SHORTEST_TRIED:e} s, the shortest segment \
+                         duration planned, so none of them binds (at {SHORTEST_TRIED:e} s \
+                         {}{} peaks at {value:.3e}, against its limit of {}); give the \
+                         hardware's limits",
+                        c.name(),
+                        joint.map_or(String::new(), |j| format!("[{j}]")),
+                        crate::args::number(limit),
+                    ),
+                });
+            }
             return Ok(start);
         }
         // widen downwards (longer durations) until feasible: from a 1e-4 cut after a hint, by
@@ -783,18 +804,8 @@ impl Plan {
         let (mut hi, mut lo) = (start, start * factor);
         while !self.feasible(seg, lo) {
             go_on(cancel)?;
-            if lo < 1.0 / LONGEST_TRIED {
-                let (_, _, c, joint, value, limit) = self.peak(seg, lo);
-                return Err(Error::InvalidArgument {
-                    what: "limits".into(),
-                    message: format!(
-                        "no duration up to {LONGEST_TRIED:.0e} s meets them: {}{} still needs \
-                         {value:.3e}, over its limit of {}",
-                        c.name(),
-                        joint.map_or(String::new(), |j| format!("[{j}]")),
-                        crate::args::number(limit),
-                    ),
-                });
+            if lo <= 1.0 / LONGEST_TRIED {
+                return Err(self.unreachable(seg, lo));
             }
             hi = lo;
             factor = if factor > 0.5 {
@@ -802,7 +813,8 @@ impl Plan {
             } else {
                 factor * factor
             };
-            lo = (hi * factor).max(1.0 / LONGEST_TRIED * 0.5);
+            // the longest duration tried is the longest planned: no segment is longer
+            lo = (hi * factor).max(1.0 / LONGEST_TRIED);
         }
         // bisect: geometrically while the bracket spans more than a factor 2, then arithmetically
         while hi - lo > BISECTION_TOLERANCE * hi {
@@ -819,6 +831,46 @@ impl Plan {
             }
         }
         Ok(lo)
+    }
+
+    /// Why no duration up to [`LONGEST_TRIED`] meets the limits (`w` is its inverse): a limit
+    /// still breached there, or, when the inverse dynamics overflow there, a slew too large for
+    /// floating point (named by the stop it ends at).
+    fn unreachable(&self, seg: &Segment, w: f64) -> Error {
+        let (_, _, c, joint, value, limit) = self.peak(seg, w);
+        if value.is_finite() {
+            return Error::InvalidArgument {
+                what: "limits".into(),
+                message: format!(
+                    "no duration up to {LONGEST_TRIED:.0e} s meets them: {}{} still needs \
+                     {value:.3e} at {LONGEST_TRIED:.0e} s, over its limit of {}",
+                    c.name(),
+                    joint.map_or(String::new(), |j| format!("[{j}]")),
+                    crate::args::number(limit),
+                ),
+            };
+        }
+        let k = seg.binding.segment + 1;
+        let stop = |k: usize| match k {
+            0 => "q_start".to_string(),
+            k if k == self.stops.len() - 1 => "q_goal".to_string(),
+            k => format!("waypoints[{}]", k - 1),
+        };
+        let (joint, step) = seg
+            .delta
+            .iter()
+            .enumerate()
+            .max_by(|a, b| a.1.abs().total_cmp(&b.1.abs()))
+            .map_or((0, 0.0), |(j, d)| (j, *d));
+        Error::InvalidArgument {
+            what: stop(k),
+            message: format!(
+                "too large for floating point: the slew from {} to it, {} rad on joint {joint}, \
+                 makes the inverse dynamics overflow at every duration up to {LONGEST_TRIED:.0e} s",
+                stop(k - 1),
+                crate::args::number(step)
+            ),
+        }
     }
 
     /// Stores the solved duration, the deflection at each sample and the binding limit.
