@@ -1829,6 +1829,9 @@ def build_parser() -> Parser:
     camp.add_argument("--runs", type=at_least_one, default=None, help="number of runs (default: the file's)")
     camp.add_argument("--scheduler", metavar="ADDRESS", default=None,
                       help="a Dask scheduler (tcp://host:8786); default: run here on every core")
+    camp.add_argument("--scheduler-timeout", metavar="S", type=positive, default=10.0,
+                      help="how long to wait for the scheduler to answer (default %(default)s s; a refused "
+                           "connection fails at once)")
     camp.add_argument("--out", metavar="DIR", default="campaign_out",
                       help="output folder, created if missing (default %(default)s)")
     camp.add_argument("--chunk-runs", type=at_least_one, default=None, metavar="K",
@@ -1864,6 +1867,12 @@ def campaign_command(args: argparse.Namespace) -> int:
     except ModelError as e:
         raise CliError("FILE", f"{args.file}: {e}" if not str(e).startswith(args.file) else str(e)) from None
     runs = args.runs if args.runs is not None else campaign.runs
+    if args.scheduler:
+        try:
+            campaigns.reachable(args.scheduler, args.scheduler_timeout)
+        except (ModelError, OSError) as e:  # TimeoutError is an OSError
+            message = re.sub(r"^scheduler: ", "", str(e)).replace("a longer timeout", "a longer --scheduler-timeout")
+            raise CliError("--scheduler", message) from None
     where = f"on the Dask cluster at {args.scheduler}" if args.scheduler else "here"
     print(f"campaign {campaign.name}: {runs} runs of {campaign.duration:g} s (dt = {campaign.dt:g} s, "
           f"{campaign.steps} steps), {where}")
@@ -1872,7 +1881,7 @@ def campaign_command(args: argparse.Namespace) -> int:
     started = time.time()
     try:
         table = campaign.run(runs=runs, scheduler=args.scheduler, chunk_runs=args.chunk_runs,
-                             threads=args.threads, progress=progress)
+                             threads=args.threads, progress=progress, timeout=args.scheduler_timeout)
     except ModelError as e:
         raise CliError("FILE", str(e)) from None
     except (OSError, TimeoutError) as e:
