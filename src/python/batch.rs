@@ -143,9 +143,15 @@ impl<'py> Control<'py> {
                  FlexibleArm.simulate for each run",
             ));
         }
-        // a sequence of MotorPD, one per run
+        // a sequence of MotorPD, one per run (a buffer such as a 2-D memoryview is a sequence
+        // whose items cannot be taken: it is an array of torques)
         if let Ok(seq) = u.downcast::<PySequence>() {
-            if seq.len()? > 0 && seq.get_item(0)?.is_instance_of::<PyMotorPD>() {
+            let first = seq
+                .len()
+                .ok()
+                .filter(|&len| len > 0)
+                .and_then(|_| seq.get_item(0).ok());
+            if first.is_some_and(|f| f.is_instance_of::<PyMotorPD>()) {
                 let mut pds = Vec::new();
                 for (k, item) in seq.try_iter()?.enumerate() {
                     let item = item?;
