@@ -449,7 +449,7 @@ fn check_mass_matrix(robot: &Robot) -> Result<()> {
         let u = articulated[i] * h;
         let d = h.dot(&u);
         let own = articulated[i].fixed_view::<3, 3>(0, 0).trace();
-        if !(d > 1e-12 * own) {
+        if d <= 1e-12 * own {
             return Err(Error::InvalidModel {
                 source_name: robot.source.clone(),
                 message: format!(
