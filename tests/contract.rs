@@ -510,3 +510,17 @@ fn a_payload_joins_the_ee_body() {
         "{err}"
     );
 }
+
+#[test]
+fn models_and_plans_may_be_shared_between_threads() {
+    // docs/threads_and_interrupts.md: Robot, FlexibleArm and Plan are Send + Sync; a Data or an
+    // ArmWorkspace moves between threads (Send) and is used by one at a time (&mut)
+    fn shared<T: Send + Sync>() {}
+    fn sent<T: Send>() {}
+    shared::<orbitflex::Robot>();
+    shared::<orbitflex::FlexibleArm>();
+    shared::<orbitflex::Plan>();
+    shared::<orbitflex::Trajectory>();
+    sent::<orbitflex::Data>();
+    sent::<orbitflex::ArmWorkspace>();
+}

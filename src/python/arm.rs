@@ -48,6 +48,9 @@ impl<F: FnMut(Chunk<'_>) -> crate::Result<()> + Send> Sink<F> {
 /// torques ``u`` (n, link side, N·m), base wrench ``f_B`` (6, ``[moment; force]``, base frame,
 /// applied to the base) and EE wrench ``f`` (6, EE frame, the force the EE exerts on its
 /// environment).
+///
+/// Thread-safe: call it from several threads at once (each call has a workspace of its own).
+/// ``simulate`` without a Python controller runs without the GIL and stops on Ctrl-C.
 #[pyclass(name = "FlexibleArm", module = "orbitflex", frozen)]
 pub struct PyFlexibleArm {
     pub(crate) arm: FlexibleArm,

@@ -18,6 +18,9 @@ use pyo3::types::PyDict;
 /// (base to EE on a chain; :attr:`parents` gives the tree); spatial
 /// vectors ``[angular; linear]``; base acceleration ``α_B`` is classical (the derivative of the
 /// base-frame components of ``ω`` and of the origin velocity, expressed in the base frame); SI units.
+///
+/// Thread-safe: call it from several threads at once (each call has a workspace of its own).
+/// Batched calls run without the GIL and stop on Ctrl-C (``KeyboardInterrupt``).
 #[pyclass(name = "Robot", module = "orbitflex", frozen)]
 pub struct PyRobot {
     pub(crate) robot: Robot,
