@@ -723,6 +723,11 @@ class _Table:
     def add(self, piece: "pd.DataFrame") -> None:
         rows = piece["run"].to_numpy()
         if not self.columns:
+            need = self.runs * sum(piece[name].dtype.itemsize for name in piece.columns)
+            free = _free_memory()
+            if free is not None and need > free:
+                raise CampaignError(f"runs: the table of {self.runs} runs needs {need / 1e9:.3g} GB, more than the "
+                                    f"{free / 1e9:.3g} GB of memory free; run fewer runs at a time")
             self.columns = {name: np.empty(self.runs, dtype=piece[name].dtype) for name in piece.columns}
         for name, column in self.columns.items():
             column[rows] = piece[name].to_numpy()
@@ -731,6 +736,14 @@ class _Table:
         import pandas as pd
 
         return pd.DataFrame(self.columns, copy=False)
+
+
+def _free_memory() -> Optional[int]:
+    """Bytes of free physical memory, or None where the system does not say."""
+    try:
+        return os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    except (AttributeError, ValueError, OSError):
+        return None
 
 
 class ChunkLog(Sequence[Dict[str, Any]]):

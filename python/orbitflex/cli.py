@@ -1883,7 +1883,8 @@ def campaign_command(args: argparse.Namespace) -> int:
         table = campaign.run(runs=runs, scheduler=args.scheduler, chunk_runs=args.chunk_runs,
                              threads=args.threads, progress=progress, timeout=args.scheduler_timeout)
     except ModelError as e:
-        raise CliError("FILE", str(e)) from None
+        flag = "--runs" if str(e).startswith("runs:") and args.runs is not None else "FILE"
+        raise CliError(flag, re.sub(r"^runs: ", "", str(e)) if flag == "--runs" else str(e)) from None
     except (OSError, TimeoutError) as e:
         if args.scheduler:
             raise CliError("--scheduler", f"cannot reach the Dask scheduler at {args.scheduler}: {e}") from None

@@ -265,8 +265,15 @@ pub fn positive_count(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<usize> {
     if obj.is_instance_of::<pyo3::types::PyBool>() || obj.hasattr("__index__").ok() != Some(true) {
         return Err(wrong());
     }
-    match obj.call_method0("__index__")?.extract::<usize>() {
+    let index = obj.call_method0("__index__")?;
+    match index.extract::<usize>() {
         Ok(k) if k >= 1 => Ok(k),
+        // an int past the largest count is not "below 1"
+        Err(_) if index.gt(1).unwrap_or(false) => Err(ModelError::new_err(format!(
+            "{what}: expected an integer from 1 to {}, given {}",
+            usize::MAX,
+            obj.repr().map(|r| r.to_string()).unwrap_or_default()
+        ))),
         _ => Err(wrong()),
     }
 }

@@ -84,6 +84,12 @@ def test_a_step_longer_than_the_run_is_refused(tmp_path):
     assert "dt: expected at most the duration (0.2 s), given 1 s" in line
 
 
+def test_a_table_too_large_for_memory_names_runs(tmp_path):
+    # found trying: numpy's MemoryError was reported as "--duration/--dt: out of memory"
+    line = one_line(cli(write(tmp_path), "--runs", 10**10, "--out", tmp_path / "out"), "--runs: ")
+    assert "the table of 10000000000 runs needs" in line and "GB of memory free" in line
+
+
 def test_a_malformed_scheduler_address_names_the_flag(tmp_path):
     line = one_line(cli(write(tmp_path), "--scheduler", "not-an-address", "--out", tmp_path / "out"), "--scheduler: ")
     assert "expected an address like tcp://host:8786, given 'not-an-address'" in line

@@ -58,3 +58,17 @@ def test_links_with_no_inertia_about_their_axis_are_still_refused():
       <link name="l"><inertial><mass value="1"/><inertia ixx="0" iyy="0" izz="0" ixy="0" ixz="0" iyz="0"/></inertial></link></robot>"""
     with pytest.raises(ModelError, match=r"joint 'j' moves links with no inertia about its axis \(l\)"):
         orbitflex.Robot.from_urdf_string(xml)
+
+
+# ---- found by trying ----------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("call", ["simulate", "simulate_batch"])
+def test_a_count_past_the_largest_is_not_called_below_one(call):
+    # record_every=10**30 said "expected an integer >= 1, given 10**30"
+    with pytest.raises(ModelError, match=r"record_every: expected an integer from 1 to 18446744073709551615, given "
+                                         r"1000000000000000000000000000000"):
+        if call == "simulate":
+            ARM.simulate(ARM.state(), 1e-3, 5, record_every=10**30)
+        else:
+            orbitflex.simulate_batch(ARM, ARM.state(), 1e-3, 5, record_every=10**30)
