@@ -723,7 +723,10 @@ class _Table:
     def add(self, piece: "pd.DataFrame") -> None:
         rows = piece["run"].to_numpy()
         if not self.columns:
-            need = self.runs * sum(piece[name].dtype.itemsize for name in piece.columns)
+            row = 0
+            for name in piece.columns:
+                row += piece[name].to_numpy().itemsize
+            need = self.runs * row
             free = _free_memory()
             if free is not None and need > free:
                 raise CampaignError(f"runs: the table of {self.runs} runs needs {need / 1e9:.3g} GB, more than the "
