@@ -229,7 +229,7 @@ pub(crate) fn step_jacobians_with(
     let mut scratch = std::mem::take(&mut ws.jacobians);
     let k = arm.robot().end_effectors().len();
     // the stage's Jacobians, dk, the previous dk, their sum, the rows of K and the result: six
-    // m × c blocks at most, allocated fallibly (a 1500-joint arm needs 2.7 GB)
+    // m × c blocks at most, allocated fallibly (a 1500-joint arm needs 2.2 GB)
     let need = || step_too_large(arm);
     if scratch.stage.x.nrows() != m || scratch.stage.ee_wrench.ncols() != 6 * k {
         scratch.stage = Jacobians::zeros(0, 0, 0, 0);
