@@ -287,7 +287,8 @@ pub fn rnea_derivatives<'a>(
     check_vector("base_acc", base_acc, 6)?;
     check_vector("qdd", qdd, robot.dof())?;
     crate::args::check_ee_wrench(robot, ee_wrench)?;
-    let mut d = take_derivatives(data, robot.dof(), robot.end_effectors().len())?;
+    size_derivatives(data, robot.dof(), robot.end_effectors().len())?;
+    let mut d = std::mem::take(&mut data.derivatives);
     for i in 1..=robot.dof() {
         data.x[i] = robot.joint_transform(i, state.q[i - 1]);
     }
@@ -365,7 +366,8 @@ pub(crate) fn aba_derivatives_into(
     super::aba(robot, data, state, tau, loads)?;
     let n = robot.dof();
     let k = robot.end_effectors().len();
-    let mut d = take_derivatives(data, n, k)?;
+    size_derivatives(data, n, k)?;
+    let mut d = std::mem::take(&mut data.derivatives);
     let acc = Motion::from_slice(&data.ddq.as_slice()[..6]);
     let mut qdd = std::mem::take(&mut d.scratch.qdd);
     qdd.copy_from_slice(&data.ddq.as_slice()[6..]);
@@ -430,16 +432,24 @@ pub(crate) fn aba_derivatives_into(
 /// crossover (BENCHMARKS.md, "Derivatives").
 pub(crate) const DENSE_PRODUCTS_UP_TO: usize = 28;
 
-/// The derivative buffers, sized for `n` joints (allocated on first use), moved out of `data`
-/// for the duration of a call.
-fn take_derivatives(data: &mut Data, n: usize, k: usize) -> Result<Derivatives> {
+/// The derivative buffers in `data` sized for `n` joints and `k` end-effectors (allocated on
+/// first use); the caller moves them out of `data` for the duration of the call (moved out
+/// through a `Result`, the struct was copied once more: 250 instructions a call).
+fn size_derivatives(data: &mut Data, n: usize, k: usize) -> Result<()> {
     let d = &data.derivatives;
     if d.id_q.nrows() != 6 + n || d.id_ee_wrench.ncols() != 6 * k {
-        // the old buffers go first
-        data.derivatives = Derivatives::default();
-        data.derivatives = Derivatives::try_new(n, k)?;
+        resize_derivatives(data, n, k)?;
     }
-    Ok(std::mem::take(&mut data.derivatives))
+    Ok(())
+}
+
+/// New buffers for `n` joints and `k` end-effectors in `data` (the old ones go first).
+#[cold]
+#[inline(never)]
+fn resize_derivatives(data: &mut Data, n: usize, k: usize) -> Result<()> {
+    data.derivatives = Derivatives::default();
+    data.derivatives = Derivatives::try_new(n, k)?;
+    Ok(())
 }
 
 /// `∂ID/∂f = [Φ_{e,B}ᵀ; J_eᵀ]` per end-effector `e`, from the transforms and axes
