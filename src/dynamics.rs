@@ -120,18 +120,8 @@ impl Method {
             }
         }
         let base_wrench = loads.base_wrench.to_array();
-        let [twist, qd] = rates(state);
-        check_result(
-            "forward_dynamics",
-            &[data.ddq.as_slice()],
-            &[
-                twist,
-                qd,
-                ("tau", tau, 1),
-                ("base_wrench", &base_wrench, 1),
-                ("ee_wrench", loads.ee_wrench, 1),
-            ],
-        )?;
+        let inputs = forward_inputs(state, tau, loads, &base_wrench);
+        check_result("forward_dynamics", &[data.ddq.as_slice()], &inputs)?;
         Ok(&data.ddq)
     }
 
@@ -177,18 +167,8 @@ impl Method {
                     Operators::new(robot, state)?.inverse_dynamics(base_acc, qdd, ee_wrench)?;
             }
         }
-        let [twist, qd] = rates(state);
-        check_result(
-            "inverse_dynamics",
-            &[data.tau.as_slice()],
-            &[
-                twist,
-                qd,
-                ("base_acc", base_acc, 1),
-                ("qdd", qdd, 1),
-                ("ee_wrench", ee_wrench, 1),
-            ],
-        )?;
+        let inputs = inverse_inputs(state, base_acc, qdd, ee_wrench);
+        check_result("inverse_dynamics", &[data.tau.as_slice()], &inputs)?;
         Ok(&data.tau)
     }
 }
@@ -196,6 +176,41 @@ impl Method {
 /// The rates of a state as inputs of [`check_result`]: velocity products grow as their square.
 pub(crate) fn rates<'a>(state: &RigidState<'a>) -> [Input<'a>; 2] {
     [("base_twist", state.base_twist, 2), ("qd", state.qd, 2)]
+}
+
+/// The inputs of the forward dynamics (and of its derivatives) for [`check_result`]: the
+/// rates, and the torques and wrenches, which the accelerations grow with linearly.
+pub(crate) fn forward_inputs<'a>(
+    state: &RigidState<'a>,
+    tau: &'a [f64],
+    loads: &Loads<'a>,
+    base_wrench: &'a [f64; 6],
+) -> [Input<'a>; 5] {
+    let [twist, qd] = rates(state);
+    [
+        twist,
+        qd,
+        ("tau", tau, 1),
+        ("base_wrench", base_wrench, 1),
+        ("ee_wrench", loads.ee_wrench, 1),
+    ]
+}
+
+/// The inputs of the inverse dynamics (and of its derivatives) for [`check_result`].
+pub(crate) fn inverse_inputs<'a>(
+    state: &RigidState<'a>,
+    base_acc: &'a [f64],
+    qdd: &'a [f64],
+    ee_wrench: &'a [f64],
+) -> [Input<'a>; 5] {
+    let [twist, qd] = rates(state);
+    [
+        twist,
+        qd,
+        ("base_acc", base_acc, 1),
+        ("qdd", qdd, 1),
+        ("ee_wrench", ee_wrench, 1),
+    ]
 }
 
 /// Expresses a momentum about the base origin in base axes (`h_B`) about the inertial origin in

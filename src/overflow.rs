@@ -159,12 +159,18 @@ mod tests {
             "qd: too large for floating point: the result of forward_dynamics overflowed (2 of \
              its 3 numbers are not finite) with qd[0] = -1e154"
         );
-        let e = check_result("step", &[&[f64::NAN]], &[("dt", &[1e300], 4)]).unwrap_err();
+        // a scalar is named without an index
+        let inputs = [("dt", &[1e300][..], 4), ("x", &[0.0, 2.0][..], 2)];
+        let e = check_result("step", &[&[f64::NAN]], &inputs).unwrap_err();
         assert!(
-            e.to_string().starts_with("dt: too large") && e.to_string().ends_with("dt = 1e300")
+            e.to_string().starts_with("dt: too large") && e.to_string().ends_with(" dt = 1e300")
         );
-        // nothing large to blame: the call is named
-        let e = check_result("energy", &[&[f64::NAN]], &[("x", &[0.5], 2)]).unwrap_err();
+        // the size counts to its power: 100⁴ = 1e8 is less than 1e50
+        let inputs = [("dt", &[100.0][..], 4), ("u", &[1e50][..], 1)];
+        let e = check_result("step", &[&[f64::NAN]], &inputs).unwrap_err();
+        assert!(e.to_string().starts_with("u: too large"), "{e}");
+        // nothing larger than 1 to blame: the call is named
+        let e = check_result("energy", &[&[f64::NAN]], &[("x", &[0.5, 1.0], 2)]).unwrap_err();
         assert_eq!(
             e.to_string(),
             "energy: the result overflowed (1 of its 1 numbers are not finite)"

@@ -52,6 +52,7 @@
 
 use super::data::{check_data, Data};
 use crate::args::{check_vector, Loads, RigidState};
+use crate::dynamics::{forward_inputs, inverse_inputs};
 use crate::error::{Error, Result};
 use crate::model::Robot;
 use crate::overflow::check_result;
@@ -304,18 +305,11 @@ pub fn rnea_derivatives<'a>(
     ee_force_map(robot, &mut d);
     data.derivatives = d;
     let d = &data.derivatives;
-    let [twist, qd] = crate::dynamics::rates(state);
     // ∂ID/∂f depends on q alone (the EE Jacobians), finite for any finite q
     check_result(
         "inverse_dynamics_derivatives",
         &[d.id_q.as_slice(), d.id_v.as_slice()],
-        &[
-            twist,
-            qd,
-            ("base_acc", base_acc, 1),
-            ("qdd", qdd, 1),
-            ("ee_wrench", ee_wrench, 1),
-        ],
+        &inverse_inputs(state, base_acc, qdd, ee_wrench),
     )?;
     Ok(&data.derivatives)
 }
@@ -337,19 +331,12 @@ pub fn aba_derivatives<'a>(
     aba_derivatives_into(robot, data, state, tau, loads)?;
     let d = &data.derivatives;
     let base_wrench = loads.base_wrench.to_array();
-    let [twist, qd] = crate::dynamics::rates(state);
     // ∂FD/∂τ, ∂FD/∂f_B and ∂FD/∂f are columns of 𝓜⁻¹ and depend on q alone, finite for any
     // finite q: only the blocks that grow with the inputs are scanned
     check_result(
         "forward_dynamics_derivatives",
         &[data.ddq.as_slice(), d.fd_q.as_slice(), d.fd_v.as_slice()],
-        &[
-            twist,
-            qd,
-            ("tau", tau, 1),
-            ("base_wrench", &base_wrench, 1),
-            ("ee_wrench", loads.ee_wrench, 1),
-        ],
+        &forward_inputs(state, tau, loads, &base_wrench),
     )?;
     Ok(&data.derivatives)
 }
