@@ -26,6 +26,21 @@ const MAX_PIECE_ROWS: usize = 256;
 /// Work of about this long between two looks at the clock.
 const CLOCK_WORK: Duration = Duration::from_micros(20);
 
+/// Counts a piece as finished when dropped, and wakes the calling thread after the last one.
+struct Finished<'a> {
+    finished: &'a AtomicUsize,
+    count: usize,
+    caller: &'a std::thread::Thread,
+}
+
+impl Drop for Finished<'_> {
+    fn drop(&mut self) {
+        if self.finished.fetch_add(1, Ordering::AcqRel) + 1 == self.count {
+            self.caller.unpark();
+        }
+    }
+}
+
 /// What the calling thread sees of the clock and the signals while it computes rows.
 struct Lookout<'a> {
     cancel: &'a AtomicBool,
@@ -109,6 +124,13 @@ pub(crate) fn compute_rows(
             if p >= count {
                 break;
             }
+            // counts the piece as finished when it ends, even by a panic (which the scope then
+            // raises): the calling thread waits for every piece to finish
+            let _done = Finished {
+                finished: &finished,
+                count,
+                caller: &caller,
+            };
             if p < failed_piece.load(Ordering::Relaxed) {
                 let mut block = pieces[p].lock().unwrap_or_else(|e| e.into_inner());
                 for (k, out) in block.chunks_exact_mut(width).enumerate() {
@@ -128,9 +150,6 @@ pub(crate) fn compute_rows(
                         lookout.row_done();
                     }
                 }
-            }
-            if finished.fetch_add(1, Ordering::AcqRel) + 1 == count {
-                caller.unpark();
             }
         }
     };
