@@ -26,6 +26,7 @@ from __future__ import annotations
 import base64
 import gzip
 import hashlib
+import html
 import json
 import math
 import re
@@ -167,6 +168,15 @@ def _texture(mesh: Path, name: str, missing: List[str]) -> str:
     return f"data:{mime};base64,{encoded}"
 
 
+def _xml_text(markup: str) -> str:
+    """The text an XML parser gives for an element's content: comments dropped, CDATA
+    unwrapped, tags (COLLADA 1.5's ``<ref>``) dropped, entities decoded, whitespace trimmed."""
+    markup = re.sub(r"<!--.*?-->", "", markup, flags=re.S)
+    parts = re.split(r"<!\[CDATA\[(.*?)\]\]>", markup, flags=re.S)
+    return "".join(part if k % 2 else html.unescape(re.sub(r"<[^>]*>", "", part))
+                   for k, part in enumerate(parts)).strip()
+
+
 def _mesh_data(path: Path, fmt: str) -> _MeshData:
     data = path.read_bytes()
     if fmt == "stl":
@@ -177,20 +187,22 @@ def _mesh_data(path: Path, fmt: str) -> _MeshData:
     if fmt == "dae":
         # Each <image>'s <init_from> names its file (COLLADA 1.4; 1.5 wraps it in <ref>); other
         # <init_from>s name an image by id. Every file reference is rewritten to a key of
-        # `resources`, the texture embedded or a blank one, so that three.js asks for nothing
-        # that is not in the page, whatever whitespace or scheme the name has.
+        # `resources`, the texture embedded or a blank one, so that three.js (which reads the
+        # element's text) asks for nothing that is not in the page, whatever whitespace, scheme,
+        # CDATA, comments or entities the name is written with.
+        keys: Dict[str, str] = {}
+
         def reference(match: "re.Match[str]") -> str:
-            name = match.group(2).strip()
+            name = _xml_text(match.group(1))
             if not name or name.startswith("#"):
                 return match.group(0)
-            key = f"orbitflex-texture-{len(resources)}"
-            resources[key] = _texture(path, name, missing)
-            # no whitespace around the key: three.js asks for the element's text as it is
-            ref = match.group(1) is not None
-            return "<init_from>" + ("<ref>" if ref else "") + key + ("</ref>" if ref else "") + "</init_from>"
+            if name not in keys:
+                keys[name] = f"orbitflex-texture-{len(keys)}"
+                resources[keys[name]] = _texture(path, name, missing)
+            return f"<init_from>{keys[name]}</init_from>"
 
         def image(match: "re.Match[str]") -> str:
-            return re.sub(r"<init_from>\s*(<ref>)?([^<]*)(?:</ref>)?\s*</init_from>", reference, match.group(0))
+            return re.sub(r"<init_from>(.*?)</init_from>", reference, match.group(0), flags=re.S)
 
         text = re.sub(r"<image\b[^>]*/>|<image\b.*?</image>", image, text, flags=re.S)
     return _MeshData(text, resources, missing)

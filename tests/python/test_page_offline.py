@@ -136,6 +136,9 @@ def test_hostile_mesh_references_load_nothing(tmp_path):
             "http.dae": textured_dae(server.url("beacon.png")),
             "https.dae": textured_dae(server.url("beacon.png").replace("http:", "https:")),
             "network_path.dae": textured_dae(f"//127.0.0.1:{server.port}/network_path.png"),
+            # found trying: a name in CDATA, or broken by a comment, is the same text to three.js
+            "cdata.dae": textured_dae(f"<![CDATA[{server.url('cdata.png')}]]>"),
+            "comment.dae": textured_dae(f"http://127.0.0.1:{server.port}/comm<!-- x -->ent.png"),
             "hostile.obj": f"mtllib {server.url('m.mtl')}\nusemtl skin\nv 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nf 1/1 2/1 3/1\n",
         }
         robot = mesh_robot(tmp_path, meshes, [visual(name, k) for k, name in enumerate(meshes)])
@@ -148,7 +151,7 @@ def test_hostile_mesh_references_load_nothing(tmp_path):
         with pytest.warns(viz.VisualWarning) as record:
             viz._scene(robot, None, ghost=False, share=True)
         notes = [str(w.message) for w in record]
-        assert sum("a network address; the page loads nothing" in n for n in notes) == 3, notes
+        assert sum("a network address; the page loads nothing" in n for n in notes) == 5, notes
 
 
 @needs_chromium
