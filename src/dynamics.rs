@@ -25,6 +25,7 @@ use crate::args::{check_base_pose, check_vector, Loads, RigidState};
 use crate::error::Result;
 use crate::model::Robot;
 use crate::operators::Operators;
+use crate::overflow::{check_result, Input};
 use crate::spatial::{quaternion_to_rotation, Force, Mat6, Vec3};
 use nalgebra::{DMatrix, DVector};
 
@@ -78,7 +79,8 @@ impl Method {
         }
     }
 
-    /// The bias `[C_B; C_r]` (A.19) into `data.tau`.
+    /// The bias `[C_B; C_r]` (A.19) into `data.tau`. A result that overflows (rates too large
+    /// for floating point) is an error naming the rate.
     pub fn bias_forces<'a>(
         self,
         robot: &Robot,
@@ -86,16 +88,20 @@ impl Method {
         state: &RigidState,
     ) -> Result<&'a DVector<f64>> {
         match self {
-            Method::Recursive => algorithms::bias_forces(robot, data, state),
+            Method::Recursive => {
+                algorithms::bias_forces(robot, data, state)?;
+            }
             Method::Operator => {
                 algorithms::check_data(robot, data)?;
                 data.tau = Operators::new(robot, state)?.bias_forces();
-                Ok(&data.tau)
             }
         }
+        check_result("bias_forces", &[data.tau.as_slice()], &rates(state))?;
+        Ok(&data.tau)
     }
 
-    /// Forward dynamics `[α_B; q̈]` (A.19) into `data.ddq`.
+    /// Forward dynamics `[α_B; q̈]` (A.19) into `data.ddq`. A result that overflows (inputs
+    /// too large for floating point) is an error naming the input.
     pub fn forward_dynamics<'a>(
         self,
         robot: &Robot,
@@ -105,13 +111,18 @@ impl Method {
         loads: &Loads,
     ) -> Result<&'a DVector<f64>> {
         match self {
-            Method::Recursive => algorithms::aba(robot, data, state, tau, loads),
+            Method::Recursive => {
+                algorithms::aba(robot, data, state, tau, loads)?;
+            }
             Method::Operator => {
                 algorithms::check_data(robot, data)?;
                 data.ddq = Operators::new(robot, state)?.forward_dynamics(tau, loads)?;
-                Ok(&data.ddq)
             }
         }
+        let base_wrench = loads.base_wrench.to_array();
+        let inputs = forward_inputs(state, tau, loads, &base_wrench);
+        check_result("forward_dynamics", &[data.ddq.as_slice()], &inputs)?;
+        Ok(&data.ddq)
     }
 
     /// [`Method::forward_dynamics`] for arguments the caller has already checked; the recursive
@@ -135,7 +146,8 @@ impl Method {
     }
 
     /// Inverse dynamics `[f_B; τ]` (A.19) into `data.tau`, for the classical base acceleration
-    /// `base_acc = α_B` (base frame), joint accelerations `qdd` and the EE wrench `f`.
+    /// `base_acc = α_B` (base frame), joint accelerations `qdd` and the EE wrench `f`. A result
+    /// that overflows (inputs too large for floating point) is an error naming the input.
     pub fn inverse_dynamics<'a>(
         self,
         robot: &Robot,
@@ -146,15 +158,59 @@ impl Method {
         ee_wrench: &[f64],
     ) -> Result<&'a DVector<f64>> {
         match self {
-            Method::Recursive => algorithms::rnea(robot, data, state, base_acc, qdd, ee_wrench),
+            Method::Recursive => {
+                algorithms::rnea(robot, data, state, base_acc, qdd, ee_wrench)?;
+            }
             Method::Operator => {
                 algorithms::check_data(robot, data)?;
                 data.tau =
                     Operators::new(robot, state)?.inverse_dynamics(base_acc, qdd, ee_wrench)?;
-                Ok(&data.tau)
             }
         }
+        let inputs = inverse_inputs(state, base_acc, qdd, ee_wrench);
+        check_result("inverse_dynamics", &[data.tau.as_slice()], &inputs)?;
+        Ok(&data.tau)
     }
+}
+
+/// The rates of a state as inputs of [`check_result`]: velocity products grow as their square.
+pub(crate) fn rates<'a>(state: &RigidState<'a>) -> [Input<'a>; 2] {
+    [("base_twist", state.base_twist, 2), ("qd", state.qd, 2)]
+}
+
+/// The inputs of the forward dynamics (and of its derivatives) for [`check_result`]: the
+/// rates, and the torques and wrenches, which the accelerations grow with linearly.
+pub(crate) fn forward_inputs<'a>(
+    state: &RigidState<'a>,
+    tau: &'a [f64],
+    loads: &Loads<'a>,
+    base_wrench: &'a [f64; 6],
+) -> [Input<'a>; 5] {
+    let [twist, qd] = rates(state);
+    [
+        twist,
+        qd,
+        ("tau", tau, 1),
+        ("base_wrench", base_wrench, 1),
+        ("ee_wrench", loads.ee_wrench, 1),
+    ]
+}
+
+/// The inputs of the inverse dynamics (and of its derivatives) for [`check_result`].
+pub(crate) fn inverse_inputs<'a>(
+    state: &RigidState<'a>,
+    base_acc: &'a [f64],
+    qdd: &'a [f64],
+    ee_wrench: &'a [f64],
+) -> [Input<'a>; 5] {
+    let [twist, qd] = rates(state);
+    [
+        twist,
+        qd,
+        ("base_acc", base_acc, 1),
+        ("qdd", qdd, 1),
+        ("ee_wrench", ee_wrench, 1),
+    ]
 }
 
 /// Expresses a momentum about the base origin in base axes (`h_B`) about the inertial origin in

@@ -2,7 +2,8 @@
 //!
 //! Every fallible public function returns [`Result`]. The Python bindings map these variants once
 //! onto Python exceptions: [`Error::FileNotFound`] is `FileNotFoundError`, [`Error::IsADirectory`]
-//! is `IsADirectoryError`, [`Error::Simulation`] is `orbitflex.SimulationError`, and every other
+//! is `IsADirectoryError`, [`Error::OutOfMemory`] is `MemoryError`, [`Error::Interrupted`] is
+//! `KeyboardInterrupt`, [`Error::Simulation`] is `orbitflex.SimulationError`, and every other
 //! variant is `orbitflex.ModelError` (a `ValueError`).
 //!
 //! ```
@@ -122,6 +123,26 @@ pub enum Error {
         what: String,
         /// What was expected and what was given.
         message: String,
+    },
+
+    /// A buffer a call needs that could not be allocated: the call stops with this error
+    /// instead of aborting the process.
+    #[error("{what}: needs {}, which could not be allocated; {hint}", crate::args::describe_bytes(*bytes))]
+    OutOfMemory {
+        /// The call or argument whose buffers did not fit.
+        what: String,
+        /// The bytes asked for (`None`: more than an address can hold).
+        bytes: Option<usize>,
+        /// What to change.
+        hint: String,
+    },
+
+    /// A long computation stopped by its caller (a cancel flag, Ctrl-C in Python) before it
+    /// finished.
+    #[error("{what}: interrupted by the caller")]
+    Interrupted {
+        /// What was interrupted.
+        what: String,
     },
 
     /// A simulation whose state turned non-finite, or whose controller failed.

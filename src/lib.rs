@@ -18,6 +18,7 @@ pub mod io;
 pub mod linalg;
 pub mod model;
 pub mod operators;
+pub(crate) mod overflow;
 pub mod planning;
 mod simd;
 pub mod spatial;

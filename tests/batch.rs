@@ -412,7 +412,7 @@ fn summaries_only_keeps_no_rows_and_the_same_summaries() {
 #[test]
 fn cancelled_batch_stops_every_run() {
     // one thread, three long runs; the flag is set 50 ms after the first run is over: the second
-    // stops at its next look (every 1024 steps), the third never starts
+    // stops at its next look (every 16 steps), the third never starts
     let arm = arm(400.0);
     let len = arm.layout().len();
     let x0 = arm.rest_state();
@@ -455,7 +455,7 @@ fn cancelled_batch_stops_every_run() {
     assert_eq!(record.status[0], RunStatus::Finished);
     match &record.status[1] {
         RunStatus::Failed { step, message, .. } => {
-            assert!(*step > 0 && *step < steps && step % 1024 == 0, "{step}");
+            assert!(*step > 0 && *step < steps && step % 16 == 0, "{step}");
             assert_eq!(message, "interrupted by the caller");
         }
         other => panic!("{other:?}"),
@@ -466,7 +466,7 @@ fn cancelled_batch_stops_every_run() {
 
 #[test]
 fn runs_not_started_when_cancelled_end_at_their_start() {
-    // runs shorter than the 1024 steps between two looks at the flag: only the start can stop
+    // a batch cancelled before it starts: every run ends at its start
     let arm = arm(400.0);
     let len = arm.layout().len();
     let x0 = starts(&arm);
@@ -722,4 +722,37 @@ fn argument_errors_name_the_run_and_the_shapes() {
     )
     .unwrap_err();
     assert_eq!(e.to_string(), "runs: expected at least one run, given 0");
+}
+
+#[test]
+fn cancelled_checks_and_stability_limits_stop_with_interrupted() {
+    // (issue 24) the checks and the per-run stability limits before a batch look at the flag
+    // before each run: a batch of thousands of distinct arms stopped only when they were done
+    let arms: Vec<FlexibleArm> = (0..8).map(|k| arm(400.0 + k as f64)).collect();
+    let refs: Vec<&FlexibleArm> = arms.iter().collect();
+    let x0 = arms[0].rest_state();
+    let batch = Batch {
+        runs: 8,
+        arms: PerRun::Each(&refs),
+        x0: BatchInput::new("x0s", &x0, &[x0.len()], 8, None, x0.len()).unwrap(),
+        u: BatchControl::Open(BatchInput::zero(N)),
+        base_wrench: BatchInput::zero(6),
+        ee_wrench: BatchInput::zero(6),
+    };
+    let watch = BatchWatch::default();
+    assert!(batch.check_watched(&settings(1, 2), &watch).is_ok());
+    assert_eq!(
+        batch.unstable_runs_watched(DT, Some(2), &watch).unwrap(),
+        vec![]
+    );
+    watch.cancel.store(true, Ordering::Relaxed);
+    for result in [
+        batch.check_watched(&settings(1, 2), &watch).map(|_| vec![]),
+        batch.unstable_runs_watched(DT, Some(2), &watch),
+    ] {
+        match result {
+            Err(Error::Interrupted { what }) => assert!(what.contains("runs"), "{what}"),
+            other => panic!("{other:?}"),
+        }
+    }
 }

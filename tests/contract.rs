@@ -510,3 +510,64 @@ fn a_payload_joins_the_ee_body() {
         "{err}"
     );
 }
+
+#[test]
+fn models_and_plans_may_be_shared_between_threads() {
+    // docs/threads_and_interrupts.md: Robot, FlexibleArm and Plan are Send + Sync; a Data or an
+    // ArmWorkspace moves between threads (Send) and is used by one at a time (&mut)
+    fn shared<T: Send + Sync>() {}
+    fn sent<T: Send>() {}
+    shared::<orbitflex::Robot>();
+    shared::<orbitflex::FlexibleArm>();
+    shared::<orbitflex::Plan>();
+    shared::<orbitflex::Trajectory>();
+    sent::<orbitflex::Data>();
+    sent::<orbitflex::ArmWorkspace>();
+}
+
+#[test]
+fn singular_joints_are_refused_relative_to_their_own_links() {
+    let bus = |m: f64| Inertia::from_com(m, Vec3::zeros(), Mat3::identity() * m);
+    let at = |x: f64| Transform::from_xyz_rpy([x, 0.0, 0.0], [0.0; 3]);
+    let build = |base: Inertia, links: &[(Transform, Inertia)]| {
+        let mut b = RobotBuilder::new("r", "bus", base);
+        for (k, (origin, inertia)) in links.iter().enumerate() {
+            b = b.joint(
+                &format!("j{k}"),
+                *origin,
+                Vec3::z(),
+                &format!("l{k}"),
+                *inertia,
+            );
+        }
+        b.build()
+    };
+    let link = Inertia::from_com(2.0, Vec3::new(0.3, 0.0, 0.0), Mat3::identity() * 0.01);
+    let refused = |r: orbitflex::Result<Robot>, joint: &str| match r {
+        Err(e) => assert!(
+            e.to_string().contains(&format!(
+                "joint '{joint}' moves links with no inertia about its axis"
+            )),
+            "{e}"
+        ),
+        Ok(_) => panic!("joint '{joint}' accepted"),
+    };
+    // (issue 24) a heavy bus does not make a light link singular
+    assert!(build(bus(1e10), &[(at(0.5), link)]).is_ok());
+    // a massless link is singular, whatever the bus
+    refused(build(bus(500.0), &[(at(0.5), Inertia::zero())]), "j0");
+    // a needle along the joint axis: 1e-8 kg·m² about it against 2e6 across, a pivot at
+    // round-off level relative to the joint's own links
+    let needle = Inertia::from_com(
+        1.0,
+        Vec3::new(0.0, 0.0, 1e3),
+        Mat3::from_diagonal(&Vec3::new(1.0, 1.0, 1e-8)),
+    );
+    refused(build(bus(500.0), &[(at(0.5), needle)]), "j0");
+    // two joints on one axis with a massless link between: the second takes all the inertia
+    // about the axis, and the first has none left (the reduced inertia shows it)
+    refused(
+        build(bus(500.0), &[(at(0.5), Inertia::zero()), (at(0.0), link)]),
+        "j0",
+    );
+}

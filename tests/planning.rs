@@ -1579,3 +1579,43 @@ fn a_short_plans_tables_hold_the_goal_after_it() {
         }
     }
 }
+
+#[test]
+fn plans_stay_between_the_shortest_and_the_longest_duration_planned() {
+    // (issue 24) a speed limit asking for 7e9 s gave a plan of that length, though no segment
+    // is planned longer than 1e9 s; limits too loose to bind at 1 ns were reported as binding
+    let message = |r: orbitflex::Result<Plan>| r.unwrap_err().to_string();
+    let arm = space_arm();
+    let slow = Limits::new(vec![1e-10], vec![1e-10], None, None).unwrap();
+    let err = message(plan_slew(&arm, &GOAL, None, &slow, BaseMode::Held, &[]));
+    assert!(
+        err.starts_with("limits: no duration up to 1e9 s meets them: ")
+            && err.contains(" at 1e9 s, over its limit of 1e-10"),
+        "{err}"
+    );
+    let loose = Limits::new(vec![1e300], vec![1e300], None, None).unwrap();
+    let err = message(plan_slew(&arm, &GOAL, None, &loose, BaseMode::Free, &[]));
+    assert!(err.contains("so none of them binds"), "{err}");
+    // just within: the speed limit alone gives 5.5e8 s (|Δ| σ'(½) / q̇_max)
+    let long = Limits::new(vec![1e-6], vec![4e-9], None, None).unwrap();
+    let plan = plan_slew(&arm, &GOAL, None, &long, BaseMode::Held, &[]).unwrap();
+    assert!(
+        plan.duration() > 5e8 && plan.duration() <= 1e9,
+        "{}",
+        plan.duration()
+    );
+    // a slew too large for floating point names the stop it ends at
+    let huge = [1e100; 7];
+    let err = message(plan_slew(
+        &arm,
+        &huge,
+        None,
+        &space_limits(BaseMode::Held),
+        BaseMode::Held,
+        &[],
+    ));
+    assert!(
+        err.starts_with("q_goal: too large for floating point: the slew from q_start"),
+        "{err}"
+    );
+}

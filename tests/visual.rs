@@ -567,6 +567,41 @@ fn packages_resolve_through_the_map_then_ros_package_path() {
             "{error}"
         );
     }
+    // (issue 24) `..` as the package name looked in the folder above each candidate directory:
+    // root/outside/secret.stl was found from a URDF in root/gripper_pkg/urdf
+    std::fs::create_dir_all(root.join("outside")).unwrap();
+    std::fs::write(root.join("outside/secret.stl"), stl_triangle()).unwrap();
+    for name in ["..", "."] {
+        let escape = format!("package://{name}/outside/secret.stl");
+        assert_eq!(
+            map.resolve(&escape, Some(&pkg.join("urdf"))),
+            Err(format!(
+                "'{name}' is not a package name (package://NAME/path names a file inside the \
+                 package NAME)"
+            ))
+        );
+    }
+    // a symbolic link inside the package to a file outside it is refused; one that stays
+    // inside is followed
+    #[cfg(unix)]
+    {
+        let link = pkg.join("meshes/secret.stl");
+        std::os::unix::fs::symlink(root.join("outside/secret.stl"), &link).unwrap();
+        let error = map
+            .resolve("package://gripper_pkg/meshes/secret.stl", None)
+            .unwrap_err();
+        assert!(
+            error.starts_with("the path 'meshes/secret.stl' leaves the package 'gripper_pkg' (")
+                && error.contains("once links are resolved"),
+            "{error}"
+        );
+        std::os::unix::fs::symlink(pkg.join("meshes/tool.stl"), pkg.join("meshes/alias.stl"))
+            .unwrap();
+        assert_eq!(
+            map.resolve("package://gripper_pkg/meshes/alias.stl", None),
+            Ok(pkg.join("meshes/alias.stl"))
+        );
+    }
     std::fs::remove_dir_all(root).unwrap();
 }
 

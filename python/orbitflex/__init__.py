@@ -15,6 +15,13 @@ mapping base-frame to inertial-frame components; the base acceleration ``alpha_B
 Everything here is implemented in the compiled module ``orbitflex._core``; this package
 re-exports it.
 
+Threads and Ctrl-C: every object may be called from several threads at once (each call takes a
+workspace of its own; no lock is held while it computes or builds numpy arrays), with the same
+results as from one thread. Long calls (batched per-call functions, ``simulate`` with a Rust
+controller, ``simulate_batch``, ``plan_slew``, the ``Trajectory`` diagnostics) release the GIL
+and stop within a fraction of a second of Ctrl-C with ``KeyboardInterrupt``. See
+docs/threads_and_interrupts.md.
+
 >>> import orbitflex
 >>> robot = orbitflex.models.space_arm()
 >>> robot.dof

@@ -63,6 +63,7 @@ went, so that two tables of the same campaign compare equal. That goes to :attr:
 
 from __future__ import annotations
 
+import array
 import math
 import os
 import re
@@ -137,6 +138,8 @@ class Dispersion:
 
     def check(self, where: str) -> None:
         """Checks the declaration; ``where`` names it in errors (``dispersion[2]``)."""
+        if not isinstance(self.per_joint, bool):
+            raise CampaignError(f"{where}.per_joint: expected true or false, given {self.per_joint!r}")
         if self.parameter not in PARAMETERS:
             raise CampaignError(f"{where}.parameter: expected one of {', '.join(PARAMETERS)}, "
                                 f"given {self.parameter!r}")
@@ -153,6 +156,9 @@ class Dispersion:
         for name in given:
             values = _vector(getattr(self, name), f"{where}.{name}")
             assert values is not None
+            if name in ("relative", "sigma") and values.ndim != 0:
+                raise CampaignError(f"{where}.{name}: expected one number (for every element), given "
+                                    f"{getattr(self, name)!r}; std, low and high may be per element")
             if name in ("std", "relative", "sigma") and (values < 0).any():
                 raise CampaignError(f"{where}.{name}: expected >= 0, given {getattr(self, name)!r}")
         if self.low is not None and (np.asarray(self.low) > np.asarray(self.high)).any():
@@ -210,7 +216,7 @@ class Campaign:
     payload_ee: Union[None, str, int] = None
     record_every: int = 10
     settle_tolerance: float = 5e-3
-    log: List[Dict[str, Any]] = field(default_factory=list, compare=False, repr=False)
+    log: "ChunkLog" = field(default_factory=lambda: ChunkLog(), compare=False, repr=False)
 
     # -- declaration ---------------------------------------------------------------------------
 
@@ -244,7 +250,10 @@ class Campaign:
                 raise CampaignError(f"{source}: unknown key {key!r}; expected {', '.join(sorted(known))}")
 
         def table(name: str, keys: Sequence[str]) -> Dict[str, Any]:
-            t = dict(spec.get(name, {}))
+            given = spec.get(name, {})
+            if not isinstance(given, Mapping):
+                raise CampaignError(f"{source}: [{name}]: expected a table, given {given!r}")
+            t = dict(given)
             for key in t:
                 if key not in keys:
                     raise CampaignError(f"{source}: [{name}] {key!r} is not a known key; expected "
@@ -256,6 +265,10 @@ class Campaign:
         joints_t = table("joints", ["model", *JOINT_PARAMETERS])
         sim_t = table("simulation", ["dt", "duration", "record_every"])
         slew_t = table("slew", ["goal", "q0", "slew_time", "kp", "kd", "settle_tolerance"])
+        for name, value in (("[robot] model", robot_t.get("model", "")), ("[robot] urdf", robot_t.get("urdf", "")),
+                            ("[joints] model", joints_t.get("model", ""))):
+            if not isinstance(value, str):
+                raise CampaignError(f"{source}: {name}: expected a string, given {value!r}")
         for t, name, keys in ((sim_t, "simulation", ["dt", "duration"]),
                               (slew_t, "slew", ["goal", "slew_time", "kp", "kd"])):
             for key in keys:
@@ -274,8 +287,15 @@ class Campaign:
             if model is not None:
                 raise CampaignError(f"{source}: [joints] give model or the parameters "
                                     f"({', '.join(JOINT_PARAMETERS)}), not both")
+            for key in ("stiffness", "motor_inertia"):
+                if key not in joints_t:
+                    raise CampaignError(f"{source}: [joints] {key} is required with the joint parameters "
+                                        f"(or give model = \"space_arm\" or \"defaults\")")
             params = {k: joints_t[k] for k in JOINT_PARAMETERS if k in joints_t}
-            joints = FlexibleJoints(**params)
+            try:
+                joints = FlexibleJoints(**params)
+            except ModelError as e:
+                raise CampaignError(f"{source}: [joints] {e}") from None
         elif model == "space_arm":
             joints = models.space_arm_joints()
         elif model == "defaults":
@@ -292,7 +312,12 @@ class Campaign:
             raise CampaignError(f"{source}: [joints] model: expected \"space_arm\" (the built-in arm's "
                                 f"joints) or \"defaults\" (FlexibleJoints.defaults_for the robot), given {model!r}")
         dispersions = []
-        for k, d in enumerate(spec.get("dispersion", [])):
+        declared = spec.get("dispersion", [])
+        if not isinstance(declared, list):
+            raise CampaignError(f"{source}: dispersion: expected tables ([[dispersion]]), given {declared!r}")
+        for k, d in enumerate(declared):
+            if not isinstance(d, Mapping):
+                raise CampaignError(f"{source}: dispersion[{k}]: expected a table ([[dispersion]]), given {d!r}")
             fields = {"parameter", "distribution", "std", "relative", "sigma", "low", "high", "per_joint"}
             for key in d:
                 if key not in fields:
@@ -312,11 +337,17 @@ class Campaign:
                        payload_com=robot_t.get("payload_com", (0.0, 0.0, 0.0)),
                        record_every=sim_t.get("record_every", 10),
                        settle_tolerance=slew_t.get("settle_tolerance", 5e-3))
-        campaign.check()
+        try:
+            campaign.check()
+        except CampaignError as e:
+            raise CampaignError(f"{source}: {e}") from None
         return campaign
 
     def check(self) -> None:
         """Checks the declaration (raises :class:`CampaignError` naming the field)."""
+        if not isinstance(self.name, str):
+            raise CampaignError(f"name: expected a string, given {self.name!r}")
+        self._check_robot_options()
         for name in ("dt", "duration", "slew_time", "settle_tolerance"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not value > 0 \
@@ -328,6 +359,9 @@ class Campaign:
                 raise CampaignError(f"{name}: expected an integer >= 1, given {value!r}")
         if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
             raise CampaignError(f"seed: expected an integer >= 0, given {self.seed!r}")
+        if self.dt > self.duration:
+            raise CampaignError(f"dt: expected at most the duration ({self.duration:g} s), given {self.dt:g} s "
+                                f"(the runs would last one step of {self.dt:g} s)")
         for k, d in enumerate(self.dispersions):
             d.check(f"dispersion[{k}]")
         seen = [d.parameter for d in self.dispersions]
@@ -353,6 +387,25 @@ class Campaign:
                 if value is not None and np.ndim(value) == 1 and np.shape(value) != shape:
                     raise CampaignError(f"dispersion[{k}].{name}: expected a scalar or {shape[0] if shape else 1} "
                                         f"values ({d.parameter}), given {np.size(value)}")
+
+    def _check_robot_options(self) -> None:
+        """``ee_link``, ``ee_links`` and ``locked_joints`` are options of loading a URDF: their
+        types, and that they apply (a built-in model or a ``Robot`` is loaded already)."""
+        if self.ee_link is not None and not isinstance(self.ee_link, str):
+            raise CampaignError(f"ee_link: expected a link name, given {self.ee_link!r}")
+        for name in ("locked_joints", "ee_links"):
+            value = getattr(self, name)
+            if isinstance(value, str) or not all(isinstance(v, str) for v in value):
+                raise CampaignError(f"{name}: expected a list of names, given {value!r}")
+        if isinstance(self.payload_ee, bool) or not isinstance(self.payload_ee, (type(None), str, int)):
+            raise CampaignError(f"payload_ee: expected an end-effector link name or index, given {self.payload_ee!r}")
+        if isinstance(self.robot, str):
+            return
+        given = [name for name in ("ee_link", "ee_links", "locked_joints") if getattr(self, name)]
+        if given:
+            what = "the built-in space_arm" if self.robot is None else "a Robot given as such"
+            raise CampaignError(f"{given[0]}: applies when the robot is read from a URDF file (urdf = PATH); "
+                                f"{what} is loaded already")
 
     # -- the model and the runs ----------------------------------------------------------------
 
@@ -396,16 +449,25 @@ class Campaign:
         values = self._nominal(robot)
         rng = np.random.default_rng([self.seed, run])
         for d in self.dispersions:
-            drawn = d.sample(rng, values[d.parameter])
+            with np.errstate(over="ignore"):  # a draw that overflows is named below
+                drawn = d.sample(rng, values[d.parameter])
             bound = POSITIVE.get(d.parameter)
+            bad = ~np.isfinite(drawn)
             if bound is not None:
-                bad = drawn <= 0 if bound == "> 0" else drawn < 0
-                if np.any(bad):
-                    where = int(np.argmax(bad)) if drawn.ndim else None
-                    label = d.parameter + (f"[{where}]" if where is not None else "")
-                    raise CampaignError(
-                        f"run {run}: {label} drew {float(drawn.flat[where or 0]):.6g} {UNITS[d.parameter]} "
-                        f"(expected {bound}); narrow the {d.distribution} dispersion or use a lognormal one")
+                bad |= drawn <= 0 if bound == "> 0" else drawn < 0
+            if np.any(bad):
+                where = int(np.argmax(bad)) if drawn.ndim else None
+                label = d.parameter + (f"[{where}]" if where is not None else "")
+                k = self.dispersions.index(d)
+                advice = (f"the sigma of dispersion[{k}], {d.sigma:g}, is so wide that exp(sigma z) "
+                          "overflows or underflows; narrow it"
+                          if d.distribution == "lognormal" else
+                          f"narrow the {d.distribution} dispersion or use a lognormal one (dispersion[{k}]; "
+                          "a lognormal draw keeps the nominal's sign)")
+                value = float(drawn.flat[where or 0])
+                expected = bound if bound and math.isfinite(value) else "finite" + (f" and {bound}" if bound else "")
+                raise CampaignError(f"run {run}: {label} drew {value:.6g} {UNITS[d.parameter]} (expected {expected}); "
+                                    f"{advice}")
             values[d.parameter] = drawn
         return values
 
@@ -448,6 +510,20 @@ class Campaign:
         pd = MotorPD(values["kp"], values["kd"], theta_ref, theta_dot_ref)
         return arm, x0, pd
 
+    def _invalid_draw(self, run: int, values: Dict[str, Array], error: Exception) -> str:
+        """Why run ``run`` cannot be set up: the model's error, and the dispersions whose draws
+        went into the model (the payload, the joint parameters)."""
+        drawn = []
+        for k, d in enumerate(self.dispersions):
+            if d.parameter in (*JOINT_PARAMETERS, "payload_mass", "kp", "kd"):
+                v = np.asarray(values[d.parameter])
+                shown = f"{float(v):.6g} {UNITS[d.parameter]}" if v.ndim == 0 else \
+                    f"{np.abs(v).min():.3g} to {np.abs(v).max():.3g} {UNITS[d.parameter]}"
+                drawn.append(f"{d.parameter} = {shown} from dispersion[{k}] ({d.distribution})")
+        if not drawn:
+            return f"run {run}: the model is invalid: {error}"
+        return f"run {run}: {'; '.join(drawn)}: the model is invalid with it: {error}"
+
     def nominal_ee(self) -> Array:
         """The EE positions (m, inertial frame) at the end of the nominal run (no dispersion),
         (k, 3), one row per end-effector in ``robot.ee_links`` order."""
@@ -468,7 +544,12 @@ class Campaign:
         runs = list(range(start, stop))
         values = [self.parameters(i, robot) for i in runs]
         arms: Dict[Tuple[float, ...], FlexibleArm] = {}
-        setups = [self._setup(robot, v, arms) for v in values]
+        setups = []
+        for run, v in zip(runs, values):
+            try:
+                setups.append(self._setup(robot, v, arms))
+            except ModelError as e:
+                raise CampaignError(self._invalid_draw(run, v, e)) from None
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", RuntimeWarning)
             batch = simulate_batch([s[0] for s in setups], np.stack([s[1] for s in setups]), self.dt,
@@ -533,7 +614,7 @@ class Campaign:
 
     def run(self, runs: Optional[int] = None, scheduler: Optional[str] = None, client: Any = None,
             chunk_runs: Optional[int] = None, threads: Optional[int] = None,
-            progress: Optional[Callable[[int, int], Any]] = None) -> "pd.DataFrame":
+            progress: Optional[Callable[[int, int], Any]] = None, timeout: float = 10.0) -> "pd.DataFrame":
         """Runs the campaign and returns its table (a pandas DataFrame, one row per run, sorted
         by ``run``). ``runs`` overrides the declared number.
 
@@ -544,9 +625,15 @@ class Campaign:
         ``dask.distributed.Client``), run with ``threads`` threads (default 1, since Dask runs
         one task per worker thread); a task lost with its worker is run again by Dask. The
         table is the same either way, bit for bit. ``progress(done, runs)`` is called after
-        each chunk. Where and how long each chunk ran goes to :attr:`log`."""
-        import pandas as pd
+        each chunk. Where and how long each chunk ran goes to :attr:`log`.
 
+        ``timeout`` (s) bounds the connection to ``scheduler``: a scheduler that refuses it
+        fails at once, one that does not answer after ``timeout``; raise it for a slow cluster.
+
+        Memory: the table (one row per run, about 120 bytes with the example's dispersions) is
+        filled in place as chunks finish, and :attr:`log` keeps 28 bytes per chunk; whatever the
+        chunking, nothing else grows with the runs (on Dask, at most four tasks per worker
+        thread are in flight)."""
         self.check()
         total = self.runs if runs is None else runs
         if isinstance(total, bool) or not isinstance(total, int) or total < 1:
@@ -554,66 +641,189 @@ class Campaign:
         if chunk_runs is not None and (isinstance(chunk_runs, bool) or not isinstance(chunk_runs, int)
                                        or chunk_runs < 1):
             raise CampaignError(f"chunk_runs: expected an integer >= 1, given {chunk_runs!r}")
-        nominal_ee = self.nominal_ee()
-        self.log = []
+        if isinstance(timeout, bool) or not isinstance(timeout, (int, float)) or not timeout > 0 \
+                or not math.isfinite(timeout):
+            raise CampaignError(f"timeout: expected a finite time > 0 (s), given {timeout!r}")
         distributed = scheduler is not None or client is not None
+        if scheduler is not None and client is None:
+            reachable(scheduler, timeout)
+        nominal_ee = self.nominal_ee()
+        self.log = ChunkLog()
+        table = _Table(total)
         if not distributed:
             size = chunk_runs or 256
-            pieces = []
             for start in range(0, total, size):
                 stop = min(start + size, total)
                 began = time.time()
                 within = None if progress is None else _offset(progress, start, total)
-                pieces.append(self.run_chunk(start, stop, nominal_ee, threads, within))
+                table.add(self.run_chunk(start, stop, nominal_ee, threads, within))
                 self.log.append({"start": start, "stop": stop, "worker": "local", "host": socket.gethostname(),
                                  "seconds": time.time() - began})
                 if progress is not None:
                     progress(stop, total)
         else:
-            pieces = self._run_on_dask(total, scheduler, client, chunk_runs, threads or 1, nominal_ee, progress)
-        table = pd.concat(pieces, ignore_index=True).sort_values("run", kind="stable").reset_index(drop=True)
-        return table
+            self._run_on_dask(total, scheduler, client, chunk_runs, threads or 1, nominal_ee, progress, table,
+                              timeout)
+        return table.frame()
 
     def _portable(self) -> "Campaign":
         """This campaign with its URDF read into memory, so that a worker without the file can
         build the model."""
         if isinstance(self.robot, str):
-            return replace(self, robot=self._robot(), log=[])
-        return replace(self, log=[])
+            return replace(self, robot=self._robot(), log=ChunkLog())
+        return replace(self, log=ChunkLog())
 
     def _run_on_dask(self, total: int, scheduler: Optional[str], client: Any, chunk_runs: Optional[int],
-                     threads: int, nominal_ee: Array, progress: Optional[Callable[[int, int], Any]]) -> List[Any]:
+                     threads: int, nominal_ee: Array, progress: Optional[Callable[[int, int], Any]],
+                     table: "_Table", timeout: float) -> None:
         from dask.distributed import Client, as_completed
 
         own = client is None
         if own:
-            client = Client(scheduler)  # type: ignore[no-untyped-call]
+            client = Client(scheduler, timeout=timeout)  # type: ignore[no-untyped-call]
         try:
+            slots = max(1, sum(client.nthreads().values()))
             if chunk_runs is None:
-                slots = max(1, sum(client.nthreads().values()))
                 chunk_runs = max(1, min(256, math.ceil(total / (4 * slots))))
             portable = self._portable()
             token = uuid.uuid4().hex[:8]
-            futures = {}
-            for start in range(0, total, chunk_runs):
-                stop = min(start + chunk_runs, total)
-                future = client.submit(_run_chunk_task, portable, start, stop, nominal_ee, threads,
-                                       key=f"orbitflex-{self.name}-{token}-{start}-{stop}", pure=False,
-                                       retries=2)
-                futures[future] = (start, stop)
-            pieces = []
+            chunks = ((start, min(start + chunk_runs, total)) for start in range(0, total, chunk_runs))
+
+            def submit(start: int, stop: int) -> Any:
+                return client.submit(_run_chunk_task, portable, start, stop, nominal_ee, threads,
+                                     key=f"orbitflex-{self.name}-{token}-{start}-{stop}", pure=False, retries=2)
+
+            # a bounded number of tasks in flight, so that a campaign of a million one-run chunks
+            # does not hold a million futures
+            running = as_completed([submit(*chunk) for _, chunk in zip(range(4 * slots), chunks)])  # type: ignore[no-untyped-call]
             done = 0
-            for future in as_completed(list(futures)):  # type: ignore[no-untyped-call]
+            for future in running:
                 piece, meta = future.result()
-                pieces.append(piece)
+                table.add(piece)
                 self.log.append(meta)
                 done += meta["stop"] - meta["start"]
                 if progress is not None:
                     progress(done, total)
-            return pieces
+                following = next(chunks, None)
+                if following is not None:
+                    running.add(submit(*following))  # type: ignore[no-untyped-call]
         finally:
             if own:
                 client.close()
+
+
+class _Table:
+    """A campaign's table, filled in place as chunks come (in any order): one array per column,
+    ``runs`` rows, row ``i`` for run ``i``."""
+
+    def __init__(self, runs: int) -> None:
+        self.runs = runs
+        self.columns: Dict[str, Any] = {}
+
+    def add(self, piece: "pd.DataFrame") -> None:
+        rows = piece["run"].to_numpy()
+        if not self.columns:
+            row = 0
+            for name in piece.columns:
+                row += piece[name].to_numpy().itemsize
+            need = self.runs * row
+            free = _free_memory()
+            if free is not None and need > free:
+                raise CampaignError(f"runs: the table of {self.runs} runs needs {need / 1e9:.3g} GB, more than the "
+                                    f"{free / 1e9:.3g} GB of memory free; run fewer runs at a time")
+            self.columns = {name: np.empty(self.runs, dtype=piece[name].dtype) for name in piece.columns}
+        for name, column in self.columns.items():
+            column[rows] = piece[name].to_numpy()
+
+    def frame(self) -> "pd.DataFrame":
+        import pandas as pd
+
+        return pd.DataFrame(self.columns, copy=False)
+
+
+def _free_memory() -> Optional[int]:
+    """Bytes of free physical memory, or None where the system does not say."""
+    try:
+        return os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    except (AttributeError, ValueError, OSError):
+        return None
+
+
+class ChunkLog(Sequence[Dict[str, Any]]):
+    """Where and how long each chunk of a campaign ran (:attr:`Campaign.log`): a sequence of
+    dicts ``{"start", "stop", "worker", "host", "seconds"}`` (and ``"pid"`` on Dask), in the order
+    the chunks finished. Kept as arrays, 28 bytes per chunk (the places a chunk ran at are few and
+    kept once), so that a campaign of a million one-run chunks does not hold a million dicts."""
+
+    def __init__(self) -> None:
+        self._start = array.array("q")
+        self._stop = array.array("q")
+        self._seconds = array.array("d")
+        self._place = array.array("I")
+        self._places: List[Tuple[Tuple[str, Any], ...]] = []
+        self._index: Dict[Tuple[Tuple[str, Any], ...], int] = {}
+
+    def append(self, entry: Mapping[str, Any]) -> None:
+        place = tuple(sorted((k, v) for k, v in entry.items() if k not in ("start", "stop", "seconds")))
+        if place not in self._index:
+            self._index[place] = len(self._places)
+            self._places.append(place)
+        self._start.append(int(entry["start"]))
+        self._stop.append(int(entry["stop"]))
+        self._seconds.append(float(entry["seconds"]))
+        self._place.append(self._index[place])
+
+    def __len__(self) -> int:
+        return len(self._start)
+
+    def _entry(self, k: int) -> Dict[str, Any]:
+        entry: Dict[str, Any] = {"start": self._start[k], "stop": self._stop[k]}
+        entry.update(self._places[self._place[k]])
+        entry["seconds"] = self._seconds[k]
+        return entry
+
+    def __getitem__(self, k: Any) -> Any:
+        if isinstance(k, slice):
+            return [self._entry(i) for i in range(*k.indices(len(self)))]
+        if k < 0:
+            k += len(self)
+        if not 0 <= k < len(self):
+            raise IndexError("chunk log index out of range")
+        return self._entry(k)
+
+    def __repr__(self) -> str:
+        return f"ChunkLog({len(self)} chunks)"
+
+
+def reachable(address: str, timeout: float) -> None:
+    """Checks that a Dask scheduler answers at ``address`` (``tcp://host:port``, or
+    ``host:port``) within ``timeout`` seconds, so that a refused connection fails at once rather
+    than after Dask's retries, and a server that is not a Dask scheduler (a web server, say,
+    which Dask's client would wait for forever, or whose bytes it would take for a frame size)
+    fails clearly. A scheduler greets each connection with a message whose first eight bytes
+    count its frames. A malformed address is a :class:`CampaignError`; a refused connection or
+    another kind of server an ``OSError``; no answer a ``TimeoutError``. Other protocols
+    (``tls://``, ``ucx://``, ``inproc://``) are left to Dask."""
+    text = address if "://" in address else "tcp://" + address
+    scheme, _, location = text.partition("://")
+    if scheme != "tcp":
+        return
+    host, colon, port = location.rpartition(":")
+    host = host.strip("[]")
+    if not colon or not host or not port.isdigit() or not 0 < int(port) < 65536:
+        raise CampaignError(f"scheduler: expected an address like tcp://host:8786, given {address!r}")
+    try:
+        with socket.create_connection((host, int(port)), timeout=timeout) as connection:
+            greeting = connection.recv(8, socket.MSG_WAITALL)
+    except socket.timeout:
+        raise TimeoutError(f"cannot reach the Dask scheduler at {address}: no answer within {timeout:g} s (for a "
+                           "slow cluster, give a longer timeout)") from None
+    except OSError as e:
+        raise OSError(f"cannot reach the Dask scheduler at {address}: {e.strerror or e}") from None
+    frames = int.from_bytes(greeting, "little") if len(greeting) == 8 else 0
+    if not 0 < frames < 1000:
+        raise OSError(f"cannot reach the Dask scheduler at {address}: the server there accepts connections "
+                      "but does not answer as a Dask scheduler")
 
 
 def _offset(progress: Callable[[int, int], Any], start: int, total: int) -> Callable[[int, int], Any]:
@@ -714,5 +924,5 @@ def histograms(table: "pd.DataFrame", campaign: Campaign, path: Path) -> Path:
     return path
 
 
-__all__ = ["Campaign", "Dispersion", "CampaignError", "summary", "write_outputs", "histograms",
+__all__ = ["Campaign", "Dispersion", "CampaignError", "ChunkLog", "summary", "write_outputs", "histograms",
            "PARAMETERS", "METRICS"]

@@ -258,13 +258,14 @@ def check_memory(steps: int, n: int, flag: str = "--duration/--dt",
     need, free = sum(parts.values()), free_memory()
     if free is not None and need > free:
         sizes = ", ".join(f"{name} {gb(size)}" for name, size in parts.items())
-        raise CliError(flag, f"{steps:,} steps of {n} joints need about {gb(need)} ({sizes}) but "
+        count = f"{steps:,}" if steps < 1e12 else f"{steps:.3g}"
+        raise CliError(flag, f"{count} steps of {n} joints need about {gb(need)} ({sizes}) but "
                              f"{gb(free)} of memory is free; {advice}")
 
 
-def gb(size: int) -> str:
-    """A size in GB, or TB from 1000 GB."""
-    return f"{size / 1e9:.3g} GB" if size < 1e12 else f"{size / 1e12:,.0f} TB"
+def gb(size: float) -> str:
+    """A size in GB, or TB from 1000 GB (three significant digits: an absurd size stays short)."""
+    return f"{size / 1e9:.3g} GB" if size < 1e12 else f"{size / 1e12:.3g} TB"
 
 
 # ---------------------------------------------------------------------------------------------
@@ -1176,9 +1177,27 @@ def tracking_setup(arm: FlexibleArm, plan: Plan, args: argparse.Namespace) -> Tu
     kp_default, kd_default = servo_gains(arm)
     kp = kp_default if args.kp is None else per_joint(args.kp, "--kp", arm.robot)
     kd = kd_default if args.kd is None else per_joint(args.kd, "--kd", arm.robot)
-    limit = tracking_limit(arm, plan.stops, kp, kd)
+    try:
+        limit = tracking_limit(arm, plan.stops, kp, kd)
+    except ValueError as e:  # gains too large for the eigenvalues to be computed
+        flag = "--kd" if str(e).startswith("kd:") else "--kp"
+        raise CliError(flag, re.sub(r"^k[pd]: ", "", str(e))) from None
     dt, note = tracking_dt(limit, args.dt)
     return dt, kp, kd, limit, note
+
+
+def tracking_steps_flag(args: argparse.Namespace, plan: Plan, dt: float) -> Tuple[str, str]:
+    """The flag that makes the tracking runs too long, and what to do: ``--settle`` when the
+    settling time is what is long, ``--dt`` when it was given, else the gains (a default step
+    below TRACK_DT comes from their RK4 stability limit)."""
+    if args.settle > plan.duration:
+        return "--settle", "shorten --settle"
+    if args.dt is not None or dt >= TRACK_DT:
+        return "--dt", "lengthen --dt or shorten --settle"
+    gains = [flag for flag, given in (("--kp", args.kp), ("--kd", args.kd)) if given is not None]
+    flag = "/".join(gains) or "--dt"
+    return flag, (f"the step, {dt:.3g} s, is that short because of the tracking PD's RK4 stability limit; "
+                  f"lower {flag}")
 
 
 def plan_command(args: argparse.Namespace) -> int:
@@ -1192,9 +1211,12 @@ def plan_command(args: argparse.Namespace) -> int:
         if note:
             print(note)
     steps = math.ceil((1.01 * plan.duration + args.settle) / dt)
-    check_memory(steps, arm.dof, "--dt", "lengthen --dt or shorten --settle")
+    check_memory(steps, arm.dof, *tracking_steps_flag(args, plan, dt))
     try:
         comparison = compare(job.name, plan, dt, kp, kd, args.settle)
+    except ValueError as e:  # a step the runs refuse: longer than a plan that the limits made short
+        flag = "--dt" if args.dt is not None else "--motor-torque/--joint-speed"
+        raise CliError(flag, re.sub(r"^dt: ", "" if flag == "--dt" else "dt = ", str(e))) from None
     except SimulationError as e:
         print(f"orbitflex: the tracking run failed: {failure_reason(e)}; no outputs written (exit code 1)",
               file=sys.stderr)
@@ -1809,6 +1831,9 @@ def build_parser() -> Parser:
     camp.add_argument("--runs", type=at_least_one, default=None, help="number of runs (default: the file's)")
     camp.add_argument("--scheduler", metavar="ADDRESS", default=None,
                       help="a Dask scheduler (tcp://host:8786); default: run here on every core")
+    camp.add_argument("--scheduler-timeout", metavar="S", type=positive, default=10.0,
+                      help="how long to wait for the scheduler to answer (default %(default)s s; a refused "
+                           "connection fails at once)")
     camp.add_argument("--out", metavar="DIR", default="campaign_out",
                       help="output folder, created if missing (default %(default)s)")
     camp.add_argument("--chunk-runs", type=at_least_one, default=None, metavar="K",
@@ -1847,6 +1872,12 @@ def campaign_command(args: argparse.Namespace) -> int:
     except ModelError as e:
         raise CliError("FILE", f"{args.file}: {e}" if not str(e).startswith(args.file) else str(e)) from None
     runs = args.runs if args.runs is not None else campaign.runs
+    if args.scheduler:
+        try:
+            campaigns.reachable(args.scheduler, args.scheduler_timeout)
+        except (ModelError, OSError) as e:  # TimeoutError is an OSError
+            message = re.sub(r"^scheduler: ", "", str(e)).replace("a longer timeout", "a longer --scheduler-timeout")
+            raise CliError("--scheduler", message) from None
     where = f"on the Dask cluster at {args.scheduler}" if args.scheduler else "here"
     print(f"campaign {campaign.name}: {runs} runs of {campaign.duration:g} s (dt = {campaign.dt:g} s, "
           f"{campaign.steps} steps), {where}")
@@ -1855,9 +1886,10 @@ def campaign_command(args: argparse.Namespace) -> int:
     started = time.time()
     try:
         table = campaign.run(runs=runs, scheduler=args.scheduler, chunk_runs=args.chunk_runs,
-                             threads=args.threads, progress=progress)
+                             threads=args.threads, progress=progress, timeout=args.scheduler_timeout)
     except ModelError as e:
-        raise CliError("FILE", str(e)) from None
+        flag = "--runs" if str(e).startswith("runs:") and args.runs is not None else "FILE"
+        raise CliError(flag, re.sub(r"^runs: ", "", str(e)) if flag == "--runs" else str(e)) from None
     except (OSError, TimeoutError) as e:
         if args.scheduler:
             raise CliError("--scheduler", f"cannot reach the Dask scheduler at {args.scheduler}: {e}") from None

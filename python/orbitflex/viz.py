@@ -25,6 +25,8 @@ from __future__ import annotations
 
 import base64
 import gzip
+import hashlib
+import html
 import json
 import math
 import re
@@ -112,12 +114,18 @@ def _material(rgba: Optional[Sequence[float]]) -> Any:
 
 @dataclass
 class _MeshData:
-    """A mesh file read once: its contents for meshcat, and for a DAE the textures it names,
-    embedded as data URIs (``resources``), with a note for each one not found."""
+    """A mesh file read once: its contents for meshcat (a DAE's texture references rewritten to
+    keys of ``resources``), and for a DAE its textures as data URIs (``resources``), with a note
+    for each one not embedded."""
 
     contents: Union[bytes, str]
     resources: Dict[str, str]
     missing: List[str]
+
+    @property
+    def size(self) -> int:
+        """Bytes embedded: the file and its textures."""
+        return len(self.contents) + sum(len(r) for r in self.resources.values())
 
 
 _MIME = {".png": "image/png", ".jpg": "image/jpeg", ".jpeg": "image/jpeg", ".gif": "image/gif",
@@ -125,6 +133,48 @@ _MIME = {".png": "image/png", ".jpg": "image/jpeg", ".jpeg": "image/jpeg", ".gif
 
 #: The largest texture embedded (bytes).
 MAX_TEXTURE_BYTES = 16_000_000
+
+#: The most mesh bytes (files and their textures) one page or viewer embeds, counting each copy
+#: embedded: a mesh drawn again with the same colour is copied by the page, not embedded again.
+MAX_PAGE_MESH_BYTES = 256_000_000
+
+#: What a texture that is not embedded becomes: one white pixel, so the mesh keeps its own
+#: colours and nothing is fetched.
+_BLANK_TEXTURE = ("data:image/png;base64,"
+                  "iVBORw0KGgoAAAANSUhEUgAAAAEAAAABCAIAAACQd1PeAAAADElEQVR4nGP4//8/AAX+Av4N70a4AAAAAElFTkSuQmCC")
+
+# a URL scheme (http:, https:, ftp:, blob:, ...) or a network-path reference (//host/...); one
+# letter before the colon is a Windows drive
+_NETWORK = re.compile(r"^(?:[A-Za-z][A-Za-z0-9+.\-]+:|//)")
+
+
+def _texture(mesh: Path, name: str, missing: List[str]) -> str:
+    """The data URI of the texture a DAE names (``name``, beside the mesh), or a blank one with
+    a note in ``missing``."""
+    if name.startswith("data:"):
+        return name  # already inline
+    if _NETWORK.match(name) and not name.startswith("file:"):
+        missing.append(f"texture '{name}': a network address; the page loads nothing, so it is not embedded")
+        return _BLANK_TEXTURE
+    image = mesh.parent / re.sub(r"^file://(?:localhost)?", "", name)
+    mime = _MIME.get(image.suffix.lower())
+    try:
+        if mime is None or not image.is_file() or image.stat().st_size > MAX_TEXTURE_BYTES:
+            raise OSError("not found, or not a PNG/JPEG/GIF/BMP/WebP/TGA image under 16 MB")
+        encoded = base64.b64encode(image.read_bytes()).decode("ascii")
+    except OSError as e:
+        missing.append(f"texture '{name}': {e}")
+        return _BLANK_TEXTURE
+    return f"data:{mime};base64,{encoded}"
+
+
+def _xml_text(markup: str) -> str:
+    """The text an XML parser gives for an element's content: comments dropped, CDATA
+    unwrapped, tags (COLLADA 1.5's ``<ref>``) dropped, entities decoded, whitespace trimmed."""
+    markup = re.sub(r"<!--.*?-->", "", markup, flags=re.S)
+    parts = re.split(r"<!\[CDATA\[(.*?)\]\]>", markup, flags=re.S)
+    return "".join(part if k % 2 else html.unescape(re.sub(r"<[^>]*>", "", part))
+                   for k, part in enumerate(parts)).strip()
 
 
 def _mesh_data(path: Path, fmt: str) -> _MeshData:
@@ -135,30 +185,53 @@ def _mesh_data(path: Path, fmt: str) -> _MeshData:
     resources: Dict[str, str] = {}
     missing: List[str] = []
     if fmt == "dae":
-        # an <image>'s <init_from> names its file (COLLADA 1.4; 1.5 wraps it in <ref>); other
-        # <init_from>s name an image by id
-        pattern = r"<image\b[^>]*>(?:(?!</image>).)*?<init_from>\s*(?:<ref>)?\s*([^<]+?)\s*(?:</ref>)?\s*</init_from>"
-        for name in sorted(set(re.findall(pattern, text, flags=re.S))):
-            if name.startswith("#"):
-                continue
-            image = path.parent / name.replace("file://", "", 1)
-            mime = _MIME.get(image.suffix.lower())
-            try:
-                if mime is None or not image.is_file() or image.stat().st_size > MAX_TEXTURE_BYTES:
-                    raise OSError("not found, or not a PNG/JPEG/GIF/BMP/WebP/TGA image under 16 MB")
-                encoded = base64.b64encode(image.read_bytes()).decode("ascii")
-            except OSError as e:
-                missing.append(f"texture '{name}': {e}")
-                continue
-            resources[name] = f"data:{mime};base64,{encoded}"
+        # Each <image>'s <init_from> names its file (COLLADA 1.4; 1.5 wraps it in <ref>); other
+        # <init_from>s name an image by id. Every file reference is rewritten to a key of
+        # `resources`, the texture embedded or a blank one, so that three.js (which reads the
+        # element's text) asks for nothing that is not in the page, whatever whitespace, scheme,
+        # CDATA, comments or entities the name is written with.
+        keys: Dict[str, str] = {}
+
+        def reference(match: "re.Match[str]") -> str:
+            name = _xml_text(match.group(1))
+            if not name or name.startswith("#"):
+                return match.group(0)
+            if name not in keys:
+                keys[name] = f"orbitflex-texture-{len(keys)}"
+                resources[keys[name]] = _texture(path, name, missing)
+            return f"<init_from>{keys[name]}</init_from>"
+
+        def image(match: "re.Match[str]") -> str:
+            return re.sub(r"<init_from>(.*?)</init_from>", reference, match.group(0), flags=re.S)
+
+        text = re.sub(r"<image\b[^>]*/>|<image\b.*?</image>", image, text, flags=re.S)
     return _MeshData(text, resources, missing)
 
 
+class _OverBudget(Exception):
+    """A mesh that would take the meshes embedded past :data:`MAX_PAGE_MESH_BYTES`."""
+
+
+class _Budget:
+    """The mesh bytes embedded so far, against :data:`MAX_PAGE_MESH_BYTES`."""
+
+    def __init__(self) -> None:
+        self.spent = 0
+
+    def spend(self, size: int) -> None:
+        if self.spent + size > MAX_PAGE_MESH_BYTES:
+            raise _OverBudget(f"not drawn: with it the meshes embedded would pass {MAX_PAGE_MESH_BYTES:,} "
+                              f"bytes ({self.spent:,} embedded, {size:,} more)")
+        self.spent += size
+
+
 def _objects(
-    shape: Mapping[str, Any], rgba: Optional[Sequence[float]], meshes: Dict[Path, _MeshData]
+    shape: Mapping[str, Any], rgba: Optional[Sequence[float]], meshes: Dict[Path, _MeshData],
+    budget: Optional[_Budget] = None,
 ) -> List[Tuple[Any, np.ndarray]]:
     """The meshcat objects of one shape of :meth:`Robot.scene`, each with its matrix in the
-    frame. Mesh files are read once into ``meshes``."""
+    frame. Mesh files are read once into ``meshes``; each copy of a mesh drawn is counted in
+    ``budget``."""
     g = _meshcat().geometry
     origin = _matrix(shape["origin"])
     kind = shape["kind"]
@@ -184,6 +257,8 @@ def _objects(
     if path not in meshes:
         meshes[path] = _mesh_data(path, fmt)
     mesh = meshes[path]
+    if budget is not None:
+        budget.spend(mesh.size)
     if rgba is None and fmt in ("dae", "obj"):
         return [(_MeshFile(mesh.contents, fmt, mesh.resources), origin @ scale)]
     return [(g.Mesh(g.MeshGeometry(mesh.contents, fmt), material), origin @ scale)]
@@ -219,8 +294,9 @@ def _safe(name: str) -> str:
 @dataclass
 class _Scene:
     """The set-object commands of a model's shapes, by frame path. With ``share``, a mesh drawn
-    again (same file, colour and scale) is a ``{"clone": path, "path": path, "matrix": …}``
-    item that the page copies from its first drawing instead of a second copy of the file."""
+    again (same file and colour; the matrix carries its scale) is a ``{"clone": path, "path":
+    path, "matrix": …}`` item that the page copies from its first drawing instead of a second
+    copy of the file."""
 
     names: List[str]
     commands: List[Dict[str, Any]] = field(default_factory=list)
@@ -252,14 +328,22 @@ def _scene(
     scene = _Scene(names=names, warnings=list(problems))
     meshes: Dict[Path, _MeshData] = {}
     drawn_meshes: Dict[Tuple[Any, ...], List[str]] = {}
+    budget = _Budget()
     for root, drawn, override in roots:
         count: Dict[int, int] = {}
         for shape in drawn:
             rgba = override if override is not None else shape["color"]
             link = robot.frame_names[shape["frame"]]
+            # a mesh drawn again in the same colour is a copy of its first drawing (the copy's
+            # matrix carries its own scale), embedded once
+            key = (shape["path"], tuple(rgba or ())) if shape["kind"] == "mesh" else None
+            shared = share and key in drawn_meshes
             try:
-                objects = _objects(shape, rgba, meshes)
+                objects = _objects(shape, rgba, meshes, None if shared else budget)
             except OSError as e:  # the file went away or cannot be read since it was checked
+                scene.warnings.append(f"link '{link}', mesh '{shape.get('path')}': {e}")
+                continue
+            except _OverBudget as e:
                 scene.warnings.append(f"link '{link}', mesh '{shape.get('path')}': {e}")
                 continue
             for obj, matrix in objects:
@@ -267,10 +351,8 @@ def _scene(
                 count[shape["frame"]] = k + 1
                 parts = [root, names[shape["frame"]], f"shape{k}"]
                 column_major = [float(v) for v in matrix.T.flatten()]
-                key = None
-                if shape["kind"] == "mesh":
-                    key = (shape["path"], tuple(rgba or ()), tuple(shape["scale"]))
-                    if share and key in drawn_meshes:
+                if key is not None:
+                    if shared:
                         scene.commands.append({"clone": drawn_meshes[key], "path": parts, "matrix": column_major})
                         continue
                     drawn_meshes[key] = parts
@@ -458,7 +540,21 @@ def animation_html(
         "VIEWER": viewer_js.replace("</script", "<\\/script"),
         "DATA": json.dumps(info).replace("<", "\\u003c").replace(">", "\\u003e").replace("&", "\\u0026"),
     }
-    return re.sub(r"__(TITLE|VIEWER|DATA)__", lambda m: fills[m.group(1)], _PAGE)
+    page = re.sub(r"__(TITLE|VIEWER|DATA)__", lambda m: fills[m.group(1)], _PAGE)
+    return page.replace("__CSP__", _content_security_policy(page), 1)
+
+
+def _content_security_policy(page: str) -> str:
+    """The page's Content-Security-Policy: nothing loads from anywhere. Its two scripts run by
+    their hashes (an injected script would not), images and fetches may only be data: and blob:
+    URIs made in the page, and everything else is refused."""
+    hashes = " ".join(
+        "'sha256-" + base64.b64encode(hashlib.sha256(script.encode("utf-8")).digest()).decode("ascii") + "'"
+        for script in re.findall(r"<script>(.*?)</script>", page, flags=re.S)
+    )
+    return ("default-src 'none'; script-src " + hashes + "; style-src 'unsafe-inline'; "
+            "img-src data: blob:; connect-src data: blob:; font-src data:; base-uri 'none'; "
+            "form-action 'none'")
 
 
 def _g(value: float) -> str:
@@ -678,6 +774,7 @@ _PAGE = r"""<!DOCTYPE html>
 <html lang="en">
 <head>
 <meta charset="utf-8">
+<meta http-equiv="Content-Security-Policy" content="__CSP__">
 <title>__TITLE__</title>
 <style>
   html, body { margin: 0; height: 100%; overflow: hidden; background: #0b0e17;

@@ -52,8 +52,10 @@
 
 use super::data::{check_data, Data};
 use crate::args::{check_vector, Loads, RigidState};
-use crate::error::Result;
+use crate::dynamics::{forward_inputs, inverse_inputs};
+use crate::error::{Error, Result};
 use crate::model::Robot;
+use crate::overflow::check_result;
 use crate::spatial::{skew, Force, Inertia, Mat3, Mat6, Motion, Transform, Vec3};
 use nalgebra::DMatrix;
 
@@ -126,18 +128,40 @@ struct Scratch {
 }
 
 impl Derivatives {
-    /// Buffers for `n` joints and `k` end-effectors.
-    fn new(n: usize, k: usize) -> Self {
+    /// Buffers for `n` joints and `k` end-effectors, allocated fallibly: the O(n²) ones take
+    /// hundreds of megabytes for a thousand joints.
+    fn try_new(n: usize, k: usize) -> Result<Self> {
         let (rows, bodies) = (6 + n, n + 1);
-        Self {
-            id_q: DMatrix::zeros(rows, n),
-            id_v: DMatrix::zeros(rows, rows),
-            id_ee_wrench: DMatrix::zeros(rows, 6 * k),
-            fd_q: DMatrix::zeros(rows, n),
-            fd_v: DMatrix::zeros(rows, rows),
-            fd_tau: DMatrix::zeros(rows, n),
-            fd_base_wrench: DMatrix::zeros(rows, 6),
-            fd_ee_wrench: DMatrix::zeros(rows, 6 * k),
+        let columns = 3 * n + 18;
+        // the O(n²) buffers: six matrices of rows × (n or rows or 6k), 𝓜⁻¹, the per-direction
+        // forces and motions (48 bytes each) and the right-hand sides
+        let bytes = || -> Option<usize> {
+            let matrices = rows.checked_mul(3 * n + 3 * rows + 6 + 12 * k)?;
+            let directions = bodies.checked_mul(columns)?.checked_mul(2 * 48)?;
+            matrices
+                .checked_add(rows.checked_mul(columns)?)?
+                .checked_mul(8)?
+                .checked_add(directions)
+        };
+        let need = || Error::OutOfMemory {
+            what: "the derivatives".into(),
+            bytes: bytes(),
+            hint: format!(
+                "their buffers grow as n² (n = {n} joints); differentiate a smaller model"
+            ),
+        };
+        let matrix = |r: usize, c: usize| -> Result<DMatrix<f64>> {
+            Ok(DMatrix::from_vec(r, c, filled(r * c, 0.0, &need)?))
+        };
+        Ok(Self {
+            id_q: matrix(rows, n)?,
+            id_v: matrix(rows, rows)?,
+            id_ee_wrench: matrix(rows, 6 * k)?,
+            fd_q: matrix(rows, n)?,
+            fd_v: matrix(rows, rows)?,
+            fd_tau: matrix(rows, n)?,
+            fd_base_wrench: matrix(rows, 6)?,
+            fd_ee_wrench: matrix(rows, 6 * k)?,
             scratch: Scratch {
                 to_body: vec![Transform::identity(); bodies],
                 axis: vec![Motion::zero(); bodies],
@@ -154,21 +178,29 @@ impl Derivatives {
                 angle_force: vec![Force::zero(); bodies],
                 rate_force: vec![Force::zero(); bodies],
                 stamp: vec![0; bodies],
-                inverse: DMatrix::zeros(rows, rows),
+                inverse: matrix(rows, rows)?,
                 u_base: vec![Force::zero(); bodies],
                 inverse_d: vec![0.0; bodies],
                 base_inverse: Mat6::zeros(),
-                column_p: vec![Force::zero(); bodies * (3 * n + 18)],
-                column_acc: vec![Motion::zero(); bodies * (3 * n + 18)],
+                column_p: filled(bodies * columns, Force::zero(), &need)?,
+                column_acc: filled(bodies * columns, Motion::zero(), &need)?,
                 path_c: Vec::new(),
                 path_u: Vec::new(),
                 subtree: Vec::new(),
-                rhs: vec![0.0; rows * (3 * n + 18)],
+                rhs: filled(rows * columns, 0.0, &need)?,
                 tile: Tile::default(),
                 qdd: vec![0.0; n],
             },
-        }
+        })
     }
+}
+
+/// `len` copies of `value`, allocated fallibly: `Err(need())` when they do not fit.
+fn filled<T: Clone>(len: usize, value: T, need: &dyn Fn() -> Error) -> Result<Vec<T>> {
+    let mut v = Vec::new();
+    v.try_reserve_exact(len).map_err(|_| need())?;
+    v.resize(len, value);
+    Ok(v)
 }
 
 /// A spatial inertia about the base origin in base axes, as subtree sums want it: mass `m`,
@@ -256,7 +288,8 @@ pub fn rnea_derivatives<'a>(
     check_vector("base_acc", base_acc, 6)?;
     check_vector("qdd", qdd, robot.dof())?;
     crate::args::check_ee_wrench(robot, ee_wrench)?;
-    let mut d = take_derivatives(data, robot.dof(), robot.end_effectors().len());
+    size_derivatives(data, robot.dof(), robot.end_effectors().len())?;
+    let mut d = std::mem::take(&mut data.derivatives);
     for i in 1..=robot.dof() {
         data.x[i] = robot.joint_transform(i, state.q[i - 1]);
     }
@@ -271,6 +304,13 @@ pub fn rnea_derivatives<'a>(
     );
     ee_force_map(robot, &mut d);
     data.derivatives = d;
+    let d = &data.derivatives;
+    // ∂ID/∂f depends on q alone (the EE Jacobians), finite for any finite q
+    check_result(
+        "inverse_dynamics_derivatives",
+        &[d.id_q.as_slice(), d.id_v.as_slice()],
+        &inverse_inputs(state, base_acc, qdd, ee_wrench),
+    )?;
     Ok(&data.derivatives)
 }
 
@@ -279,7 +319,8 @@ pub fn rnea_derivatives<'a>(
 /// `fd_base_wrench`, `fd_ee_wrench`; the inverse-dynamics derivatives at `a = FD` are left in
 /// `id_q`, `id_v`, `id_ee_wrench`). `data.ddq` holds the forward dynamics.
 ///
-/// The first call allocates the O(n²) outputs; later calls reuse them.
+/// The first call allocates the O(n²) outputs; later calls reuse them. Derivatives that
+/// overflow (inputs too large for floating point) are an error naming the input.
 pub fn aba_derivatives<'a>(
     robot: &Robot,
     data: &'a mut Data,
@@ -287,10 +328,33 @@ pub fn aba_derivatives<'a>(
     tau: &[f64],
     loads: &Loads,
 ) -> Result<&'a Derivatives> {
+    aba_derivatives_into(robot, data, state, tau, loads)?;
+    let d = &data.derivatives;
+    let base_wrench = loads.base_wrench.to_array();
+    // ∂FD/∂τ, ∂FD/∂f_B and ∂FD/∂f are columns of 𝓜⁻¹ and depend on q alone, finite for any
+    // finite q: only the blocks that grow with the inputs are scanned
+    check_result(
+        "forward_dynamics_derivatives",
+        &[data.ddq.as_slice(), d.fd_q.as_slice(), d.fd_v.as_slice()],
+        &forward_inputs(state, tau, loads, &base_wrench),
+    )?;
+    Ok(&data.derivatives)
+}
+
+/// [`aba_derivatives`] into `data.derivatives`, without looking at whether they overflowed
+/// (for callers that check their own, final results).
+pub(crate) fn aba_derivatives_into(
+    robot: &Robot,
+    data: &mut Data,
+    state: &RigidState,
+    tau: &[f64],
+    loads: &Loads,
+) -> Result<()> {
     super::aba(robot, data, state, tau, loads)?;
     let n = robot.dof();
     let k = robot.end_effectors().len();
-    let mut d = take_derivatives(data, n, k);
+    size_derivatives(data, n, k)?;
+    let mut d = std::mem::take(&mut data.derivatives);
     let acc = Motion::from_slice(&data.ddq.as_slice()[..6]);
     let mut qdd = std::mem::take(&mut d.scratch.qdd);
     qdd.copy_from_slice(&data.ddq.as_slice()[6..]);
@@ -347,7 +411,7 @@ pub fn aba_derivatives<'a>(
     }
     d.scratch.rhs = rhs;
     data.derivatives = d;
-    Ok(&data.derivatives)
+    Ok(())
 }
 
 /// Up to this many joints, `∂FD/∂x = −𝓜⁻¹ ∂ID/∂x` is a dense product with the formed `𝓜⁻¹`
@@ -355,14 +419,24 @@ pub fn aba_derivatives<'a>(
 /// crossover (BENCHMARKS.md, "Derivatives").
 pub(crate) const DENSE_PRODUCTS_UP_TO: usize = 28;
 
-/// The derivative buffers, sized for `n` joints (allocated on first use), moved out of `data`
-/// for the duration of a call.
-fn take_derivatives(data: &mut Data, n: usize, k: usize) -> Derivatives {
+/// The derivative buffers in `data` sized for `n` joints and `k` end-effectors (allocated on
+/// first use); the caller moves them out of `data` for the duration of the call (moved out
+/// through a `Result`, the struct was copied once more: 250 instructions a call).
+fn size_derivatives(data: &mut Data, n: usize, k: usize) -> Result<()> {
     let d = &data.derivatives;
     if d.id_q.nrows() != 6 + n || d.id_ee_wrench.ncols() != 6 * k {
-        data.derivatives = Derivatives::new(n, k);
+        resize_derivatives(data, n, k)?;
     }
-    std::mem::take(&mut data.derivatives)
+    Ok(())
+}
+
+/// New buffers for `n` joints and `k` end-effectors in `data` (the old ones go first).
+#[cold]
+#[inline(never)]
+fn resize_derivatives(data: &mut Data, n: usize, k: usize) -> Result<()> {
+    data.derivatives = Derivatives::default();
+    data.derivatives = Derivatives::try_new(n, k)?;
+    Ok(())
 }
 
 /// `∂ID/∂f = [Φ_{e,B}ᵀ; J_eᵀ]` per end-effector `e`, from the transforms and axes

@@ -42,7 +42,7 @@ pub use rnea::{bias_forces, rnea};
 
 pub(crate) use aba::aba_unchecked;
 pub(crate) use data::check_data;
-pub(crate) use derivatives::fd_directional;
+pub(crate) use derivatives::{aba_derivatives_into, fd_directional};
 pub(crate) use kinematics::{
     ee_from_base, frame_poses_unchecked, kinetic_energy_from_velocities, momentum_from_velocities,
     velocities_unchecked,

@@ -11,6 +11,7 @@ use crate::dynamics::{momentum_in_inertial_frame, Method};
 use crate::error::{Error, Result};
 use crate::integrate::{self, Controller, Rk4, SimulationFailure, Trajectory, Wrenches};
 use crate::model::Robot;
+use crate::overflow::{check_result_named, Input};
 use crate::spatial::{quaternion_to_rotation, Vec3};
 
 /// A floating-base arm with Spong flexible joints: the robot, its joint parameters and the
@@ -216,6 +217,7 @@ impl FlexibleArm {
         check_vector("dx", dx, self.tangent_size())?;
         let mut out = vec![0.0; x.len()];
         self.layout().integrate(x, dx, &mut out);
+        self.check_overflow("integrate", &[&out], &[("dx", dx, 1), ("x", x, 1)])?;
         Ok(out)
     }
 
@@ -231,6 +233,7 @@ impl FlexibleArm {
         normalise_quaternion(&mut b[layout.quaternion()]);
         let mut out = vec![0.0; self.tangent_size()];
         layout.difference(&a, &b, &mut out);
+        self.check_overflow("difference", &[&out], &[("x1", x1, 1), ("x0", x0, 1)])?;
         Ok(out)
     }
 
@@ -253,7 +256,13 @@ impl FlexibleArm {
         self.check_state(x)?;
         inputs.check(&self.robot)?;
         check_length("xdot", xdot.len(), self.layout().len())?;
-        self.derivative_unchecked(&mut ws.data, &mut ws.tau, x, inputs, xdot)
+        self.derivative_unchecked(&mut ws.data, &mut ws.tau, x, inputs, xdot)?;
+        let base_wrench = inputs.loads.base_wrench.to_array();
+        self.check_overflow(
+            "derivative",
+            &[xdot],
+            &overflow_inputs(x, inputs, &base_wrench, None),
+        )
     }
 
     /// The derivative without argument checks; allocation-free on the recursive path. `tau`
@@ -345,7 +354,14 @@ impl FlexibleArm {
         inputs.check(&self.robot)?;
         let mut x = x.to_vec();
         normalise_quaternion(&mut x[self.layout().quaternion()]);
-        jacobians::derivative_jacobians(self, ws, &x, inputs)
+        let out = jacobians::derivative_jacobians(self, ws, &x, inputs)?;
+        let base_wrench = inputs.loads.base_wrench.to_array();
+        self.check_overflow(
+            "derivative_jacobians",
+            &out.blocks(),
+            &overflow_inputs(&x, inputs, &base_wrench, None),
+        )?;
+        Ok(out)
     }
 
     /// The Jacobians of one RK4 [`step`](Self::step) of `dt` from `x` with `inputs` held, in
@@ -364,7 +380,30 @@ impl FlexibleArm {
         inputs.check(&self.robot)?;
         let mut x = x.to_vec();
         normalise_quaternion(&mut x[self.layout().quaternion()]);
-        Ok(jacobians::step_jacobians(self, ws, &x, dt, inputs)?.0)
+        let out = jacobians::step_jacobians(self, ws, &x, dt, inputs)?.0;
+        let base_wrench = inputs.loads.base_wrench.to_array();
+        self.check_overflow(
+            "step_jacobians",
+            &out.blocks(),
+            &overflow_inputs(&x, inputs, &base_wrench, Some(&[dt])),
+        )?;
+        Ok(out)
+    }
+
+    /// [`check_result`] for a call at a state, naming the state's element (`x[33]` is
+    /// `qd[wrist_roll]`) in the message.
+    pub(crate) fn check_overflow(
+        &self,
+        call: &str,
+        results: &[&[f64]],
+        inputs: &[Input<'_>],
+    ) -> Result<()> {
+        let element = |input: &str, index: usize| {
+            let names = self.robot.joint_names();
+            (input == "x" || input == "x0" || input == "x1")
+                .then(|| self.layout().element_names(&names).swap_remove(index))
+        };
+        check_result_named(call, results, inputs, &element)
     }
 
     /// Spring torques `τ = k (θ − q) + d (θ̇ − q̇)` (N·m) at state `x` into `out` (n).
@@ -423,4 +462,22 @@ impl FlexibleArm {
     pub fn rk4_stability_limit(&self, x: &[f64], u: &dyn Controller) -> Result<StabilityLimit> {
         stability::rk4_stability_limit(self, x, &u.feedback())
     }
+}
+
+/// The inputs of a call at state `x` for [`check_result`]: the step `dt` (a step's Jacobians
+/// grow as its fourth power), the state (its rates enter squared), the motor torques and the
+/// wrenches.
+fn overflow_inputs<'a>(
+    x: &'a [f64],
+    inputs: &'a Inputs,
+    base_wrench: &'a [f64; 6],
+    dt: Option<&'a [f64]>,
+) -> [Input<'a>; 5] {
+    [
+        ("dt", dt.unwrap_or(&[]), 4),
+        ("x", x, 2),
+        ("u", inputs.u, 1),
+        ("base_wrench", base_wrench, 1),
+        ("ee_wrench", inputs.loads.ee_wrench, 1),
+    ]
 }

@@ -24,7 +24,7 @@ use super::arm::{ArmWorkspace, FlexibleArm, Inputs};
 use super::state::{normalise_quaternion, quaternion_product};
 use crate::algorithms;
 use crate::args::RigidState;
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::spatial::{quaternion_to_rotation, skew, Mat3, Vec3};
 use nalgebra::{DMatrix, DMatrixViewMut};
 
@@ -44,6 +44,16 @@ pub struct Jacobians {
 }
 
 impl Jacobians {
+    /// The four blocks' numbers.
+    pub(crate) fn blocks(&self) -> [&[f64]; 4] {
+        [
+            self.x.as_slice(),
+            self.u.as_slice(),
+            self.base_wrench.as_slice(),
+            self.ee_wrench.as_slice(),
+        ]
+    }
+
     fn zeros(rows: usize, state_columns: usize, n: usize, k: usize) -> Self {
         Self {
             x: DMatrix::zeros(rows, state_columns),
@@ -51,6 +61,70 @@ impl Jacobians {
             base_wrench: DMatrix::zeros(rows, 6),
             ee_wrench: DMatrix::zeros(rows, 6 * k),
         }
+    }
+
+    /// [`Jacobians::zeros`], allocated fallibly: `Err(need())` when they do not fit.
+    fn try_zeros(
+        rows: usize,
+        state_columns: usize,
+        n: usize,
+        k: usize,
+        need: &dyn Fn() -> Error,
+    ) -> Result<Self> {
+        Ok(Self {
+            x: try_matrix(rows, state_columns, need)?,
+            u: try_matrix(rows, n, need)?,
+            base_wrench: try_matrix(rows, 6, need)?,
+            ee_wrench: try_matrix(rows, 6 * k, need)?,
+        })
+    }
+}
+
+/// A zero matrix, allocated fallibly.
+fn try_matrix(rows: usize, columns: usize, need: &dyn Fn() -> Error) -> Result<DMatrix<f64>> {
+    let mut values = Vec::new();
+    grow(
+        &mut values,
+        rows.checked_mul(columns).ok_or_else(need)?,
+        need,
+    )?;
+    Ok(DMatrix::from_vec(rows, columns, values))
+}
+
+/// `buffer` resized to `len` (new numbers zero), allocated fallibly.
+fn grow(buffer: &mut Vec<f64>, len: usize, need: &dyn Fn() -> Error) -> Result<()> {
+    buffer
+        .try_reserve_exact(len.saturating_sub(buffer.len()))
+        .map_err(|_| need())?;
+    buffer.resize(len, 0.0);
+    Ok(())
+}
+
+/// [`too_large`] for [`step_jacobians`]: six blocks of `m × c` (the stage's Jacobians, `dk`,
+/// the previous `dk`, their sum, the rows of `K` and the result).
+fn step_too_large(arm: &FlexibleArm) -> Error {
+    let layout = arm.layout();
+    let (m, n) = (layout.len(), layout.n);
+    let c = m + n + 6 + 6 * arm.robot().end_effectors().len();
+    too_large("step_jacobians", n, m, c, 6)
+}
+
+/// The error for Jacobians too large for memory: `call`'s `blocks` buffers of `rows × columns`
+/// numbers for an arm of `n` joints.
+fn too_large(call: &str, n: usize, rows: usize, columns: usize, blocks: usize) -> Error {
+    let advice = match blocks {
+        1 => "linearise a smaller model".to_string(),
+        _ => format!(
+            "it keeps {blocks} blocks of that size; linearise a smaller model, or use \
+             derivative_jacobians (one block)"
+        ),
+    };
+    Error::OutOfMemory {
+        what: call.into(),
+        bytes: rows
+            .checked_mul(columns)
+            .and_then(|size| size.checked_mul(8 * blocks)),
+        hint: format!("the Jacobians of a {n}-joint arm are {rows} × {columns} numbers; {advice}"),
     }
 }
 
@@ -105,7 +179,10 @@ pub(crate) fn derivative_jacobians(
 ) -> Result<Jacobians> {
     let layout = arm.layout();
     let k = arm.robot().end_effectors().len();
-    let mut out = Jacobians::zeros(layout.tangent_len(), layout.tangent_len(), layout.n, k);
+    let t = layout.tangent_len();
+    let c = t + layout.n + 6 + 6 * k;
+    let need = || too_large("derivative_jacobians", layout.n, t, c, 1);
+    let mut out = Jacobians::try_zeros(t, t, layout.n, k, &need)?;
     jacobians_into(arm, ws, x, inputs, Coordinates::Tangent, &mut out)?;
     Ok(out)
 }
@@ -151,8 +228,12 @@ pub(crate) fn step_jacobians_with(
     // the buffers live in the workspace: fresh megabytes per call would cost page faults
     let mut scratch = std::mem::take(&mut ws.jacobians);
     let k = arm.robot().end_effectors().len();
+    // the stage's Jacobians, dk, the previous dk, their sum, the rows of K and the result: six
+    // m × c blocks at most, allocated fallibly (a 1500-joint arm needs 2.2 GB)
+    let need = || step_too_large(arm);
     if scratch.stage.x.nrows() != m || scratch.stage.ee_wrench.ncols() != 6 * k {
-        scratch.stage = Jacobians::zeros(m, m, n, k);
+        scratch.stage = Jacobians::zeros(0, 0, 0, 0);
+        scratch.stage = Jacobians::try_zeros(m, m, n, k, &need)?;
     }
     let result = stage_chain(arm, ws, x, dt, inputs, dense_products, &mut scratch);
     ws.jacobians = scratch;
@@ -197,6 +278,7 @@ fn stage_chain(
     dense_products: bool,
     scratch: &mut StepScratch,
 ) -> Result<(Jacobians, Vec<f64>)> {
+    let need = &|| step_too_large(arm);
     let layout = arm.layout();
     let (m, n) = (layout.len(), layout.n);
     let c = m + n + 6 + 6 * arm.robot().end_effectors().len();
@@ -212,10 +294,10 @@ fn stage_chain(
     } = scratch;
     // row-major m × c: this stage's dk_s, the previous one, and J = 𝟙 + dt/6 Σ w_s dk_s
     for buffer in [&mut *dk, &mut *previous, &mut *k_rows] {
-        buffer.resize(m * c, 0.0);
+        grow(buffer, m * c, need)?;
     }
     total.clear();
-    total.resize(m * c, 0.0);
+    grow(total, m * c, need)?;
     for r in 0..m {
         total[r * c + r] = 1.0;
     }
@@ -263,7 +345,7 @@ fn stage_chain(
         }
         std::mem::swap(dk, previous);
         if s > 0 && !dense_products {
-            directional_rows(arm, ws, &xs, previous, c, directional, spring);
+            directional_rows(arm, ws, &xs, previous, c, directional, spring)?;
         }
         let dense_rows = dk[dense.start * c..dense.end * c].chunks_exact_mut(c);
         for (i, (row, k_row)) in dense_rows.zip(k_rows.chunks_exact(c)).enumerate() {
@@ -309,7 +391,7 @@ fn stage_chain(
         .map(|(x0, s)| x0 + dt / 6.0 * s)
         .collect();
     normalise_quaternion(&mut next[layout.quaternion()]);
-    Ok((to_tangent(arm, x, &next, total, k_rows), next))
+    Ok((to_tangent(arm, x, &next, total, k_rows, need)?, next))
 }
 
 /// The dense rows of `K_s · dk_{s−1}` (the base twist's rate and `q̈`, `6 + n` rows of `c`) as
@@ -325,7 +407,8 @@ fn directional_rows(
     c: usize,
     out: &mut Vec<f64>,
     spring: &mut Vec<f64>,
-) {
+) -> Result<()> {
+    let need = &|| step_too_large(arm);
     let layout = arm.layout();
     let n = layout.n;
     let Blocks {
@@ -338,7 +421,7 @@ fn directional_rows(
     let row = |r: usize| &previous[r * c..(r + 1) * c];
     let p = arm.joints();
     spring.clear();
-    spring.resize(n * c, 0.0);
+    grow(spring, n * c, need)?;
     for i in 0..n {
         let (k, d) = (p.stiffness[i], p.damping[i]);
         let rows = row(q + i)
@@ -352,7 +435,7 @@ fn directional_rows(
         }
     }
     out.clear();
-    out.resize((6 + n) * c, 0.0);
+    grow(out, (6 + n) * c, need)?;
     algorithms::fd_directional(
         arm.robot(),
         &mut ws.data,
@@ -380,6 +463,7 @@ fn directional_rows(
             out[(3 + r) * c + j] += extra[r];
         }
     }
+    Ok(())
 }
 
 /// `A = P(x⁺) J E(x)` for the state columns and `P(x⁺) J` for the inputs, from the raw step
@@ -392,7 +476,8 @@ fn to_tangent(
     next: &[f64],
     total: &[f64],
     rows: &mut Vec<f64>,
-) -> Jacobians {
+    need: &dyn Fn() -> Error,
+) -> Result<Jacobians> {
     let layout = arm.layout();
     let (m, n, t) = (layout.len(), layout.n, layout.tangent_len());
     let k = arm.robot().end_effectors().len();
@@ -416,7 +501,7 @@ fn to_tangent(
     // the result row by row (row-major, t × (t + n + 6 + 6k)), then into the column-major outputs
     let width = t + n + 6 + 6 * k;
     rows.clear();
-    rows.resize(t * width, 0.0);
+    grow(rows, t * width, need)?;
     let mut row = vec![0.0; c];
     for (tr, out_row) in rows.chunks_exact_mut(width).enumerate() {
         match tr {
@@ -441,7 +526,7 @@ fn to_tangent(
         }
         out_row[t..].copy_from_slice(&row[m..]);
     }
-    let mut out = Jacobians::zeros(t, t, n, k);
+    let mut out = Jacobians::try_zeros(t, t, n, k, need)?;
     for (block, offset) in [
         (&mut out.x, 0),
         (&mut out.u, t),
@@ -450,7 +535,7 @@ fn to_tangent(
     ] {
         transpose_rows(rows, width, offset, block);
     }
-    out
+    Ok(out)
 }
 
 /// `out[(i, j)] = rows[i * width + offset + j]` for a column-major `out`, eight rows at a time
@@ -483,7 +568,7 @@ fn jacobians_into(
     let s = layout.split(x);
     arm.spring_torque(x, &mut ws.tau);
     let rigid = RigidState::new(s.q, s.base_twist, s.qd);
-    algorithms::aba_derivatives(arm.robot(), &mut ws.data, &rigid, &ws.tau, &inputs.loads)?;
+    algorithms::aba_derivatives_into(arm.robot(), &mut ws.data, &rigid, &ws.tau, &inputs.loads)?;
     let d = &ws.data.derivatives;
     let p = arm.joints();
     out.x.as_mut_slice().fill(0.0);

@@ -97,6 +97,33 @@ impl Linear {
         })
     }
 
+    /// When the eigenvalues cannot be computed because the feedback's entries are too large
+    /// for floating point (beyond 1e100, whose products overflow in the QR iteration), the
+    /// error naming the gain.
+    fn blame_gains(&self, feedback: &Feedback) -> Option<Error> {
+        let Feedback::MotorPd { kp, kd } = feedback else {
+            return None;
+        };
+        let largest = |m: &DMatrix<f64>| m.iter().fold(0.0_f64, |a, v| a.max(v.abs()));
+        if largest(&self.gk) <= 1e100 || largest(&self.gk) <= largest(&self.f) {
+            return None;
+        }
+        let peak = |v: &[f64]| v.iter().fold(0.0_f64, |a, v| a.max(v.abs()));
+        let (what, gains) = if peak(kp) >= peak(kd) {
+            ("kp", kp)
+        } else {
+            ("kd", kd)
+        };
+        Some(Error::InvalidArgument {
+            what: what.into(),
+            message: format!(
+                "too large for floating point: the eigenvalues of the closed loop (for the RK4 \
+                 stability limit) cannot be computed with gains up to {}",
+                crate::args::number(peak(gains))
+            ),
+        })
+    }
+
     /// The continuous closed loop's eigenvalues, `F + G K`.
     fn closed_eigenvalues(&self) -> Result<Vec<Complex<f64>>> {
         eigenvalues(&(&self.f + &self.gk)).ok_or_else(|| Error::InvalidArgument {
@@ -186,7 +213,9 @@ pub fn rk4_stability_limit(
         joint_by_joint_limit(arm, x, feedback)?
     } else {
         let linear = linearise(arm, x, feedback)?;
-        let closed = linear.closed_eigenvalues()?;
+        let closed = linear
+            .closed_eigenvalues()
+            .map_err(|e| linear.blame_gains(feedback).unwrap_or(e))?;
         (linear.limit(&closed), fastest(&closed))
     };
     // The quaternion kinematics oscillate at ±|ω_B|/2, on RK4's imaginary axis (2√2 / |λ|).
@@ -213,6 +242,11 @@ fn linearise(arm: &FlexibleArm, x: &[f64], feedback: &Feedback) -> Result<Linear
     let mut ws = arm.workspace();
     let u = vec![0.0; arm.dof()];
     let full = super::jacobians::derivative_jacobians(arm, &mut ws, x, &Inputs::torques(&u))?;
+    arm.check_overflow(
+        "rk4_stability_limit (the linearisation at x)",
+        &full.blocks(),
+        &[("x", x, 2)],
+    )?;
     // the tangent's dynamic block starts at 6: [δr | δφ] come first
     let f = full.x.view((6, 6), (size, size)).into_owned();
     let mut gk = DMatrix::zeros(size, size);

@@ -280,7 +280,8 @@ pub struct BatchSettings {
 }
 
 /// Watches a batch from another thread: set `cancel` to stop every run at its next check (every
-/// 1024 steps), read `done` for the number of runs over.
+/// 16 steps), and the checks and stability limits before the runs at the next run; read `done`
+/// for the number of runs over.
 #[derive(Debug, Default)]
 pub struct BatchWatch {
     /// Set to stop the runs still going; they end as failed, "interrupted by the caller".
@@ -485,10 +486,18 @@ impl<'a> Batch<'a> {
     /// of joints in every arm, the shapes, and each run's start, controller and wrench tables,
     /// on `settings.threads` threads. An error names the run.
     pub fn check(&self, settings: &BatchSettings) -> Result<()> {
-        in_pool(settings.threads, || self.check_runs(settings))?
+        self.check_watched(settings, &BatchWatch::default())
     }
 
-    fn check_runs(&self, settings: &BatchSettings) -> Result<()> {
+    /// [`Batch::check`], stopping with [`Error::Interrupted`] once `watch.cancel` is set (it
+    /// looks before each run's checks).
+    pub fn check_watched(&self, settings: &BatchSettings, watch: &BatchWatch) -> Result<()> {
+        in_pool(settings.threads, || {
+            self.check_runs(settings, &watch.cancel)
+        })?
+    }
+
+    fn check_runs(&self, settings: &BatchSettings, cancel: &AtomicBool) -> Result<()> {
         check_dt(settings.dt)?;
         check_record_every(settings.record_every)?;
         if self.runs == 0 {
@@ -541,6 +550,7 @@ impl<'a> Batch<'a> {
             u.check("u", n, self.runs, settings.steps)?;
         }
         (0..self.runs).into_par_iter().try_for_each(|run| {
+            interrupted(cancel, "the checks of the runs")?;
             let mut inputs = self.inputs(run, settings.steps);
             check_run(
                 inputs.arm,
@@ -558,11 +568,23 @@ impl<'a> Batch<'a> {
     /// ([`FlexibleArm::rk4_stability_limit`]), with that limit (s), in run order. Computed once
     /// when every run has the same arm, start and controller.
     pub fn unstable_runs(&self, dt: f64, threads: Option<usize>) -> Result<Vec<(usize, f64)>> {
+        self.unstable_runs_watched(dt, threads, &BatchWatch::default())
+    }
+
+    /// [`Batch::unstable_runs`], stopping with [`Error::Interrupted`] once `watch.cancel` is
+    /// set (it looks before each run's limit, which takes milliseconds on a large model).
+    pub fn unstable_runs_watched(
+        &self,
+        dt: f64,
+        threads: Option<usize>,
+        watch: &BatchWatch,
+    ) -> Result<Vec<(usize, f64)>> {
         let distinct = self.distinct_starts();
         let limits: Vec<f64> = in_pool(threads, || {
             (0..distinct)
                 .into_par_iter()
                 .map(|run| {
+                    interrupted(&watch.cancel, "the stability limits of the runs")?;
                     let mut inputs = self.inputs(run, 0);
                     inputs
                         .arm
@@ -614,12 +636,22 @@ fn in_pool<R: Send>(threads: Option<usize>, work: impl FnOnce() -> R + Send) -> 
     Ok(pool.install(work))
 }
 
+/// `Err(Error::Interrupted)` once `cancel` is set.
+fn interrupted(cancel: &AtomicBool, what: &str) -> Result<()> {
+    match cancel.load(Ordering::Relaxed) {
+        true => Err(Error::Interrupted { what: what.into() }),
+        false => Ok(()),
+    }
+}
+
 /// Stops a run when the batch is cancelled.
 struct Cancel<'a>(&'a AtomicBool);
 
 impl Observer for Cancel<'_> {
+    /// An atomic load every few steps, so that a run of a large model (a millisecond a step)
+    /// stops within milliseconds.
     fn every(&self) -> usize {
-        1024
+        16
     }
     fn observe(&mut self, _: usize, _: usize) -> bool {
         !self.0.load(Ordering::Relaxed)

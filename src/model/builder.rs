@@ -434,22 +434,22 @@ pub fn check_inertia(mass: f64, com: &Vec3, about_com: &Mat3) -> std::result::Re
 
 /// The mass matrix is positive definite at `q = 0` iff every articulated-body pivot
 /// `D_i = H_iᵀ I^A_i H_i` is positive and the base's articulated inertia is positive definite.
+///
+/// A pivot counts as zero at round-off level relative to the inertia of the links the joint
+/// moves (the trace of `I^A_i`'s rotational block, about the joint), as the articulated-body
+/// algorithm's own check does: never relative to the whole model, so that a heavy bus (a
+/// near-held base, 1e10 kg) does not make the arm's light wrist look singular.
 fn check_mass_matrix(robot: &Robot) -> Result<()> {
     let n = robot.dof();
     let mut articulated: Vec<_> = robot.inertias.iter().map(Inertia::matrix).collect();
-    let scale: f64 = robot
-        .inertias
-        .iter()
-        .map(|i| i.mass + i.rotational.trace())
-        .sum::<f64>()
-        .max(f64::MIN_POSITIVE);
     for i in (1..=n).rev() {
         let joint = &robot.joints[i - 1];
         let parent = robot.parents[i];
         let h = Vec6::new(joint.axis.x, joint.axis.y, joint.axis.z, 0.0, 0.0, 0.0);
         let u = articulated[i] * h;
         let d = h.dot(&u);
-        if d <= 1e-12 * scale {
+        let own = articulated[i].fixed_view::<3, 3>(0, 0).trace();
+        if d <= 1e-12 * own {
             return Err(Error::InvalidModel {
                 source_name: robot.source.clone(),
                 message: format!(

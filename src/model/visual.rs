@@ -160,6 +160,13 @@ impl MeshSearch {
             if package.is_empty() {
                 return Err("no package name after package://".into());
             }
+            // `package://../x` would look in the folder above each candidate directory
+            if package == "." || package == ".." || package.contains('\\') {
+                return Err(format!(
+                    "'{package}' is not a package name (package://NAME/path names a file inside \
+                     the package NAME)"
+                ));
+            }
             let inside = Path::new(inner);
             if inside.is_absolute()
                 || inside
@@ -193,8 +200,11 @@ impl MeshSearch {
                 }
                 dirs.push(dir.join(package));
             }
-            if let Some(file) = dirs.iter().find_map(|d| found(d.join(inside))) {
-                return Ok(file);
+            if let Some((dir, file)) = dirs
+                .iter()
+                .find_map(|d| found(d.join(inside)).map(|file| (d, file)))
+            {
+                return inside_package(dir, file, inner, package);
             }
             if let Some(dir) = dirs.iter().find(|d| d.is_dir()) {
                 return Err(format!(
@@ -225,6 +235,33 @@ impl MeshSearch {
             }
         };
         found(path.clone()).ok_or_else(|| format!("no file at {}", path.display()))
+    }
+}
+
+/// `file`, found in the package directory `dir`, if it is inside it once symbolic links are
+/// resolved: a link in the package to a file elsewhere does not take a `package://` name out of
+/// its package.
+fn inside_package(
+    dir: &Path,
+    file: PathBuf,
+    inner: &str,
+    package: &str,
+) -> Result<PathBuf, String> {
+    let real = |p: &Path| {
+        p.canonicalize()
+            .map_err(|e| format!("cannot resolve {}: {e}", p.display()))
+    };
+    let (root, target) = (real(dir)?, real(&file)?);
+    if target.starts_with(&root) {
+        Ok(file)
+    } else {
+        Err(format!(
+            "the path '{inner}' leaves the package '{package}' ({} is {} once links are \
+             resolved, outside {})",
+            file.display(),
+            target.display(),
+            root.display()
+        ))
     }
 }
 

@@ -403,6 +403,22 @@ impl FlexibleArm {
         ]
         .iter()
         .all(|v| v.iter().all(|x| x.is_finite()));
+        let rigid_finite = [
+            &out.tau[..],
+            &out.base_twist,
+            &out.base_acc,
+            &out.base_wrench,
+        ]
+        .iter()
+        .all(|v| v.iter().all(|x| x.is_finite()));
+        if let (false, true, Some(delta)) = (finite, rigid_finite, deflection) {
+            // the links' dynamics are finite: the motor side overflowed, from the deflection
+            crate::overflow::check_result(
+                "inverse_dynamics",
+                &[&out.theta, &out.theta_dot, &out.theta_ddot, &out.u],
+                &[("deflection", delta, 1)],
+            )?;
+        }
         if !finite {
             return Err(Error::InvalidArgument {
                 what: "motion".into(),

@@ -11,7 +11,8 @@ pub mod taylor;
 pub use flatness::{BaseMode, FlexibleInverse, LinkMotion};
 pub mod slew;
 pub use slew::{
-    plan_slew, sigma, Binding, Constraint, Limits, Plan, PlanPoint, Reference, Samples,
+    plan_slew, plan_slew_watched, sigma, Binding, Constraint, Limits, Plan, PlanPoint, Reference,
+    Samples,
 };
 pub mod tracking;
 pub use tracking::{Tracking, TrackingSetup};

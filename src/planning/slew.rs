@@ -24,6 +24,7 @@ use crate::error::{Error, Result};
 use crate::flex::state::{normalise_quaternion, quaternion_product};
 use crate::flex::FlexibleArm;
 use crate::spatial::{quaternion_to_rotation, Motion, Vec3};
+use std::sync::atomic::{AtomicBool, Ordering};
 
 /// Sample intervals per segment (a power of two, so `s = 1/2`, where the speed peaks, is one).
 const INTERVALS: usize = 512;
@@ -372,6 +373,22 @@ pub fn plan_slew(
     base: BaseMode,
     waypoints: &[Vec<f64>],
 ) -> Result<Plan> {
+    let never = AtomicBool::new(false);
+    plan_slew_watched(arm, q_goal, q_start, limits, base, waypoints, &never)
+}
+
+/// [`plan_slew`], stopping with [`Error::Interrupted`] once `cancel` is set: it looks before
+/// every trial duration and every few samples, a few milliseconds apart even for an arm of
+/// hundreds of joints (whose plan takes seconds).
+pub fn plan_slew_watched(
+    arm: &FlexibleArm,
+    q_goal: &[f64],
+    q_start: Option<&[f64]>,
+    limits: &Limits,
+    base: BaseMode,
+    waypoints: &[Vec<f64>],
+    cancel: &AtomicBool,
+) -> Result<Plan> {
     let n = arm.dof();
     let limits = limits.for_joints(n)?;
     if base == BaseMode::Free && (limits.base_force.is_some() || limits.base_torque.is_some()) {
@@ -412,7 +429,17 @@ pub fn plan_slew(
             });
         }
     }
-    Plan::solve(arm.clone(), base, false, limits, stops)
+    Plan::solve(arm.clone(), base, false, limits, stops, cancel)
+}
+
+/// `Err(Error::Interrupted)` once `cancel` is set.
+fn go_on(cancel: &AtomicBool) -> Result<()> {
+    match cancel.load(Ordering::Relaxed) {
+        true => Err(Error::Interrupted {
+            what: "plan_slew".into(),
+        }),
+        false => Ok(()),
+    }
 }
 
 impl Plan {
@@ -422,6 +449,7 @@ impl Plan {
         rigid: bool,
         limits: Limits,
         stops: Vec<Vec<f64>>,
+        cancel: &AtomicBool,
     ) -> Result<Plan> {
         let n = arm.dof();
         let mut plan = Plan {
@@ -462,12 +490,15 @@ impl Plan {
                 },
             };
             for j in 0..=INTERVALS {
+                if j % 64 == 0 {
+                    go_on(cancel)?;
+                }
                 let s = j as f64 / INTERVALS as f64;
                 let jets = plan.unit_jets(&mut scratch, &segment, s)?;
                 segment.s.push(s);
                 segment.jets.push(jets);
             }
-            plan.solve_segment(&mut scratch, &mut segment)?;
+            plan.solve_segment(&mut scratch, &mut segment, cancel)?;
             t0 += segment.duration;
             deflection0 = segment.deflection[(segment.s.len() - 1) * n..].to_vec();
             plan.segments.push(segment);
@@ -642,10 +673,15 @@ impl Plan {
         best
     }
 
-    fn solve_segment(&self, scratch: &mut JetScratch, seg: &mut Segment) -> Result<()> {
+    fn solve_segment(
+        &self,
+        scratch: &mut JetScratch,
+        seg: &mut Segment,
+        cancel: &AtomicBool,
+    ) -> Result<()> {
         let mut hint = None;
         for round in 0..REFINE_ROUNDS {
-            let w = self.shortest(seg, hint)?;
+            let w = self.shortest(seg, hint, cancel)?;
             hint = Some(w);
             // refine every local peak near its limit between its neighbours
             let ratios = self.channel_ratios(seg, w);
@@ -728,7 +764,7 @@ impl Plan {
     /// The largest `w = 1/T` at which every limit holds at the samples, to
     /// [`BISECTION_TOLERANCE`]. `hint` is the answer before samples were added: still
     /// infeasible just above it, so the bracket starts there.
-    fn shortest(&self, seg: &Segment, hint: Option<f64>) -> Result<f64> {
+    fn shortest(&self, seg: &Segment, hint: Option<f64>, cancel: &AtomicBool) -> Result<f64> {
         // the speed bound alone: T ≥ max |Δ_i| σ'_max / q̇_max,i
         let speed_w = seg
             .delta
@@ -737,7 +773,28 @@ impl Plan {
             .map(|(d, l)| l / (d.abs() * sigma(0.5)[1]))
             .fold(f64::INFINITY, f64::min);
         let start = hint.unwrap_or(speed_w).min(1.0 / SHORTEST_TRIED);
+        if start < 1.0 / LONGEST_TRIED {
+            // the speed limit alone asks for longer than any segment is planned
+            return Err(self.unreachable(seg, 1.0 / LONGEST_TRIED));
+        }
         if self.feasible(seg, start) {
+            if hint.is_none() && speed_w > start {
+                // the floor binds, not a limit: a plan of 1 ns would only report a limit that
+                // its values are nowhere near
+                let (_, _, c, joint, value, limit) = self.peak(seg, start);
+                return Err(Error::InvalidArgument {
+                    what: "limits".into(),
+                    message: format!(
+                        "every limit holds even at {SHORTEST_TRIED:e} s, the shortest segment \
+                         duration planned, so none of them binds (at {SHORTEST_TRIED:e} s \
+                         {}{} peaks at {value:.3e}, against its limit of {}); give the \
+                         hardware's limits",
+                        c.name(),
+                        joint.map_or(String::new(), |j| format!("[{j}]")),
+                        crate::args::number(limit),
+                    ),
+                });
+            }
             return Ok(start);
         }
         // widen downwards (longer durations) until feasible: from a 1e-4 cut after a hint, by
@@ -746,18 +803,9 @@ impl Plan {
         let mut factor: f64 = if hint.is_some() { 1.0 - 1e-4 } else { 0.5 };
         let (mut hi, mut lo) = (start, start * factor);
         while !self.feasible(seg, lo) {
-            if lo < 1.0 / LONGEST_TRIED {
-                let (_, _, c, joint, value, limit) = self.peak(seg, lo);
-                return Err(Error::InvalidArgument {
-                    what: "limits".into(),
-                    message: format!(
-                        "no duration up to {LONGEST_TRIED:.0e} s meets them: {}{} still needs \
-                         {value:.3e}, over its limit of {}",
-                        c.name(),
-                        joint.map_or(String::new(), |j| format!("[{j}]")),
-                        crate::args::number(limit),
-                    ),
-                });
+            go_on(cancel)?;
+            if lo <= 1.0 / LONGEST_TRIED {
+                return Err(self.unreachable(seg, lo));
             }
             hi = lo;
             factor = if factor > 0.5 {
@@ -765,10 +813,12 @@ impl Plan {
             } else {
                 factor * factor
             };
-            lo = (hi * factor).max(1.0 / LONGEST_TRIED * 0.5);
+            // the longest duration tried is the longest planned: no segment is longer
+            lo = (hi * factor).max(1.0 / LONGEST_TRIED);
         }
         // bisect: geometrically while the bracket spans more than a factor 2, then arithmetically
         while hi - lo > BISECTION_TOLERANCE * hi {
+            go_on(cancel)?;
             let mid = if hi > 2.0 * lo {
                 (lo * hi).sqrt()
             } else {
@@ -781,6 +831,46 @@ impl Plan {
             }
         }
         Ok(lo)
+    }
+
+    /// Why no duration up to [`LONGEST_TRIED`] meets the limits (`w` is its inverse): a limit
+    /// still breached there, or, when the inverse dynamics overflow there, a slew too large for
+    /// floating point (named by the stop it ends at).
+    fn unreachable(&self, seg: &Segment, w: f64) -> Error {
+        let (_, _, c, joint, value, limit) = self.peak(seg, w);
+        if value.is_finite() {
+            return Error::InvalidArgument {
+                what: "limits".into(),
+                message: format!(
+                    "no duration up to {LONGEST_TRIED:.0e} s meets them: {}{} still needs \
+                     {value:.3e} at {LONGEST_TRIED:.0e} s, over its limit of {}",
+                    c.name(),
+                    joint.map_or(String::new(), |j| format!("[{j}]")),
+                    crate::args::number(limit),
+                ),
+            };
+        }
+        let k = seg.binding.segment + 1;
+        let stop = |k: usize| match k {
+            0 => "q_start".to_string(),
+            k if k == self.stops.len() - 1 => "q_goal".to_string(),
+            k => format!("waypoints[{}]", k - 1),
+        };
+        let (joint, step) = seg
+            .delta
+            .iter()
+            .enumerate()
+            .max_by(|a, b| a.1.abs().total_cmp(&b.1.abs()))
+            .map_or((0, 0.0), |(j, d)| (j, *d));
+        Error::InvalidArgument {
+            what: stop(k),
+            message: format!(
+                "too large for floating point: the slew from {} to it, {} rad on joint {joint}, \
+                 makes the inverse dynamics overflow at every duration up to {LONGEST_TRIED:.0e} s",
+                stop(k - 1),
+                crate::args::number(step)
+            ),
+        }
     }
 
     /// Stores the solved duration, the deflection at each sample and the binding limit.
@@ -871,12 +961,19 @@ impl Plan {
     /// The same slew planned as if the joints were rigid (`θ = q`, `u = j q̈ + β q̇ + τ`), under
     /// the same limits and base mode: what a planner that ignores joint flexibility produces.
     pub fn rigid(&self) -> Result<Plan> {
+        self.rigid_watched(&AtomicBool::new(false))
+    }
+
+    /// [`Plan::rigid`], stopping with [`Error::Interrupted`] once `cancel` is set (as
+    /// [`plan_slew_watched`]).
+    pub fn rigid_watched(&self, cancel: &AtomicBool) -> Result<Plan> {
         Plan::solve(
             self.arm.clone(),
             self.base,
             true,
             self.limits.clone(),
             self.stops.clone(),
+            cancel,
         )
     }
 

@@ -105,10 +105,10 @@ impl Plan {
             return Err(Error::InvalidArgument {
                 what: "dt".into(),
                 message: format!(
-                    "{} s is longer than the plan ({} s): a tracking run needs steps shorter \
+                    "{} s is longer than the plan ({:.4} s): a tracking run needs steps shorter \
                      than the slew",
                     crate::args::number(dt),
-                    crate::args::number(self.duration())
+                    Seconds(self.duration())
                 ),
             });
         }
@@ -235,5 +235,21 @@ impl Plan {
         }
         out.trajectory = trajectory;
         out
+    }
+}
+
+/// A computed time for a message: four significant digits (`0.5789 s`, `4.040e-4 s`).
+struct Seconds(f64);
+
+impl std::fmt::Display for Seconds {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let digits = f.precision().unwrap_or(4);
+        let x = self.0;
+        if (1e-3..1e6).contains(&x.abs()) {
+            let decimals = (digits as i32 - 1 - x.abs().log10().floor() as i32).max(0) as usize;
+            write!(f, "{x:.decimals$}")
+        } else {
+            write!(f, "{x:.*e}", digits.saturating_sub(1))
+        }
     }
 }

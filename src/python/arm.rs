@@ -2,13 +2,14 @@
 //! flexible-joint inverse dynamics.
 
 use super::control::{schedule, PyCallable, PyMotorPD};
-use super::convert::{array1, array2, count, positive_count, real, vector, vector_or};
+use super::convert::{array1, count, positive_count, real, try_array2, vector, vector_or};
 use super::errors::simulation_error;
 use super::errors::ModelError;
 use super::joints::PyFlexibleJoints;
 use super::robot::PyRobot;
 use super::run::{deliver, record_releasing_gil, record_with_gil, Progress, Stream};
 use super::trajectory::PyTrajectory;
+use super::workspaces::{Lent, Pool};
 use crate::args::Loads;
 use crate::error::Error;
 use crate::flex::{ArmWorkspace, FlexibleArm, Inputs, StateSpec};
@@ -19,7 +20,6 @@ use pyo3::exceptions::PyRuntimeWarning;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyTuple};
 use std::ffi::CString;
-use std::sync::{Mutex, MutexGuard};
 
 /// Rows per chunk given to ``on_rows`` by default.
 const CHUNK_ROWS: usize = 1024;
@@ -48,17 +48,22 @@ impl<F: FnMut(Chunk<'_>) -> crate::Result<()> + Send> Sink<F> {
 /// torques ``u`` (n, link side, N·m), base wrench ``f_B`` (6, ``[moment; force]``, base frame,
 /// applied to the base) and EE wrench ``f`` (6, EE frame, the force the EE exerts on its
 /// environment).
+///
+/// Thread-safe: call it from several threads at once (each call has a workspace of its own).
+/// ``simulate`` without a Python controller runs without the GIL and stops on Ctrl-C.
 #[pyclass(name = "FlexibleArm", module = "orbitflex", frozen)]
 pub struct PyFlexibleArm {
     pub(crate) arm: FlexibleArm,
     robot: Py<PyRobot>,
     joints: Py<PyFlexibleJoints>,
-    ws: Mutex<ArmWorkspace>,
+    /// Workspaces, one lent to each call in flight (see `workspaces`).
+    workspaces: Pool<ArmWorkspace>,
 }
 
 impl PyFlexibleArm {
-    fn ws(&self) -> MutexGuard<'_, ArmWorkspace> {
-        self.ws.lock().unwrap_or_else(|p| p.into_inner())
+    /// A workspace of this call's own.
+    fn ws(&self) -> Lent<'_, ArmWorkspace> {
+        self.workspaces.take(|| self.arm.workspace())
     }
     fn n(&self) -> usize {
         self.arm.dof()
@@ -113,16 +118,18 @@ impl InputArgs {
 /// Two matrices, `(F, G)`.
 type MatrixPair<'py> = (Bound<'py, PyArray2<f64>>, Bound<'py, PyArray2<f64>>);
 
-/// The four Jacobians as a dict.
+/// The four Jacobians of `call` as a dict (copied fallibly: a `MemoryError`, not an abort).
 fn jacobians_dict<'py>(
     py: Python<'py>,
-    j: &crate::flex::Jacobians,
+    j: crate::flex::Jacobians,
+    call: &str,
 ) -> PyResult<Bound<'py, PyDict>> {
     let out = PyDict::new(py);
-    out.set_item("x", array2(py, &j.x))?;
-    out.set_item("u", array2(py, &j.u))?;
-    out.set_item("base_wrench", array2(py, &j.base_wrench))?;
-    out.set_item("ee_wrench", array2(py, &j.ee_wrench))?;
+    out.set_item("x", try_array2(py, &j.x, call)?)?;
+    drop(j.x);
+    out.set_item("u", try_array2(py, &j.u, call)?)?;
+    out.set_item("base_wrench", try_array2(py, &j.base_wrench, call)?)?;
+    out.set_item("ee_wrench", try_array2(py, &j.ee_wrench, call)?)?;
     Ok(out)
 }
 
@@ -168,12 +175,11 @@ impl PyFlexibleArm {
         let params = joints.get().resolve(robot.get().robot.dof())?;
         let arm = FlexibleArm::new(robot.get().robot.clone(), params)?
             .with_method(super::convert::method(method)?);
-        let ws = Mutex::new(arm.workspace());
         Ok(Self {
+            workspaces: Pool::with(arm.workspace()),
             arm,
             robot: robot.unbind(),
             joints: joints.unbind(),
-            ws,
         })
     }
 
@@ -377,7 +383,7 @@ impl PyFlexibleArm {
         let j = self
             .arm
             .derivative_jacobians(&mut self.ws(), &x, &inputs.inputs())?;
-        jacobians_dict(py, &j)
+        jacobians_dict(py, j, "derivative_jacobians")
     }
 
     /// The Jacobians of one RK4 :meth:`step` of ``dt`` (inputs held), in tangent coordinates at
@@ -399,7 +405,7 @@ impl PyFlexibleArm {
         let j = self
             .arm
             .step_jacobians(&mut self.ws(), &x, dt, &inputs.inputs())?;
-        jacobians_dict(py, &j)
+        jacobians_dict(py, j, "step_jacobians")
     }
 
     /// ``(F, G)`` of :meth:`derivative_jacobians` at ``x`` with torques ``u`` (default zero):
@@ -416,7 +422,10 @@ impl PyFlexibleArm {
         let j = self
             .arm
             .derivative_jacobians(&mut self.ws(), &x, &inputs.inputs())?;
-        Ok((array2(py, &j.x), array2(py, &j.u)))
+        Ok((
+            try_array2(py, &j.x, "linearize")?,
+            try_array2(py, &j.u, "linearize")?,
+        ))
     }
 
     /// Flexible-joint inverse dynamics (differential flatness): what the motors and the base do
@@ -498,7 +507,10 @@ impl PyFlexibleArm {
     /// Total energy at state ``x`` (J): rigid kinetic + motor kinetic + spring.
     fn energy(&self, x: &Bound<'_, PyAny>) -> PyResult<f64> {
         let x = self.state_arg(x, "x")?;
-        Ok(self.arm.energy(&mut self.ws(), &x))
+        let e = self.arm.energy(&mut self.ws(), &x);
+        self.arm
+            .check_overflow("energy", &[&[e]], &[("x", &x, 2)])?;
+        Ok(e)
     }
 
     /// Total momentum ``[angular (N·m·s); linear (N·s)]`` at state ``x``, inertial frame, about
@@ -509,7 +521,10 @@ impl PyFlexibleArm {
         x: &Bound<'py, PyAny>,
     ) -> PyResult<Bound<'py, PyArray1<f64>>> {
         let x = self.state_arg(x, "x")?;
-        Ok(array1(py, &self.arm.momentum(&mut self.ws(), &x)))
+        let h = self.arm.momentum(&mut self.ws(), &x);
+        self.arm
+            .check_overflow("momentum", &[&h], &[("x", &x, 1)])?;
+        Ok(array1(py, &h))
     }
 
     /// EE pose ``[position (m); quaternion (x, y, z, w), w ≥ 0]`` in the inertial frame at
@@ -524,7 +539,10 @@ impl PyFlexibleArm {
     ) -> PyResult<Bound<'py, PyArray1<f64>>> {
         let e = super::convert::ee_arg(self.arm.robot(), ee)?;
         let x = self.state_arg(x, "x")?;
-        Ok(array1(py, &self.arm.ee_pose(&x, e)))
+        let pose = self.arm.ee_pose(&x, e);
+        self.arm
+            .check_overflow("ee_pose", &[&pose], &[("x", &x, 1)])?;
+        Ok(array1(py, &pose))
     }
 
     /// Integrates ``steps`` RK4 steps of ``dt`` seconds from ``x0`` and returns a ``Trajectory``.

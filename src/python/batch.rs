@@ -6,7 +6,7 @@ use super::batched::shape_and_values;
 use super::control::PyMotorPD;
 use super::convert::{count, positive_count, real};
 use super::errors::ModelError;
-use super::run::Progress;
+use super::run::{watched, Progress};
 use super::trajectory::{freeze, frozen_rows, PyTrajectory};
 use crate::flex::{FlexibleArm, StateLayout};
 use crate::integrate::batch::{
@@ -16,13 +16,11 @@ use crate::integrate::batch::{
 use crate::MotorPD;
 use numpy::ndarray::Array3;
 use numpy::{PyArray1, PyArray2, PyArray3, PyArrayMethods};
-use pyo3::exceptions::{PyIndexError, PyRuntimeError, PyRuntimeWarning};
+use pyo3::exceptions::{PyIndexError, PyRuntimeWarning};
 use pyo3::prelude::*;
 use pyo3::types::{PyList, PySequence, PySlice, PyTuple};
 use std::ffi::CString;
 use std::sync::atomic::Ordering;
-use std::sync::mpsc;
-use std::time::Duration;
 
 /// An input array of a batch: its shape and its values in C order.
 struct Array {
@@ -145,9 +143,15 @@ impl<'py> Control<'py> {
                  FlexibleArm.simulate for each run",
             ));
         }
-        // a sequence of MotorPD, one per run
+        // a sequence of MotorPD, one per run (a buffer such as a 2-D memoryview is a sequence
+        // whose items cannot be taken: it is an array of torques)
         if let Ok(seq) = u.downcast::<PySequence>() {
-            if seq.len()? > 0 && seq.get_item(0)?.is_instance_of::<PyMotorPD>() {
+            let first = seq
+                .len()
+                .ok()
+                .filter(|&len| len > 0)
+                .and_then(|_| seq.get_item(0).ok());
+            if first.is_some_and(|f| f.is_instance_of::<PyMotorPD>()) {
                 let mut pds = Vec::new();
                 for (k, item) in seq.try_iter()?.enumerate() {
                     let item = item?;
@@ -204,58 +208,6 @@ fn stability_warning(dt: f64, runs: usize, unstable: &[(usize, f64)]) -> String 
         unstable.len(),
         shown.join(", ")
     )
-}
-
-/// Runs the batch without the GIL on a thread of its own, while this thread looks for Ctrl-C
-/// and reports progress every 0.1 s. A `KeyboardInterrupt` (or an exception from `progress`)
-/// cancels the runs still going and is raised once they stopped.
-fn run_watched(
-    py: Python<'_>,
-    batch: &Batch<'_>,
-    settings: &BatchSettings,
-    progress: &Progress,
-) -> PyResult<BatchRecord> {
-    let watch = BatchWatch::default();
-    let mut raised: Option<PyErr> = None;
-    let outcome = py.allow_threads(|| {
-        std::thread::scope(|scope| {
-            let (done_tx, done_rx) = mpsc::channel::<()>();
-            let watch = &watch;
-            let worker = scope.spawn(move || {
-                let record = simulate_batch(batch, settings, watch);
-                let _ = done_tx.send(());
-                record
-            });
-            loop {
-                match done_rx.recv_timeout(Duration::from_millis(100)) {
-                    Err(mpsc::RecvTimeoutError::Timeout) if raised.is_none() => {
-                        let done = watch.done.load(Ordering::Relaxed);
-                        Python::with_gil(|py| {
-                            if let Err(e) = py
-                                .check_signals()
-                                .and_then(|_| progress.report(py, done, batch.runs))
-                            {
-                                raised = Some(e);
-                                watch.cancel.store(true, Ordering::Relaxed);
-                            }
-                        });
-                    }
-                    Err(mpsc::RecvTimeoutError::Timeout) => {}
-                    _ => break,
-                }
-            }
-            worker.join()
-        })
-    });
-    if let Some(e) = raised {
-        return Err(e);
-    }
-    match outcome {
-        Ok(record) => Ok(record?),
-        Err(_) => Err(PyRuntimeError::new_err(
-            "simulate_batch: a worker thread panicked (a bug in orbitflex; please report it)",
-        )),
-    }
 }
 
 /// Simulates many runs of the flexible arm at once, over a pool of threads, without the GIL.
@@ -380,8 +332,17 @@ pub(crate) fn py_simulate_batch<'py>(
         keep_rows,
         threads,
     };
-    py.allow_threads(|| batch.check(&settings))?;
-    let unstable = py.allow_threads(|| batch.unstable_runs(dt, threads))?;
+    // every step from here on runs without the GIL and stops within SIGNAL_CHECK of Ctrl-C
+    let watch = BatchWatch::default();
+    let unstable = watched(
+        py,
+        &watch.cancel,
+        |_| Ok(()),
+        || {
+            batch.check_watched(&settings, &watch)?;
+            batch.unstable_runs_watched(dt, threads, &watch)
+        },
+    )??;
     if !unstable.is_empty() {
         let message = stability_warning(dt, runs, &unstable);
         PyErr::warn(
@@ -392,7 +353,10 @@ pub(crate) fn py_simulate_batch<'py>(
         )?;
     }
     let progress = Progress::new(progress.filter(|p| !p.is_none()).cloned());
-    let record = run_watched(py, &batch, &settings, &progress)?;
+    let tick = |py: Python<'_>| progress.report(py, watch.done.load(Ordering::Relaxed), runs);
+    let record = watched(py, &watch.cancel, tick, || {
+        simulate_batch(&batch, &settings, &watch)
+    })??;
     progress.finish(py, runs, runs)?;
     let arm_handles = if arm_objects.len() == 1 {
         vec![arm_objects[0].clone().unbind()]

@@ -4,12 +4,12 @@
 
 use super::convert::{aligned_copy, as_float_array, direct_values, vector_or};
 use super::errors::ModelError;
+use super::parallel::compute_rows;
+use super::workspaces::Pool;
 use crate::algorithms::Data;
-use crate::error::Error;
 use crate::model::Robot;
 use numpy::{PyArrayDyn, PyArrayMethods, PyUntypedArrayMethods};
 use pyo3::prelude::*;
-use rayon::prelude::*;
 
 /// One argument of a batched call: a row of `width` numbers shared by every row of the batch,
 /// or one row per batch row.
@@ -187,11 +187,6 @@ pub(crate) fn shape_and_values(
 
 use crate::args::describe_shape as shown;
 
-/// Names the batch row an argument error belongs to.
-fn in_row(row: usize, error: Error) -> Error {
-    error.in_context(&format!("row {row}"))
-}
-
 /// `out`, checked: a float64 numpy array of this shape, C-contiguous and writeable.
 fn checked_out<'py>(
     o: &Bound<'py, PyAny>,
@@ -291,32 +286,17 @@ pub(crate) fn single_matrix<'py>(
     }
 }
 
-/// Workspaces kept between batched calls, one per piece of a batch in flight, so that a call
-/// allocates none once the pool has grown to its size.
-#[derive(Default)]
-pub(crate) struct Spares(std::sync::Mutex<Vec<Data>>);
-
-impl Spares {
-    fn take(&self, robot: &Robot) -> Data {
-        let spare = self.0.lock().unwrap_or_else(|p| p.into_inner()).pop();
-        spare.unwrap_or_else(|| Data::new(robot))
-    }
-    fn give(&self, data: Data) {
-        self.0.lock().unwrap_or_else(|p| p.into_inner()).push(data);
-    }
-}
-
 /// Evaluates `f(data, row, out_row)` for every row of a batch of `rows` rows of `width`
-/// numbers, in parallel on rayon's pool without the GIL, into a buffer of its own: the rows are
-/// cut into a few contiguous pieces per thread, each run with a workspace from `spares`. The
+/// numbers, in parallel without the GIL ([`compute_rows`]), into a buffer of its own. The
 /// result goes to a new array of `shape`, or is copied into `out` (checked first) once the GIL
 /// is back, so no numpy array is touched without it. The first error (lowest row) is raised,
-/// naming its row.
+/// naming its row. Ctrl-C stops the rows within [`super::run::SIGNAL_CHECK`] and raises
+/// `KeyboardInterrupt`.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn evaluate<'py>(
     py: Python<'py>,
     robot: &Robot,
-    spares: &Spares,
+    workspaces: &Pool<Data>,
     out: Option<&Bound<'py, PyAny>>,
     shape: &[usize],
     rows: usize,
@@ -327,41 +307,19 @@ pub(crate) fn evaluate<'py>(
         .filter(|o| !o.is_none())
         .map(|o| checked_out(o, shape))
         .transpose()?;
-    let too_big = || {
-        ModelError::new_err(format!(
-            "the result of {rows} rows of {width} numbers does not fit in memory; give fewer rows \
-             per call"
-        ))
+    let too_big = || -> PyErr {
+        crate::Error::OutOfMemory {
+            what: "the result".into(),
+            bytes: rows.checked_mul(width).and_then(|len| len.checked_mul(8)),
+            hint: format!("it has {rows} rows of {width} numbers; give fewer rows per call"),
+        }
+        .into()
     };
     let len = rows.checked_mul(width).ok_or_else(too_big)?;
     let mut values = Vec::new();
     values.try_reserve_exact(len).map_err(|_| too_big())?;
     values.resize(len, 0.0);
-    if rows > 0 {
-        let per_piece = rows.div_ceil(4 * rayon::current_num_threads()).max(1);
-        let failure = py.allow_threads(|| {
-            values
-                .par_chunks_mut(per_piece * width)
-                .enumerate()
-                .map(|(piece, block)| {
-                    let mut data = spares.take(robot);
-                    let first = piece * per_piece;
-                    let result =
-                        block
-                            .chunks_exact_mut(width)
-                            .enumerate()
-                            .try_for_each(|(k, out)| {
-                                f(&mut data, first + k, out).map_err(|e| in_row(first + k, e))
-                            });
-                    spares.give(data);
-                    result
-                })
-                .find_map_first(Result::err)
-        });
-        if let Some(e) = failure {
-            return Err(e.into());
-        }
-    }
+    compute_rows(py, robot, workspaces, &mut values, width, &f)?;
     match out {
         Some(array) => {
             // SAFETY: written at once while this thread holds the GIL; C-contiguous, aligned,

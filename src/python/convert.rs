@@ -171,6 +171,28 @@ pub fn array2<'py, R: nalgebra::Dim, C: nalgebra::Dim, S: nalgebra::RawStorage<f
     row_major(py, rows, cols, data)
 }
 
+/// [`array2`] with its row-major copy allocated fallibly: a matrix too large for memory is a
+/// `MemoryError` naming `what` and the size, not an abort (Jacobians of a large arm are hundreds
+/// of megabytes each).
+pub fn try_array2<'py, R: nalgebra::Dim, C: nalgebra::Dim, S: nalgebra::RawStorage<f64, R, C>>(
+    py: Python<'py>,
+    m: &nalgebra::Matrix<f64, R, C, S>,
+    what: &str,
+) -> PyResult<Bound<'py, PyArray2<f64>>> {
+    let (rows, cols) = m.shape();
+    let mut data = Vec::new();
+    if data.try_reserve_exact(rows * cols).is_err() {
+        return Err(crate::Error::OutOfMemory {
+            what: what.into(),
+            bytes: Some(8 * rows * cols),
+            hint: format!("a copy of this {rows} × {cols} matrix for numpy"),
+        }
+        .into());
+    }
+    data.extend((0..rows).flat_map(|r| (0..cols).map(move |c| m[(r, c)])));
+    Ok(row_major(py, rows, cols, data))
+}
+
 /// A new 2-D numpy array from row-major values.
 pub fn row_major(
     py: Python<'_>,
@@ -243,8 +265,15 @@ pub fn positive_count(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<usize> {
     if obj.is_instance_of::<pyo3::types::PyBool>() || obj.hasattr("__index__").ok() != Some(true) {
         return Err(wrong());
     }
-    match obj.call_method0("__index__")?.extract::<usize>() {
+    let index = obj.call_method0("__index__")?;
+    match index.extract::<usize>() {
         Ok(k) if k >= 1 => Ok(k),
+        // an int past the largest count is not "below 1"
+        Err(_) if index.gt(1).unwrap_or(false) => Err(ModelError::new_err(format!(
+            "{what}: expected an integer from 1 to {}, given {}",
+            usize::MAX,
+            obj.repr().map(|r| r.to_string()).unwrap_or_default()
+        ))),
         _ => Err(wrong()),
     }
 }

@@ -3,7 +3,10 @@
 
 use crate::error::Error;
 use pyo3::create_exception;
-use pyo3::exceptions::{PyFileNotFoundError, PyIsADirectoryError, PyRuntimeError, PyValueError};
+use pyo3::exceptions::{
+    PyFileNotFoundError, PyIsADirectoryError, PyKeyboardInterrupt, PyMemoryError, PyRuntimeError,
+    PyValueError,
+};
 use pyo3::prelude::*;
 
 create_exception!(
@@ -31,6 +34,8 @@ impl From<Error> for PyErr {
         match e {
             Error::FileNotFound { .. } => PyFileNotFoundError::new_err(e.to_string()),
             Error::IsADirectory { .. } => PyIsADirectoryError::new_err(e.to_string()),
+            Error::OutOfMemory { .. } => PyMemoryError::new_err(e.to_string()),
+            Error::Interrupted { .. } => PyKeyboardInterrupt::new_err(e.to_string()),
             _ => ModelError::new_err(e.to_string()),
         }
     }

@@ -7,6 +7,14 @@
 //! trajectory diagnostics, planning and tracking slews) release the GIL; a single per-call
 //! dynamics call keeps it, as releasing it would cost more than the call.
 //!
+//! **Threads.** An object may be called from several Python threads at once: each call takes a
+//! workspace of its own from the object's `workspaces::Pool`, whose lock is only tried, so no
+//! thread ever waits for a Rust lock while it holds the GIL, and no lock is held across a call
+//! into Python or numpy (numpy may release the GIL while it allocates). **Ctrl-C.** Every long
+//! computation without the GIL looks for signals every `run::SIGNAL_CHECK` (50 ms) on the
+//! calling thread (`run::watched`, `parallel::compute_rows`, the run's `Observer`) and stops
+//! its workers through a flag. docs/threads_and_interrupts.md says it for users.
+//!
 //! One file per class: `robot` (`Robot`), `joints` (`FlexibleJoints`), `control` (`MotorPD`,
 //! input schedules, Python controllers), `arm` (`FlexibleArm`), `trajectory` (`Trajectory`),
 //! `plan` (`Limits`, `Plan`, `plan_slew`), `batch` (`simulate_batch`, `BatchTrajectory`); `analysis` (the linear analysis's private
@@ -24,10 +32,12 @@ mod control;
 mod convert;
 mod errors;
 mod joints;
+mod parallel;
 mod plan;
 mod robot;
 mod run;
 mod trajectory;
+mod workspaces;
 
 use pyo3::prelude::*;
 

@@ -5,17 +5,18 @@ use super::arm::PyFlexibleArm;
 use super::convert::{array1, as_float_array, count, matrix, real, row_major, vector};
 use super::errors::{simulation_error, ModelError};
 use super::joints::Param;
-use super::run::{run_releasing_gil, Progress};
+use super::run::{run_releasing_gil, watched, Progress};
 use super::trajectory::{freeze, PyTrajectory};
 use crate::args::number;
 use crate::error::Error;
 use crate::planning::{
-    plan_slew, BaseMode, Binding, Limits, Plan, Reference, Samples, Tracking, TrackingSetup,
+    plan_slew_watched, BaseMode, Binding, Limits, Plan, Reference, Samples, Tracking, TrackingSetup,
 };
 use numpy::{PyArray1, PyArray2};
 use pyo3::exceptions::PyTypeError;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
+use std::sync::atomic::AtomicBool;
 
 /// A per-joint limit: a number (every joint) or one value per joint. Unlike [`Param::parse`],
 /// non-finite values pass here, so that [`Limits::new`] names them with the rule they break.
@@ -236,17 +237,24 @@ pub struct PyPlan {
     samples: SampleArrays,
 }
 
-/// Plans in Rust without the GIL and wraps the result.
+/// Plans in Rust without the GIL and wraps the result; Ctrl-C sets the flag `solve` is given,
+/// and is raised as `KeyboardInterrupt`.
 fn wrap(
     py: Python<'_>,
     arm: Py<PyFlexibleArm>,
-    solve: impl FnOnce() -> crate::Result<Plan> + Send,
+    solve: impl FnOnce(&AtomicBool) -> crate::Result<Plan> + Send,
 ) -> PyResult<PyPlan> {
-    let (plan, samples) = py.allow_threads(|| {
-        let plan = solve()?;
-        let samples = plan.samples();
-        Ok::<_, Error>((plan, samples))
-    })?;
+    let cancel = AtomicBool::new(false);
+    let (plan, samples) = watched(
+        py,
+        &cancel,
+        |_| Ok(()),
+        || {
+            let plan = solve(&cancel)?;
+            let samples = plan.samples();
+            Ok::<_, Error>((plan, samples))
+        },
+    )??;
     let n = plan.arm().dof();
     Ok(PyPlan {
         plan,
@@ -595,7 +603,9 @@ impl PyPlan {
     /// under the same limits and base mode: what a planner that ignores joint flexibility makes.
     fn rigid(&self, py: Python<'_>) -> PyResult<PyPlan> {
         let plan = &self.plan;
-        wrap(py, self.arm.clone_ref(py), || plan.rigid())
+        wrap(py, self.arm.clone_ref(py), |cancel| {
+            plan.rigid_watched(cancel)
+        })
     }
 
     /// Simulates the plan on its arm (the flexible one, also for a rigid plan) from
@@ -744,18 +754,19 @@ impl PyPlan {
         let stops: Vec<Vec<f64>> = values.chunks_exact(n).map(<[f64]>::to_vec).collect();
         let base = BaseMode::from_name(base)?;
         let solve_arm = arm.get().arm.clone();
-        wrap(py, arm, move || {
+        wrap(py, arm, move |cancel| {
             let (start, goal) = (&stops[0], &stops[rows - 1]);
-            let plan = plan_slew(
+            let plan = plan_slew_watched(
                 &solve_arm,
                 goal,
                 Some(start),
                 &limits.limits,
                 base,
                 &stops[1..rows - 1],
+                cancel,
             )?;
             if rigid {
-                plan.rigid()
+                plan.rigid_watched(cancel)
             } else {
                 Ok(plan)
             }
@@ -817,8 +828,9 @@ impl PyPlan {
 /// and ``limits.base_torque`` bound their wrench) or ``"free"`` (free floating from rest: zero
 /// momentum, the base moves in reaction; the base limits do not apply).
 ///
-/// Releases the GIL while planning. Raises ``ModelError`` for wrong lengths, non-finite values,
-/// equal consecutive stops, or limits no duration can meet.
+/// Releases the GIL while planning; Ctrl-C stops it (``KeyboardInterrupt``). Raises
+/// ``ModelError`` for wrong lengths, non-finite values, equal consecutive stops, or limits no
+/// duration can meet.
 #[pyfunction]
 #[pyo3(name = "plan_slew", signature = (arm, q_goal, q_start=None, limits=None, base="held", waypoints=None))]
 pub fn py_plan_slew(
@@ -867,14 +879,15 @@ pub fn py_plan_slew(
     let base = BaseMode::from_name(base)?;
     let waypoints = waypoint_rows(waypoints, n)?;
     let rust_arm = &arm.get().arm;
-    wrap(py, arm.clone().unbind(), || {
-        plan_slew(
+    wrap(py, arm.clone().unbind(), |cancel| {
+        plan_slew_watched(
             rust_arm,
             &q_goal,
             q_start.as_deref(),
             &limits,
             base,
             &waypoints,
+            cancel,
         )
     })
 }

@@ -1,17 +1,15 @@
 //! `orbitflex.Robot`.
 
-use super::batched::{
-    call_args, evaluate, single_array, single_matrix, single_vector, Call, Spares,
-};
+use super::batched::{call_args, evaluate, single_array, single_matrix, single_vector, Call};
 use super::convert::{array1, array2, vector, vector_or};
 use super::errors::ModelError;
+use super::workspaces::{Lent, Pool};
 use crate::algorithms::{self, Data};
 use crate::args::{check_base_pose, Loads, RigidState};
 use crate::model::{Robot, UrdfOptions};
 use numpy::{PyArray1, PyArray2};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
-use std::sync::Mutex;
 
 /// A floating base carrying a chain or a tree of revolute joints, loaded from URDF (model §1,
 /// §2.7, §7), with one or more end-effectors (:attr:`ee_links`).
@@ -20,26 +18,28 @@ use std::sync::Mutex;
 /// (base to EE on a chain; :attr:`parents` gives the tree); spatial
 /// vectors ``[angular; linear]``; base acceleration ``α_B`` is classical (the derivative of the
 /// base-frame components of ``ω`` and of the origin velocity, expressed in the base frame); SI units.
+///
+/// Thread-safe: call it from several threads at once (each call has a workspace of its own).
+/// Batched calls run without the GIL and stop on Ctrl-C (``KeyboardInterrupt``).
 #[pyclass(name = "Robot", module = "orbitflex", frozen)]
 pub struct PyRobot {
     pub(crate) robot: Robot,
-    data: Mutex<Data>,
-    /// Workspaces for batched calls.
-    spares: Spares,
+    /// Workspaces, one lent to each call in flight (see `workspaces`: no lock is held during
+    /// a call, so threads never wait for each other).
+    workspaces: Pool<Data>,
 }
 
 impl PyRobot {
     pub(crate) fn wrap(robot: Robot) -> Self {
-        let data = Mutex::new(Data::new(&robot));
         Self {
+            workspaces: Pool::with(Data::new(&robot)),
             robot,
-            data,
-            spares: Spares::default(),
         }
     }
 
-    fn data(&self) -> std::sync::MutexGuard<'_, Data> {
-        self.data.lock().unwrap_or_else(|p| p.into_inner())
+    /// A workspace of this call's own.
+    fn data(&self) -> Lent<'_, Data> {
+        self.workspaces.take(|| Data::new(&self.robot))
     }
 
     /// One call's ``ee_wrench`` as `[f_1; …; f_k]` (empty for ``None``).
@@ -467,7 +467,7 @@ impl PyRobot {
                 evaluate(
                     py,
                     robot,
-                    &self.spares,
+                    &self.workspaces,
                     out,
                     &shape,
                     b.rows,
@@ -546,7 +546,7 @@ impl PyRobot {
                 evaluate(
                     py,
                     robot,
-                    &self.spares,
+                    &self.workspaces,
                     out,
                     &shape,
                     b.rows,
@@ -593,7 +593,7 @@ impl PyRobot {
                 evaluate(
                     py,
                     robot,
-                    &self.spares,
+                    &self.workspaces,
                     out,
                     &shape,
                     b.rows,
@@ -688,7 +688,7 @@ impl PyRobot {
                 evaluate(
                     py,
                     robot,
-                    &self.spares,
+                    &self.workspaces,
                     out,
                     &shape,
                     b.rows,
@@ -753,7 +753,7 @@ impl PyRobot {
                 evaluate(
                     py,
                     robot,
-                    &self.spares,
+                    &self.workspaces,
                     out,
                     &shape,
                     b.rows,
@@ -916,10 +916,15 @@ impl PyRobot {
         let state = self.state(q, base_twist, qd)?;
         check_base_pose(&pose)?;
         let h = algorithms::momentum(&self.robot, &mut self.data(), &state.rigid())?;
-        Ok(array1(
-            py,
-            &crate::dynamics::momentum_in_inertial_frame(&pose, &h),
-        ))
+        let h = crate::dynamics::momentum_in_inertial_frame(&pose, &h);
+        let [twist, qd] = crate::dynamics::rates(&state.rigid());
+        let inputs = [
+            (twist.0, twist.1, 1),
+            (qd.0, qd.1, 1),
+            ("base_pose", &pose, 1),
+        ];
+        crate::overflow::check_result("momentum", &[&h], &inputs)?;
+        Ok(array1(py, &h))
     }
 
     /// Kinetic energy of base and links ``½ νᵀ 𝓜 ν`` (J), ``ν = [V_B; q̇]``.
@@ -930,11 +935,10 @@ impl PyRobot {
         qd: &Bound<'_, PyAny>,
     ) -> PyResult<f64> {
         let state = self.state(q, base_twist, qd)?;
-        Ok(algorithms::kinetic_energy(
-            &self.robot,
-            &mut self.data(),
-            &state.rigid(),
-        )?)
+        let e = algorithms::kinetic_energy(&self.robot, &mut self.data(), &state.rigid())?;
+        let rates = crate::dynamics::rates(&state.rigid());
+        crate::overflow::check_result("kinetic_energy", &[&[e]], &rates)?;
+        Ok(e)
     }
 
     fn __repr__(&self) -> String {

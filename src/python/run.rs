@@ -9,9 +9,20 @@ use crate::integrate::{
 };
 use numpy::PyArray1;
 use pyo3::prelude::*;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc;
+use std::time::{Duration, Instant};
 
-/// How often (in steps) a run looks for Ctrl-C and reports progress.
+/// How often (in steps) a run reports progress.
 const EVERY: usize = 1024;
+
+/// How often a computation without the GIL looks for Ctrl-C: well within the half second a
+/// user waits for a stop. Taking the GIL for it costs microseconds.
+pub(crate) const SIGNAL_CHECK: Duration = Duration::from_millis(50);
+
+/// How often (in steps) a run looks at the clock to see whether [`SIGNAL_CHECK`] has passed:
+/// a step of a large model takes a millisecond, so [`EVERY`] steps would be too long to wait.
+const CLOCK_EVERY: usize = 16;
 
 /// An optional Python callable `progress(done, steps)`.
 pub(crate) struct Progress {
@@ -38,19 +49,30 @@ impl Progress {
     }
 }
 
-/// Looks for signals and reports progress, taking the GIL back for it; the first Python error
-/// (a `KeyboardInterrupt`, or an exception from the progress callback) stops the run.
+/// Looks for signals every [`SIGNAL_CHECK`] and reports progress every [`EVERY`] steps, taking
+/// the GIL back for it; the first Python error (a `KeyboardInterrupt`, or an exception from the
+/// progress callback) stops the run.
 struct Watch<'a> {
     progress: &'a Progress,
     error: Option<PyErr>,
+    last: Instant,
 }
 
-impl Watch<'_> {
+impl<'a> Watch<'a> {
+    fn new(progress: &'a Progress) -> Self {
+        Self {
+            progress,
+            error: None,
+            last: Instant::now(),
+        }
+    }
+
     fn check(&mut self, py: Python<'_>, step: usize, steps: usize) -> bool {
-        match py
-            .check_signals()
-            .and_then(|_| self.progress.report(py, step, steps))
-        {
+        let report = step % EVERY == 0;
+        match py.check_signals().and_then(|_| match report {
+            true => self.progress.report(py, step, steps),
+            false => Ok(()),
+        }) {
             Ok(()) => true,
             Err(e) => {
                 self.error = Some(e);
@@ -62,10 +84,59 @@ impl Watch<'_> {
 
 impl Observer for Watch<'_> {
     fn every(&self) -> usize {
-        EVERY
+        CLOCK_EVERY
     }
     fn observe(&mut self, step: usize, steps: usize) -> bool {
+        if step % EVERY != 0 && self.last.elapsed() < SIGNAL_CHECK {
+            return true;
+        }
+        self.last = Instant::now();
         Python::with_gil(|py| self.check(py, step, steps))
+    }
+}
+
+/// Runs `work` without the GIL on a scoped thread of its own while this thread, every
+/// [`SIGNAL_CHECK`], takes the GIL back to look for signals and to call `tick` (progress
+/// reports). The first exception (a `KeyboardInterrupt` for Ctrl-C, or one from `tick`) sets
+/// `cancel`, which `work` must poll (between runs or steps), and is raised once `work` has
+/// returned. For long work: starting the thread and waking this one cost tens of µs (batched
+/// per-call rows use `parallel::compute_rows` instead).
+pub(crate) fn watched<R: Send>(
+    py: Python<'_>,
+    cancel: &AtomicBool,
+    mut tick: impl FnMut(Python<'_>) -> PyResult<()> + Send,
+    work: impl FnOnce() -> R + Send,
+) -> PyResult<R> {
+    let mut raised: Option<PyErr> = None;
+    let result = py.allow_threads(|| {
+        let (done, finished) = mpsc::channel::<R>();
+        let mut poll = |raised: &mut Option<PyErr>| loop {
+            match finished.recv_timeout(SIGNAL_CHECK) {
+                Ok(result) => return Some(result),
+                Err(mpsc::RecvTimeoutError::Timeout) if raised.is_none() => {
+                    Python::with_gil(|py| {
+                        if let Err(e) = py.check_signals().and_then(|_| tick(py)) {
+                            *raised = Some(e);
+                            cancel.store(true, Ordering::Relaxed);
+                        }
+                    });
+                }
+                Err(mpsc::RecvTimeoutError::Timeout) => {}
+                // `work` panicked: the scope re-raises the panic
+                Err(mpsc::RecvTimeoutError::Disconnected) => return None,
+            }
+        };
+        std::thread::scope(|scope| {
+            scope.spawn(move || {
+                let _ = done.send(work());
+            });
+            poll(&mut raised)
+        })
+    });
+    match (raised, result) {
+        (Some(e), _) => Err(e),
+        (None, Some(result)) => Ok(result),
+        (None, None) => unreachable!("a panic in `work` is raised by its scope"),
     }
 }
 
@@ -84,10 +155,7 @@ pub(crate) fn run_releasing_gil(
     wrenches: &Wrenches,
     progress: &mut Progress,
 ) -> PyResult<RunResult> {
-    let mut watch = Watch {
-        progress,
-        error: None,
-    };
+    let mut watch = Watch::new(progress);
     let result =
         py.allow_threads(|| integrate::simulate(arm, x0, dt, steps, u, wrenches, &mut watch));
     match watch.error {
@@ -111,10 +179,7 @@ pub(crate) fn record_releasing_gil(
     progress: &mut Progress,
     recorder: &mut (dyn Recorder + Send),
 ) -> PyResult<crate::Result<()>> {
-    let mut watch = Watch {
-        progress,
-        error: None,
-    };
+    let mut watch = Watch::new(progress);
     let result = py.allow_threads(|| {
         integrate::simulate_into(
             arm,
@@ -147,10 +212,7 @@ pub(crate) fn record_with_gil(
     progress: &mut Progress,
     recorder: &mut dyn Recorder,
 ) -> PyResult<crate::Result<()>> {
-    let mut watch = Watch {
-        progress,
-        error: None,
-    };
+    let mut watch = Watch::new(progress);
     let result = integrate::simulate_into(
         arm,
         x0,

@@ -6,10 +6,14 @@ use super::errors::ModelError;
 use crate::flex::StateLayout;
 use crate::integrate::{StateRows, Trajectory};
 use numpy::{PyArray1, PyArray2, PyArrayMethods, PyUntypedArrayMethods};
+use pyo3::exceptions::PyMemoryError;
 use pyo3::prelude::*;
 use pyo3::sync::GILOnceCell;
 use pyo3::types::{PyDict, PySlice, PyTuple};
 use std::io::Write;
+
+/// About how many numbers a diagnostic computes between two looks for Ctrl-C.
+const CHUNK_NUMBERS: usize = 1 << 16;
 
 /// The record of a run: ``t`` (k,), ``x`` (k, 13+4n) and ``u`` (k-1, n), k = steps + 1 for a
 /// complete run. The arrays are read-only.
@@ -84,19 +88,55 @@ impl PyTrajectory {
         })
     }
 
-    /// Runs `f` on the stored rows without the GIL.
-    fn along<T: Send>(
+    /// A diagnostic of `per_row` numbers per stored row, computed without the GIL by `f` over
+    /// a range of rows ([`Self::in_chunks`]).
+    fn along(
         &self,
         py: Python<'_>,
-        f: impl FnOnce(&crate::FlexibleArm, StateRows<'_>) -> T + Send,
-    ) -> PyResult<T> {
+        per_row: usize,
+        f: impl Fn(&crate::FlexibleArm, StateRows<'_>) -> Vec<f64> + Sync,
+    ) -> PyResult<Vec<f64>> {
         let x = self.x.bind(py).readonly();
-        let rows = StateRows {
+        let all = StateRows {
             layout: self.layout,
             x: x.as_slice()?,
         };
+        let width = self.layout.len();
         let arm = &self.arm.get().arm;
-        Ok(py.allow_threads(|| f(arm, rows)))
+        self.in_chunks(py, all.len(), per_row, |rows| {
+            let x = &all.x[rows.start * width..rows.end * width];
+            f(arm, StateRows { x, ..all })
+        })
+    }
+
+    /// `per_item` numbers for each of `items` items, computed by `f` over ranges of items
+    /// without the GIL, a few thousand numbers at a time (a millisecond or so), looking for
+    /// Ctrl-C between them. The result is allocated once, fallibly: a result too large for
+    /// memory is a `MemoryError`, not an abort.
+    fn in_chunks(
+        &self,
+        py: Python<'_>,
+        items: usize,
+        per_item: usize,
+        f: impl Fn(std::ops::Range<usize>) -> Vec<f64> + Sync,
+    ) -> PyResult<Vec<f64>> {
+        let total = items.checked_mul(per_item);
+        let mut out = Vec::new();
+        if total.map_or(true, |t| out.try_reserve_exact(t).is_err()) {
+            return Err(PyMemoryError::new_err(format!(
+                "the result, {items} rows of {per_item} numbers, needs {}, which could not be \
+                 allocated; ask for fewer rows",
+                crate::args::describe_bytes(total.and_then(|t| t.checked_mul(8)))
+            )));
+        }
+        // a row costs about as much as it has numbers, in and out
+        let chunk = (CHUNK_NUMBERS / per_item.max(self.layout.len())).max(1);
+        for start in (0..items).step_by(chunk) {
+            py.check_signals()?;
+            let rows = start..(start + chunk).min(items);
+            out.extend(py.allow_threads(|| f(rows)));
+        }
+        Ok(out)
     }
 
     fn view<'py>(&self, py: Python<'py>, range: std::ops::Range<usize>) -> PyResult<PyObject> {
@@ -200,13 +240,13 @@ impl PyTrajectory {
     /// Joint deflection ``θ − q`` (rad), (k, n).
     #[getter]
     fn deflection<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
-        let values = self.along(py, |_, rows| rows.deflection())?;
+        let values = self.along(py, self.layout.n, |_, rows| rows.deflection())?;
         Ok(row_major(py, self.rows(py), self.layout.n, values))
     }
     /// Spring torques ``k (θ − q) + d (θ̇ − q̇)`` (N·m), (k, n).
     #[getter]
     fn spring_torque<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
-        let values = self.along(py, |arm, rows| rows.spring_torque(arm))?;
+        let values = self.along(py, self.layout.n, |arm, rows| rows.spring_torque(arm))?;
         Ok(row_major(py, self.rows(py), self.layout.n, values))
     }
     /// Total momentum ``[angular (N·m·s); linear (N·s)]`` of base and links, inertial frame,
@@ -215,7 +255,7 @@ impl PyTrajectory {
     fn momentum(&self, py: Python<'_>) -> PyResult<Py<PyArray2<f64>>> {
         self.momentum
             .get_or_try_init(py, || {
-                let values = self.along(py, |arm, rows| rows.momentum(arm))?;
+                let values = self.along(py, 6, |arm, rows| rows.momentum(arm))?;
                 frozen_rows(py, self.rows(py), 6, values)
             })
             .map(|a| a.clone_ref(py))
@@ -225,7 +265,7 @@ impl PyTrajectory {
     fn energy(&self, py: Python<'_>) -> PyResult<Py<PyArray1<f64>>> {
         self.energy
             .get_or_try_init(py, || {
-                let values = self.along(py, |arm, rows| rows.energy(arm))?;
+                let values = self.along(py, 1, |arm, rows| rows.energy(arm))?;
                 let array = PyArray1::from_vec(py, values);
                 freeze(array.as_any())?;
                 Ok::<_, PyErr>(array.unbind())
@@ -241,7 +281,7 @@ impl PyTrajectory {
         let flat = self
             .ee_pose
             .get_or_try_init(py, || {
-                let values = self.along(py, |arm, rows| rows.ee_pose(arm))?;
+                let values = self.along(py, 7 * k, |arm, rows| rows.ee_pose(arm))?;
                 frozen_rows(py, self.rows(py), 7 * k, values)
             })?
             .clone_ref(py);
@@ -287,7 +327,15 @@ impl PyTrajectory {
                 .collect::<PyResult<_>>()?,
         };
         let count = rows.len();
-        let values = self.along(py, |arm, all| all.frame_poses_at(arm, motor_side, &rows))?;
+        let x = self.x.bind(py).readonly();
+        let all = StateRows {
+            layout: self.layout,
+            x: x.as_slice()?,
+        };
+        let arm = &self.arm.get().arm;
+        let values = self.in_chunks(py, count, 7 * frames, |range| {
+            all.frame_poses_at(arm, motor_side, &rows[range])
+        })?;
         Ok(numpy::PyArray1::from_vec(py, values)
             .reshape([count, frames, 7])?
             .into_any())

@@ -463,8 +463,11 @@ def test_dae_textures_are_embedded_or_reported(tmp_path):
         scene = viz._scene(robot, None, ghost=False, share=True)
     notes = [str(w.message) for w in record if issubclass(w.category, viz.VisualWarning)]
     assert notes == [f"mesh '{tmp_path / 'm.dae'}': texture 'gone.jpg': not found, or not a PNG/JPEG/GIF/BMP/WebP/TGA image under 16 MB; drawn without it"]
-    resources = scene.commands[0]["object"]["object"]["resources"]
-    assert resources == {"skin.png": "data:image/png;base64," + base64.b64encode(png).decode()}
+    obj = scene.commands[0]["object"]["object"]
+    # each reference is rewritten to a key of the resources: the texture, or a blank one
+    assert "<init_from>orbitflex-texture-0</init_from>" in obj["data"] and "skin.png" not in obj["data"]
+    assert obj["resources"] == {"orbitflex-texture-0": "data:image/png;base64," + base64.b64encode(png).decode(),
+                                "orbitflex-texture-1": viz._BLANK_TEXTURE}
 
 
 def test_extra_shapes_are_drawn_and_checked(tmp_path):
