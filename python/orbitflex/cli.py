@@ -4,6 +4,9 @@
 ``demo`` and ``simulate`` run the same job: a free-floating slew of the arm under the built-in
 motor-side PD controller, long enough to show the base's reaction and the joints' vibration, then
 print a summary and write the trajectory, ``summary.json`` and plots into an output folder. The
+PD's gains come from ``--bandwidth`` and ``--damping-ratio`` (:meth:`FlexibleArm.motor_pd_gains`)
+or from ``--kp``/``--kd``, never from ``--dt``; a ``--dt`` past the closed loop's RK4 stability
+limit is refused unless ``--force``. The
 demo then plans a minimum-time slew of the built-in arm under limits, with the flexible joints
 and as if they were rigid, runs both plans on the flexible arm and compares them.
 
@@ -188,34 +191,64 @@ def quintic(s: Array) -> Tuple[Array, Array]:
     return 10 * s**3 - 15 * s**4 + 6 * s**5, 30 * s**2 - 60 * s**3 + 30 * s**4
 
 
-def pd_gains(arm: FlexibleArm, q0: Array, bandwidth_hz: float, dt: float,
-             damping_ratio: float = 1.0) -> Tuple[Array, Array]:
-    """Motor-side PD gains that place each joint's slow (rigid) mode near ``bandwidth_hz``:
-    ``kp = w^2 (m_i + j_i)``, ``kd = 2 zeta w (m_i + j_i)``, with ``m_i`` the diagonal of ``M_r``.
+@dataclass
+class Gains:
+    """The motor PD of a slew: its gains per joint and where they came from."""
 
-    The derivative gain also creates a fast motor pole near ``-kd / j``; RK4 is stable on the real
-    axis only for ``|lambda dt| < 2.78``, so ``kd`` is capped at ``0.5 j / dt``."""
-    _, j, _, _ = arm.parameters
-    m = np.diag(arm.robot.mass_matrix(q0))[6:]
-    w = 2 * np.pi * np.float64(bandwidth_hz)
-    with np.errstate(over="ignore", invalid="ignore"):
-        kp, kd = w**2 * (m + j), np.minimum(2 * damping_ratio * w * (m + j), 0.5 * j / dt)
-    if not (np.isfinite(kp).all() and np.isfinite(kd).all()):
-        raise CliError("--bandwidth", f"{bandwidth_hz:g} Hz makes the PD gains overflow "
-                                      f"(kp = w² (m + j) is not finite); the default is 0.25 Hz")
-    return kp, kd
+    kp: Array  # N·m/rad
+    kd: Array  # N·m·s/rad
+    bandwidth_hz: Optional[float]  # the closed-loop bandwidth they were chosen for (None: both given)
+    damping_ratio: Optional[float]
+    given: Tuple[str, ...] = ()  # the flags that set gains directly: "--kp", "--kd"
+
+    def as_dict(self) -> Dict[str, Any]:
+        return {"kp": self.kp.tolist(), "kd": self.kd.tolist(), "bandwidth_hz": self.bandwidth_hz,
+                "damping_ratio": self.damping_ratio, "given": list(self.given)}
+
+
+def choose_gains(arm: FlexibleArm, args: argparse.Namespace) -> Gains:
+    """The slew's motor PD: ``--kp``/``--kd`` where given, the rest from ``--bandwidth`` and
+    ``--damping-ratio`` (:meth:`FlexibleArm.motor_pd_gains`, at the start, q = 0). Never from dt."""
+    given = tuple(flag for flag, value in (("--kp", args.kp), ("--kd", args.kd)) if value is not None)
+    kp = kd = None
+    if len(given) < 2:
+        try:
+            kp, kd = arm.motor_pd_gains(args.bandwidth, args.damping_ratio)
+        except ValueError as e:
+            raise CliError("--bandwidth", cli_words(str(e)).removeprefix("bandwidth: ")) from None
+    if args.kp is not None:
+        kp = per_joint(args.kp, "--kp", arm.robot)
+    if args.kd is not None:
+        kd = per_joint(args.kd, "--kd", arm.robot)
+    assert kp is not None and kd is not None
+    rule = len(given) < 2
+    return Gains(np.asarray(kp), np.asarray(kd), args.bandwidth if rule else None,
+                 args.damping_ratio if rule else None, given)
 
 
 def slew_controller(arm: FlexibleArm, slew: Array, steps: int, dt: float, slew_time: float,
-                    bandwidth_hz: float) -> MotorPD:
-    """The motor PD that follows a quintic slew of ``slew`` (rad per joint) over ``slew_time``
-    seconds, tabulated for ``steps`` steps of ``dt``."""
-    kp, kd = pd_gains(arm, np.zeros(arm.dof), bandwidth_hz, dt)
+                    gains: Gains) -> MotorPD:
+    """The motor PD with ``gains`` that follows a quintic slew of ``slew`` (rad per joint) over
+    ``slew_time`` seconds, tabulated for ``steps`` steps of ``dt``."""
     t = np.arange(steps, dtype=np.float64) * dt
     shape, dshape = quintic(t / slew_time)
     theta_ref = np.outer(shape, slew)
     theta_dot_ref = np.outer(dshape / slew_time, slew)
-    return MotorPD(kp, kd, theta_ref, theta_dot_ref)
+    return MotorPD(gains.kp, gains.kd, theta_ref, theta_dot_ref)
+
+
+def check_step(arm: FlexibleArm, pd: MotorPD, gains: Gains, dt: float, force: bool) -> float:
+    """The RK4 stability limit (s) of the closed loop at rest; a ``--dt`` past it is refused
+    (with ``--force``: a warning, and the run goes on). The controller never changes with dt."""
+    limit = arm.rk4_stability_limit(u=pd).dt
+    if dt > limit:
+        advice = (f"use --dt {round_down(DT_MARGIN * limit):g} or less, or a lower "
+                  + ("--bandwidth" if gains.bandwidth_hz is not None else "--kp/--kd"))
+        message = (f"{dt:g} s is past the RK4 stability limit {limit:.3g} s of the closed loop (the arm "
+                   f"under its motor PD, the torque held over each step)")
+        if not force:
+            raise CliError("--dt", f"{message}; {advice}, or --force to run anyway")
+    return limit  # with --force, simulate warns and runs
 
 
 # ---------------------------------------------------------------------------------------------
@@ -290,10 +323,19 @@ class Outcome:
     failure: Optional[SimulationError] = None
     warnings: int = 0  # how many warnings simulate emitted (dt past the RK4 stability limit)
     record_every: int = 1  # the run kept rows 0, k, 2k, ... and the final row
+    onset: Optional[int] = None  # a diverged run: the last row before the divergence set in
 
     def steps_done(self, steps: int) -> int:
         """Steps completed: all ``steps``, or those before the failure."""
         return steps if self.failure is None else self.failure.step
+
+    def meaningful(self) -> Trajectory:
+        """The rows the summary and the plots describe: every row, or for a diverged run those
+        up to the onset of the divergence (the files keep every finite row)."""
+        if self.onset is None or self.onset == len(self.traj.t) - 1:
+            return self.traj
+        k = self.onset
+        return Trajectory(self.traj.arm, self.traj.t[: k + 1], self.traj.x[: k + 1], self.traj.u[:k])
 
 
 class ProgressBar:
@@ -356,8 +398,13 @@ def simulate(arm: FlexibleArm, pd: MotorPD, steps: int, dt: float, progress: boo
     outcome.warnings = printer.count
     if outcome.failure is not None:
         kept = outcome.failure.step
-        print(f"orbitflex: the run failed: {failure_reason(outcome.failure)}; the outputs describe "
-              f"the {kept} steps before the failure (exit code 1)", file=sys.stderr)
+        where = ""
+        if record_every == 1 and "diverged" in str(outcome.failure):
+            outcome.onset = divergence_onset(outcome.traj)
+            where = (f"; the divergence set in after step {outcome.onset} (t = {outcome.traj.t[outcome.onset]:.6g} s): "
+                     f"the summary and plots describe the run up to there")
+        print(f"orbitflex: the run failed: {failure_reason(outcome.failure)}; the files keep the {kept} "
+              f"steps before the failure{where} (exit code 1)", file=sys.stderr)
     return outcome
 
 
@@ -370,9 +417,10 @@ def failure_reason(e: SimulationError) -> str:
 def run(job: Job, args: argparse.Namespace) -> int:
     steps = int(round(args.duration / args.dt))
     check_memory(steps, job.arm.dof, record_every=args.record_every)
-    pd = slew_controller(job.arm, job.slew, steps, args.dt, args.slew_time, args.bandwidth)
+    gains = choose_gains(job.arm, args)
+    pd = slew_controller(job.arm, job.slew, steps, args.dt, args.slew_time, gains)
+    limit = check_step(job.arm, pd, gains, args.dt, args.force)
     out = output_folder(args.out)
-    limit = job.arm.rk4_stability_limit(u=pd)
     print(f"{job.name}: {job.arm.dof} joints, total mass {job.arm.robot.total_mass:.1f} kg, "
           f"dt = {args.dt:g} s (RK4 limit of the closed loop at rest: {limit:.3g} s)")
     if job.note:
@@ -381,6 +429,7 @@ def run(job: Job, args: argparse.Namespace) -> int:
     comparison, note = demo_comparison(job.arm, job.name, args.dt) if job.compare_plans else (None, None)
     with np.errstate(all="ignore"):  # a diverged run's finite part may overflow in the summary
         summary = summarise(job.name, outcome, steps)
+        summary["controller"] = {**gains.as_dict(), "rk4_stability_limit_s": limit}
         if comparison is not None:
             summary["planned_slew"] = {"goal_rad": DEMO_PLAN_GOAL.tolist(), "base": comparison.plan.base,
                                        "limits": limits_dict(comparison.plan.limits),
@@ -493,11 +542,11 @@ def rotation_angle_deg(q0: Array, q1: Array) -> Array:
     return angle
 
 
-def energy_balance(traj: Trajectory) -> Tuple[float, float, float]:
-    """Energy bookkeeping of the power balance (docs/model.md, section 6) with the trapezoid rule
-    on the recorded states (``traj.u`` held over each step): returns
-    ``(E(T) - E(0), motor work, dissipated energy)``. With no external wrench,
-    ``E(T) - E(0) = motor work - dissipated`` up to the quadrature and RK4 errors."""
+def energy_steps(traj: Trajectory) -> Tuple[Array, Array, Array]:
+    """Per step of the record, the power balance's terms (docs/model.md, section 6) by the
+    trapezoid rule (``traj.u`` held over each step): ``(ΔE, motor work, dissipated energy)``,
+    (rows − 1,) each. With no external wrench, ``ΔE = motor work − dissipated`` up to the
+    quadrature and RK4 errors."""
     u = traj.u
     _, _, d, beta = traj.arm.parameters
     td, qd = traj.theta_dot, traj.qd
@@ -505,9 +554,34 @@ def energy_balance(traj: Trajectory) -> Tuple[float, float, float]:
     dt = np.diff(traj.t[: rows + 1])
     dissipation = ((td - qd) ** 2 * d).sum(axis=1) + (td**2 * beta).sum(axis=1)
     motor = 0.5 * ((u * td[:rows]).sum(axis=1) + (u * td[1 : rows + 1]).sum(axis=1))
-    work = float(np.sum(dt * motor))
-    dissipated = float(np.sum(0.5 * dt * (dissipation[:rows] + dissipation[1 : rows + 1])))
-    return float(traj.energy[rows] - traj.energy[0]), work, dissipated
+    return np.diff(traj.energy[: rows + 1]), dt * motor, 0.5 * dt * (dissipation[:rows] + dissipation[1 : rows + 1])
+
+
+def energy_balance(traj: Trajectory) -> Tuple[float, float, float]:
+    """``(E(T) - E(0), motor work, dissipated energy)`` over the record (:func:`energy_steps`)."""
+    _, work, dissipated = energy_steps(traj)
+    rows = len(traj.u)
+    return float(traj.energy[rows] - traj.energy[0]), float(np.sum(work)), float(np.sum(dissipated))
+
+
+# A run whose energy balance misses by more than this share of the energy that flowed has left
+# the physics: the integrator, not the motors, is making the energy.
+DIVERGED_BALANCE = 0.01
+
+
+def divergence_onset(traj: Trajectory) -> int:
+    """The last row of a diverged run (kept with every step's torque) before the divergence set
+    in: the last row up to which the energy balance ``E(t) − E(0) = motor work − dissipated``
+    still held to ``DIVERGED_BALANCE`` of the energy that flowed (``Σ|ΔE|``). An unstable step
+    makes energy the physics does not: the residual grows with the energy itself from then on,
+    by a factor per step, while a stable run's residual is the quadrature's (1e-7 of the flow in
+    the demo; a few % over the first steps at a coarse dt)."""
+    with np.errstate(all="ignore"):
+        change, work, dissipated = energy_steps(traj)
+        residual = np.abs(np.r_[0.0, np.cumsum(change - (work - dissipated))])
+        flow = np.r_[0.0, np.cumsum(np.abs(change))]
+        held = np.flatnonzero(residual <= DIVERGED_BALANCE * flow)
+    return int(held[-1])  # row 0 always holds (0 ≤ 0)
 
 
 def angle_unit(largest_rad: float) -> Tuple[float, str]:
@@ -523,8 +597,9 @@ def angle_unit(largest_rad: float) -> Tuple[float, str]:
 
 def summarise(name: str, outcome: Outcome, steps_asked: int) -> Dict[str, Any]:
     """The summary; with ``record_every`` > 1 the peaks and drifts are over the kept rows, and the
-    energy balance (which needs the torque of every step) is left out (None)."""
-    traj = outcome.traj
+    energy balance (which needs the torque of every step) is left out (None). A diverged run is
+    summarised up to the onset of its divergence (:func:`divergence_onset`), where known."""
+    traj = outcome.meaningful()
     steps = outcome.steps_done(steps_asked)
     h = traj.momentum
     h_drift = np.abs(h - h[0]).max(axis=0)
@@ -544,8 +619,8 @@ def summarise(name: str, outcome: Outcome, steps_asked: int) -> Dict[str, Any]:
         "steps_requested": steps_asked,
         "steps": steps,
         "record_every": outcome.record_every,
-        "rows": len(traj.t),
-        "simulated_s": float(traj.t[-1]),
+        "rows": len(outcome.traj.t),
+        "simulated_s": float(outcome.traj.t[-1]),
         "steps_per_second": steps / outcome.elapsed if outcome.elapsed > 0 else float("inf"),
         "base_attitude_change_deg": float(rotation_angle_deg(traj.base_pose[0, 3:], traj.base_pose[-1, 3:])),
         "base_displacement_m": float(np.linalg.norm(traj.base_pose[-1, :3] - traj.base_pose[0, :3])),
@@ -559,7 +634,8 @@ def summarise(name: str, outcome: Outcome, steps_asked: int) -> Dict[str, Any]:
     }
     if outcome.failure is not None:
         summary.update(failure_step=outcome.failure.step, failure_time_s=outcome.failure.time,
-                       failure=failure_reason(outcome.failure))
+                       failure=failure_reason(outcome.failure), divergence_onset_step=outcome.onset,
+                       divergence_onset_time_s=None if outcome.onset is None else float(traj.t[-1]))
     return summary
 
 
@@ -568,10 +644,25 @@ def print_summary(s: Dict[str, Any], dof: int) -> None:
     print(f"\norbitflex: free-floating slew of '{s['model']}' ({dof} flexible joints){status}")
     if not s["completed"]:
         print(f"  FAILED at           {s['failure']}")
-        print(f"                      the numbers below describe the finite part before the failure "
-              f"(t = 0 to {s['simulated_s']:.6g} s, {s['steps']} of {s['steps_requested']} steps)")
+        onset = s["divergence_onset_step"]
+        if onset is not None:
+            print(f"  divergence          set in after step {onset} (t = {s['divergence_onset_time_s']:.6g} s): from there "
+                  f"the energy balance stops holding to {DIVERGED_BALANCE:.0%} of the energy that flowed, the")
+            print(f"                      integrator making the energy; the numbers below describe t = 0 to "
+                  f"{s['divergence_onset_time_s']:.6g} s (the files keep every finite step)")
+        else:
+            print(f"                      the numbers below describe the finite part before the failure "
+                  f"(t = 0 to {s['simulated_s']:.6g} s, {s['steps']} of {s['steps_requested']} steps)")
     print(f"  simulated           {s['simulated_s']:.6g} s in {s['steps']} RK4 steps, "
           f"{s['steps_per_second']:,.0f} steps/s")
+    pd = s.get("controller")
+    if pd is not None:
+        rule = ("as given by --kp/--kd" if pd["bandwidth_hz"] is None else
+                f"bandwidth {pd['bandwidth_hz']:g} Hz, damping ratio {pd['damping_ratio']:g}"
+                + (f"; {' and '.join(pd['given'])} as given" if pd["given"] else ""))
+        print(f"  motor PD            kp = {gain_text(np.asarray(pd['kp']))} N·m/rad, "
+              f"kd = {gain_text(np.asarray(pd['kd']))} N·m·s/rad ({rule})")
+        print(f"                      RK4 stability limit of the closed loop {pd['rk4_stability_limit_s']:.3g} s")
     if s["record_every"] > 1:
         print(f"  recorded            {s['rows']} rows: one step in {s['record_every']} and the last "
               f"(--record-every); peaks and drifts below are over these rows")
@@ -692,12 +783,13 @@ class Figures:
 
 
 def plot(job: Job, outcome: Outcome, dt: float, out: Path) -> List[Path]:
-    traj = outcome.traj
+    traj = outcome.meaningful()
     caption = f"model {job.name}, dt = {seconds(dt)}, {traj.t[-1]:.6g} s free-floating slew"
     if outcome.record_every > 1:
         caption += f", a row every {seconds(outcome.record_every * dt)} (--record-every {outcome.record_every})"
     if outcome.failure is not None:
-        caption += f", diverged at t = {outcome.failure.time:.6g} s (finite part shown)"
+        shown = "the finite part" if outcome.onset is None else "up to where it set in"
+        caption += f", diverged at t = {outcome.failure.time:.4g} s ({shown} shown)"
     figures = Figures(out, caption)
     rows = plot_rows(len(traj.t))
     plot_angles(figures, traj, rows)
@@ -975,7 +1067,7 @@ def round_down(x: float) -> float:
 def tracking_limit(arm: FlexibleArm, stops: Array, kp: Array, kd: Array) -> float:
     """The RK4 stability limit (s) of the arm under the tracking PD, the smallest over the
     stops (at rest, springs relaxed)."""
-    return min(arm.rk4_stability_limit(arm.state(q=stop), MotorPD(kp, kd, stop)) for stop in stops)
+    return min(arm.rk4_stability_limit(arm.state(q=stop), MotorPD(kp, kd, stop)).dt for stop in stops)
 
 
 def tracking_dt(limit: float, requested: Optional[float], flag: str = "--dt") -> Tuple[float, Optional[str]]:
@@ -1672,8 +1764,22 @@ def common_options(p: argparse.ArgumentParser, duration: float) -> None:
     p.add_argument("--dt", metavar="S", type=positive, default=1e-3, help="RK4 step, s (default %(default)s)")
     p.add_argument("--slew-time", metavar="S", type=positive, default=5.0,
                    help="duration of the quintic slew, s (default %(default)s)")
-    p.add_argument("--bandwidth", metavar="HZ", type=positive, default=0.25,
-                   help="PD bandwidth per joint, Hz (default %(default)s)")
+    pd = p.add_argument_group("the motor PD (chosen from the physics, never from --dt)")
+    pd.add_argument("--bandwidth", metavar="HZ", type=positive, default=0.25,
+                    help="closed-loop bandwidth of each joint, Hz: the gains come from it, the damping "
+                         "ratio and each joint's motor inertia, link inertia at q = 0 and spring "
+                         "(FlexibleArm.motor_pd_gains; default %(default)s)")
+    pd.add_argument("--damping-ratio", metavar="ZETA", type=positive, default=1.0,
+                    help="closed-loop damping ratio of each joint (default %(default)s: critical)")
+    pd.add_argument("--kp", metavar="NM_PER_RAD", type=non_negative, nargs="+", default=None,
+                    help="motor PD stiffness, N·m/rad, one value or one per joint (replaces the "
+                         "bandwidth rule's)")
+    pd.add_argument("--kd", metavar="NMS_PER_RAD", type=non_negative, nargs="+", default=None,
+                    help="motor PD damping, N·m·s/rad, one value or one per joint (replaces the "
+                         "bandwidth rule's)")
+    pd.add_argument("--force", action="store_true",
+                    help="run even when --dt is past the RK4 stability limit of the closed loop "
+                         "(refused otherwise); the run then warns and most likely diverges")
     p.add_argument("--out", metavar="DIR", default="orbitflex_out",
                    help="output folder, created if missing (default %(default)s)")
     p.add_argument("--csv", action="store_true", help="also write trajectory.csv (t and x, named columns)")

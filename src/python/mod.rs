@@ -9,7 +9,7 @@
 //!
 //! One file per class: `robot` (`Robot`), `joints` (`FlexibleJoints`), `control` (`MotorPD`,
 //! input schedules, Python controllers), `arm` (`FlexibleArm`), `trajectory` (`Trajectory`),
-//! `plan` (`Limits`, `Plan`, `plan_slew`), `batch` (`simulate_batch`, `BatchTrajectory`);
+//! `plan` (`Limits`, `Plan`, `plan_slew`), `stability` (`StabilityLimit`), `batch` (`simulate_batch`, `BatchTrajectory`);
 //! `batched` gives the per-call dynamics their leading batch axis and `out=`; `run` drives a
 //! simulation with or without the GIL; `errors` maps [`crate::Error`] onto the Python
 //! exceptions; `convert` turns numpy arrays into Rust values.
@@ -25,6 +25,7 @@ mod joints;
 mod plan;
 mod robot;
 mod run;
+mod stability;
 mod trajectory;
 
 use pyo3::prelude::*;
@@ -42,6 +43,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<control::PyMotorPD>()?;
     m.add_class::<arm::PyFlexibleArm>()?;
     m.add_class::<trajectory::PyTrajectory>()?;
+    m.add_class::<stability::PyStabilityLimit>()?;
     m.add_class::<plan::PyLimits>()?;
     m.add_class::<plan::PyPlan>()?;
     m.add_class::<batch::PyBatchTrajectory>()?;

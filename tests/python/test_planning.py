@@ -660,7 +660,7 @@ def test_bad_reference_and_track_arguments_are_model_errors(demo_plan):
 def test_tracking_refuses_a_step_that_cannot_follow_the_plan(demo_plan, space_arm):
     # past the stability limit of the loop at the start (computed here independently) the run
     # would diverge: refused before it starts, naming dt; a step longer than the plan too
-    limit = space_arm.rk4_stability_limit(demo_plan.initial_state(), orbitflex.MotorPD(KP, KD, np.zeros(7)))
+    limit = space_arm.rk4_stability_limit(demo_plan.initial_state(), orbitflex.MotorPD(KP, KD, np.zeros(7))).dt
     assert limit == pytest.approx(7.439e-3, rel=1e-3)
     with pytest.raises(ModelError, match=r"^dt: 0\.05 s is past the RK4 stability limit 7\.439\de-3 s of the "
                                          r"tracking loop"):
