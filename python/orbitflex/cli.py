@@ -131,11 +131,13 @@ def cli_words(message: str) -> str:
 
 
 def urdf_error(error: Exception) -> CliError:
-    """A URDF-loading error, under the flag it points to: ``--ee-link`` or ``--locked-joints``
-    if it names one (the first one it names), else ``URDF``."""
+    """A URDF-loading error, under the flag it blames: ``--ee-link`` or ``--locked-joints`` if
+    its statement (before the first ``; ``, where advice begins) names one (the first one it
+    names), else ``URDF``. Advice such as "lock them with --locked-joints a,b" blames no flag."""
     message = cli_words(str(error))
+    statement = message.split("; ", 1)[0]
     named = [(found.start(), flag) for flag in ("--ee-link", "--ee-links", "--locked-joints")
-             for found in [re.search(re.escape(flag) + r"(?![\w-])", message)] if found]
+             for found in [re.search(re.escape(flag) + r"(?![\w-])", statement)] if found]
     if not named:
         return CliError("URDF", message)
     flag = min(named)[1]

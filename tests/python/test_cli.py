@@ -312,9 +312,10 @@ def test_unlocked_prismatic_joint_is_a_clean_error(model_files, tmp_path):
     urdf, params = model_files
     result = run_cli("simulate", urdf, "--params", params, "--duration", "0.1",
                      "--out", tmp_path / "o", "--quiet", cwd=tmp_path)
-    # the library's hint, locked_joints=["finger_slide"], in the CLI's words
+    # the library's hint, locked_joints=["finger_slide"], in the CLI's words; blamed on the URDF,
+    # not on --locked-joints, which was not given
     assert_clean_error(result, "finger_slide", "prismatic", "--locked-joints finger_slide",
-                       flag="--locked-joints")
+                       flag="URDF")
 
 
 def test_malformed_urdf(tmp_path, model_files):
@@ -508,7 +509,7 @@ def test_messages_name_the_flags_not_python_keywords(model_files, tmp_path, case
     args, flag = {
         "unknown_ee_link": ([urdf, "--ee-link", "gripper"], "--ee-link"),
         "unknown_locked": ([urdf, "--locked-joints", "finger_slide,nope"], "--locked-joints"),
-        "prismatic": ([urdf], "--locked-joints"),
+        "prismatic": ([urdf], "URDF"),  # the advice names --locked-joints; the blame is the file's
         "unknown_ee_links": ([branched, "--locked-joints", "finger_slide", "--ee-links", "fore,nope"],
                              "--ee-links"),
         "both": ([branched, "--locked-joints", "finger_slide", "--ee-link", "fore", "--ee-links", "fore"],
@@ -1039,3 +1040,20 @@ def test_gains_given_by_flag_replace_the_bandwidth_rule(tmp_path, model_files):
     assert controller["kp"] == arm.motor_pd_gains(0.5, 0.7)[0].tolist() and controller["kd"] == [4.0, 4.0]
     assert (controller["bandwidth_hz"], controller["damping_ratio"], controller["given"]) == (0.5, 0.7, ["--kd"])
     assert "bandwidth 0.5 Hz, damping ratio 0.7; --kd as given" in result.stdout
+
+
+def test_every_unsupported_joint_is_named_with_the_flag_that_locks_them_all(tmp_path):
+    # panda's two prismatic fingers: the CLI named the first under --locked-joints, a flag never
+    # given, and following its advice gave the same error for the second
+    from conftest import erd_case
+
+    panda = erd_case("panda").path
+    common = ["--duration", "0.02", "--quiet", "--no-plots", "--no-animation"]
+    result = run_cli("simulate", panda, *common, "--out", tmp_path / "a", cwd=tmp_path)
+    assert_clean_error(result, "2 joints have types orbitflex does not model: 'panda_finger_joint1' (prismatic), "
+                               "'panda_finger_joint2' (prismatic)",
+                       "lock them with --locked-joints panda_finger_joint1,panda_finger_joint2 to treat them "
+                       "as fixed", flag="URDF")
+    flag = re.search(r"--locked-joints (\S+)", result.stderr).group(1)
+    result = run_cli("simulate", panda, "--locked-joints", flag, *common, "--out", tmp_path / "b", cwd=tmp_path)
+    assert result.returncode == 0, result.stderr[-1500:]

@@ -100,7 +100,7 @@ fn load(xml: &str, source: &str, options: &UrdfOptions) -> Result<Robot> {
         "link (ee_links)"
     };
     let ee_links = ees::ee_links(&tree, &asked, option, source)?;
-    ees::check_joint_kinds(&tree, source)?;
+    ees::check_joint_kinds(&tree, &options.locked_joints, source)?;
     let bodies = merge::merge(&tree, source)?;
 
     let base = &bodies.bodies[0];
