@@ -32,8 +32,8 @@ pub use flex::{
 };
 pub use integrate::{Controller, MotorPD, Schedule, SimulationFailure, Trajectory, Wrenches};
 pub use model::{
-    check_mesh_bytes, check_mesh_file, EndEffector, Geometry, JointModel, LinkFrame, MeshFormat,
-    MeshSearch, Robot, RobotBuilder, Scene, Shape, UrdfOptions, Visual, DUAL_ARM_URDF,
+    check_mesh_bytes, check_mesh_file, EndEffector, Geometry, JointLimits, JointModel, LinkFrame,
+    MeshFormat, MeshSearch, Robot, RobotBuilder, Scene, Shape, UrdfOptions, Visual, DUAL_ARM_URDF,
     MAX_MESH_BYTES, MAX_SCENE_MESH_BYTES, SPACE_ARM_URDF,
 };
 pub use operators::Operators;

@@ -12,6 +12,7 @@ __all__ = [
     "BatchTrajectory",
     "FlexibleArm",
     "FlexibleJoints",
+    "LimitWarning",
     "Limits",
     "ModelError",
     "MotorPD",
@@ -40,6 +41,8 @@ DUAL_ARM_URDF: str
 
 class ModelError(ValueError): ...
 
+class LimitWarning(UserWarning): ...
+
 class SimulationError(RuntimeError):
     step: int
     time: float
@@ -59,6 +62,12 @@ class Robot:
     def dof(self) -> int: ...
     @property
     def joint_names(self) -> list[str]: ...
+    @property
+    def position_limits(self) -> _Array: ...
+    @property
+    def velocity_limits(self) -> _Array: ...
+    @property
+    def effort_limits(self) -> _Array: ...
     @property
     def body_names(self) -> list[str]: ...
     @property
@@ -269,6 +278,8 @@ class BatchTrajectory:
 @final
 class Limits:
     def __new__(cls, motor_torque: _Param, joint_speed: _Param, base_force: Optional[float] = None, base_torque: Optional[float] = None) -> Limits: ...
+    @staticmethod
+    def from_urdf(robot: Robot, base_force: Optional[float] = None, base_torque: Optional[float] = None) -> Limits: ...
     @property
     def motor_torque(self) -> Union[float, _Array]: ...
     @property

@@ -454,7 +454,7 @@ def print_demo_comparison(c: Comparison, note: Optional[str]) -> None:
     goal = ", ".join(f"{v:g}" for v in DEMO_PLAN_GOAL)
     print(f"\norbitflex: minimum-time slew of '{c.name}' to q = [{goal}] rad, free floating, planned "
           f"with the flexible joints and as if they were rigid")
-    print(f"  limits              motor torque {gain_text(np.asarray(limits.motor_torque))} N·m, "
+    print(f"  limits (the URDF's) motor torque {gain_text(np.asarray(limits.motor_torque))} N·m, "
           f"joint speed {gain_text(np.asarray(limits.joint_speed))} rad/s")
     print(f"  flexible plan       {c.plan.duration:.4f} s, binding {describe_binding(c.plan)}")
     print(f"  rigid-joint plan    {c.rigid.duration:.4f} s, binding {describe_binding(c.rigid)}")
@@ -1001,11 +1001,9 @@ def plot_momentum(figures: Figures, traj: Trajectory, rows: Rows) -> None:
 # planned slews: `orbitflex plan` and the demo's planned-vs-rigid comparison
 # ---------------------------------------------------------------------------------------------
 
-# The demo's planned slew (rad) and limits (link side): the shoulder joints may use 60 N·m, the
-# elbow 30 N·m, the wrist 15 N·m; every joint 0.5 rad/s. The elbow's torque binds.
+# The demo's planned slew (rad), under the built-in URDF's own limits (Limits.from_urdf: its
+# <limit effort velocity>): the shoulders' 0.15 rad/s binds.
 DEMO_PLAN_GOAL = np.array([0.8, -0.6, 0.5, 1.0, -0.7, 0.6, 0.9])
-DEMO_MOTOR_TORQUE = np.array([60.0, 60.0, 60.0, 30.0, 15.0, 15.0, 15.0])
-DEMO_JOINT_SPEED = 0.5
 # The demo's tracking PD (N·m/rad, N·m·s/rad): a stiff motor servo (RK4 limit at rest 7.4 ms).
 DEMO_KP, DEMO_KD = 1000.0, 100.0
 # Default tracking PD of `orbitflex plan`: each motor a critically damped servo at this
@@ -1031,6 +1029,11 @@ Values per joint (--goal, --start, --waypoint, --motor-torque, --joint-speed, --
 one value for every joint or one per joint, in the model's joint order (depth-first from the
 base: base to EE on a chain, one arm after another on a tree); angles in
 rad, link side.
+
+Limits: by default the URDF's own, <limit effort> as the motor torque after the gearbox and
+<limit velocity> as the joint speed; --motor-torque and --joint-speed replace them (a warning
+says where they allow more). A start, waypoint or goal outside a joint's <limit lower upper>
+is refused.
 
 The planner (orbitflex.plan_slew) moves every joint along q_a + (q_b − q_a) σ(t/T), σ of degree
 9 with derivatives 1–4 zero at both ends, and finds the shortest T per segment for which every
@@ -1252,15 +1255,37 @@ def plan_job(args: argparse.Namespace) -> Tuple[Job, Plan]:
             if value is not None:
                 raise CliError(flag, "bounds the wrench of the actuators that hold the base; a free-"
                                      "floating base (--base free) has none: add --base held or drop it")
+    limits = plan_limits(robot, args)
+    printer = WarningPrinter()  # a LimitWarning: limits past the URDF's, in the CLI's words
     try:
-        limits = Limits(per_joint(args.motor_torque, "--motor-torque", robot),
-                        per_joint(args.joint_speed, "--joint-speed", robot),
-                        args.base_force, args.base_torque)
-        plan = plan_slew(arm, goal, q_start=start, limits=limits, base=args.base,
-                         waypoints=waypoints or None)
+        with warnings.catch_warnings():
+            warnings.simplefilter("always")
+            warnings.showwarning = printer
+            plan = plan_slew(arm, goal, q_start=start, limits=limits, base=args.base,
+                             waypoints=waypoints or None)
     except ValueError as e:
         raise plan_error(e) from None
     return Job(arm, robot.name, goal - start, side, com, note), plan
+
+
+def plan_limits(robot: Robot, args: argparse.Namespace) -> Limits:
+    """``--motor-torque`` and ``--joint-speed`` where given, else the URDF's own (its ``<limit
+    effort velocity>``: :meth:`Limits.from_urdf`), with ``--base-force``/``--base-torque``."""
+    torque = None if args.motor_torque is None else per_joint(args.motor_torque, "--motor-torque", robot)
+    speed = None if args.joint_speed is None else per_joint(args.joint_speed, "--joint-speed", robot)
+    if torque is None or speed is None:
+        for flag, given, rated, tag in (("--motor-torque", torque, robot.effort_limits, "effort"),
+                                        ("--joint-speed", speed, robot.velocity_limits, "velocity")):
+            missing = [name for name, v in zip(robot.joint_names, rated) if not (np.isfinite(v) and v > 0)]
+            if given is None and missing:
+                raise CliError(flag, f"the URDF states no {tag} limit (<limit {tag}=\"…\">) for "
+                                     f"{', '.join(missing)}; give {flag}")
+        torque = robot.effort_limits if torque is None else torque
+        speed = robot.velocity_limits if speed is None else speed
+    try:
+        return Limits(torque, speed, args.base_force, args.base_torque)
+    except ValueError as e:
+        raise plan_error(e) from None
 
 
 def tracking_setup(arm: FlexibleArm, plan: Plan, args: argparse.Namespace) -> Tuple[float, Array, Array, float, Optional[str]]:
@@ -1293,9 +1318,9 @@ def plan_command(args: argparse.Namespace) -> int:
         return 1
     summary = {"model": job.name, "joints": robot.joint_names, "base": plan.base,
                "stops": plan.stops.tolist(), "segment_durations_s": plan.segment_durations.tolist(),
-               "limits": limits_dict(plan.limits), **comparison_summary(comparison)}
+               "limits": {**limits_dict(plan.limits), "source": limits_source(args)}, **comparison_summary(comparison)}
     files = write_plan_outputs(comparison, summary, out, args.no_plots)
-    print_plan_summary(comparison)
+    print_plan_summary(comparison, limits_source(args))
     width = max(len(str(f)) for f in files)
     print(f"\nwrote {len(files)} files:")
     for f in files:
@@ -1309,11 +1334,24 @@ def limits_dict(limits: Limits) -> Dict[str, Any]:
             "base_force_N": limits.base_force, "base_torque_Nm": limits.base_torque}
 
 
-def print_plan_summary(c: Comparison) -> None:
+def limits_source(args: argparse.Namespace) -> str:
+    """Where ``orbitflex plan``'s motor-torque and joint-speed limits come from."""
+    given = [flag for flag in ("--motor-torque", "--joint-speed") if getattr(args, flag[2:].replace("-", "_")) is not None]
+    if len(given) == 2:
+        return "as given"
+    urdf = "the URDF's <limit effort velocity>" if not given else \
+        f"{given[0]} as given, the other the URDF's <limit effort velocity>"
+    return urdf
+
+
+def print_plan_summary(c: Comparison, source: str) -> None:
     plan = c.plan
+    limits = plan.limits
     segments = len(plan.segment_durations)
     parts = f" ({segments} segments: " + ", ".join(f"{d:.3f}" for d in plan.segment_durations) + " s)" if segments > 1 else ""
     print(f"\norbitflex: minimum-time slew of '{c.name}' ({plan.arm.dof} flexible joints, {plan.base} base)")
+    print(f"  limits              motor torque {gain_text(np.asarray(limits.motor_torque))} N·m, joint speed "
+          f"{gain_text(np.asarray(limits.joint_speed))} rad/s ({source})")
     print(f"  duration            {plan.duration:.4f} s{parts}")
     print(f"  binding limit       {describe_binding(plan)}")
     if segments > 1:
@@ -1643,11 +1681,10 @@ def key_label(key: str) -> str:
 
 
 def demo_comparison(arm: FlexibleArm, name: str, requested_dt: float) -> Tuple[Comparison, Optional[str]]:
-    """The demo's planned slew of the built-in arm (free floating) and its rigid-joint plan,
-    tracked with the demo's PD at the run's dt (or the largest round dt within the stability
-    limit below it)."""
-    limits = Limits(DEMO_MOTOR_TORQUE, DEMO_JOINT_SPEED)
-    plan = plan_slew(arm, DEMO_PLAN_GOAL, limits=limits, base="free")
+    """The demo's planned slew of the built-in arm (free floating, under its URDF's limits) and
+    its rigid-joint plan, tracked with the demo's PD at the run's dt (or the largest round dt
+    within the stability limit below it)."""
+    plan = plan_slew(arm, DEMO_PLAN_GOAL, limits=Limits.from_urdf(arm.robot), base="free")
     kp, kd = np.full(arm.dof, DEMO_KP), np.full(arm.dof, DEMO_KD)
     limit = tracking_limit(arm, plan.stops, kp, kd)
     dt, note = requested_dt, None
@@ -1855,10 +1892,11 @@ def plan_options(p: argparse.ArgumentParser) -> None:
                       help="held: the bus's actuators hold it inertially still (and --base-force, "
                            "--base-torque bound them); free: free floating from rest (default %(default)s)")
     limits = p.add_argument_group("limits (link side; one value for every joint, or one per joint)")
-    limits.add_argument("--motor-torque", metavar="NM", type=positive, nargs="+", required=True,
-                        help="|u_i| bound, N·m (motor torque after the gearbox)")
-    limits.add_argument("--joint-speed", metavar="RAD_S", type=positive, nargs="+", required=True,
-                        help="|q̇_i| bound, rad/s")
+    limits.add_argument("--motor-torque", metavar="NM", type=positive, nargs="+", default=None,
+                        help="|u_i| bound, N·m (motor torque after the gearbox; default: the URDF's "
+                             "<limit effort>; more than it warns)")
+    limits.add_argument("--joint-speed", metavar="RAD_S", type=positive, nargs="+", default=None,
+                        help="|q̇_i| bound, rad/s (default: the URDF's <limit velocity>; more than it warns)")
     limits.add_argument("--base-force", metavar="N", type=positive, default=None,
                         help="bound on the norm of the force holding the bus, N (--base held; default none)")
     limits.add_argument("--base-torque", metavar="NM", type=positive, default=None,

@@ -19,7 +19,7 @@
 
 use super::deflection;
 use super::flatness::{classical, rigid_jets, BaseMode, JetScratch, RigidJets};
-use crate::args::{check_dt, check_vector};
+use crate::args::{check_dt, check_vector, number};
 use crate::error::{Error, Result};
 use crate::flex::state::{normalise_quaternion, quaternion_product};
 use crate::flex::FlexibleArm;
@@ -92,6 +92,89 @@ pub struct Limits {
     pub base_force: Option<f64>,
     /// `|n_B| ≤` this (N·m, about the base origin).
     pub base_torque: Option<f64>,
+}
+
+impl Limits {
+    /// The limits the robot's model states ([`crate::Robot::effort_limits`],
+    /// [`crate::Robot::velocity_limits`]: a URDF's `<limit effort velocity>`): the effort is the
+    /// motor torque at the link (after the gearbox), the velocity the joint speed. Errors name
+    /// every joint whose model states no limit (or a zero one), for either.
+    pub fn from_robot(
+        robot: &crate::Robot,
+        base_force: Option<f64>,
+        base_torque: Option<f64>,
+    ) -> Result<Self> {
+        let names = robot.joint_names();
+        for (what, tag, values) in [
+            ("motor_torque", "effort", robot.effort_limits()),
+            ("joint_speed", "velocity", robot.velocity_limits()),
+        ] {
+            let missing: Vec<String> = values
+                .iter()
+                .zip(&names)
+                .filter(|(v, _)| !(v.is_finite() && **v > 0.0))
+                .map(|(v, name)| {
+                    if v.is_finite() {
+                        format!("'{name}' (0)")
+                    } else {
+                        format!("'{name}'")
+                    }
+                })
+                .collect();
+            if !missing.is_empty() {
+                return Err(Error::InvalidArgument {
+                    what: what.into(),
+                    message: format!(
+                        "the model ({}) states no {tag} limit (<limit {tag}=\"…\">), or a zero one, \
+                         for {}; give {what} yourself",
+                        robot.source(),
+                        missing.join(", ")
+                    ),
+                });
+            }
+        }
+        Limits::new(
+            robot.effort_limits(),
+            robot.velocity_limits(),
+            base_force,
+            base_torque,
+        )
+    }
+
+    /// Where these limits allow more than the robot's model states (effort, velocity): one
+    /// phrase per quantity, `joint_speed (rad/s): 'a' 0.5 > 0.15, 'b' 0.5 > 0.2`, empty when
+    /// they stay within it (or the model states none).
+    pub fn exceeding(&self, robot: &crate::Robot) -> Result<Vec<String>> {
+        let limits = self.for_joints(robot.dof())?;
+        let names = robot.joint_names();
+        let mut over = Vec::new();
+        for (what, unit, given, rated) in [
+            (
+                "motor_torque",
+                "N·m",
+                &limits.motor_torque,
+                robot.effort_limits(),
+            ),
+            (
+                "joint_speed",
+                "rad/s",
+                &limits.joint_speed,
+                robot.velocity_limits(),
+            ),
+        ] {
+            let joints: Vec<String> = given
+                .iter()
+                .zip(&rated)
+                .zip(&names)
+                .filter(|((g, r), _)| g > r)
+                .map(|((g, r), name)| format!("'{name}' {} > {}", number(*g), number(*r)))
+                .collect();
+            if !joints.is_empty() {
+                over.push(format!("{what} ({unit}): {}", joints.join(", ")));
+            }
+        }
+        Ok(over)
+    }
 }
 
 fn check_positive(what: &str, values: &[f64]) -> Result<()> {
@@ -409,17 +492,43 @@ pub fn plan_slew(
         stops.push(w.clone());
     }
     stops.push(q_goal.to_vec());
+    let name = |k: usize| match k {
+        0 => "q_start".to_string(),
+        k if k == stops.len() - 1 => "q_goal".to_string(),
+        k => format!("waypoints[{}]", k - 1),
+    };
+    // σ is monotone, so each segment stays between its stops: the stops within the position
+    // limits keep the whole path within them
+    let robot = arm.robot();
+    for (k, stop) in stops.iter().enumerate() {
+        let outside: Vec<String> = stop
+            .iter()
+            .zip(robot.position_limits())
+            .zip(robot.joint_names())
+            .enumerate()
+            .filter(|(_, ((q, (lower, upper)), _))| *q < lower || *q > upper)
+            .map(|(i, ((q, (lower, upper)), joint))| {
+                format!(
+                    "joint {i} ('{joint}') = {} rad is outside its position limits [{}, {}] rad",
+                    number(*q),
+                    number(lower),
+                    number(upper)
+                )
+            })
+            .collect();
+        if !outside.is_empty() {
+            return Err(Error::InvalidArgument {
+                what: name(k),
+                message: format!("{} (the model's <limit lower upper>)", outside.join("; ")),
+            });
+        }
+    }
     for k in 1..stops.len() {
         let step = stops[k]
             .iter()
             .zip(&stops[k - 1])
             .fold(0.0_f64, |m, (b, a)| m.max((b - a).abs()));
         if step <= NOTHING_TO_SLEW {
-            let name = |k: usize| match k {
-                0 => "q_start".to_string(),
-                k if k == stops.len() - 1 => "q_goal".to_string(),
-                k => format!("waypoints[{}]", k - 1),
-            };
             return Err(Error::InvalidArgument {
                 what: name(k),
                 message: format!(

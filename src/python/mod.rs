@@ -35,6 +35,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     let py = m.py();
     m.add("ModelError", py.get_type::<errors::ModelError>())?;
     m.add("SimulationError", py.get_type::<errors::SimulationError>())?;
+    m.add("LimitWarning", py.get_type::<errors::LimitWarning>())?;
     m.add("SPACE_ARM_URDF", crate::SPACE_ARM_URDF)?;
     m.add("DUAL_ARM_URDF", crate::DUAL_ARM_URDF)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;

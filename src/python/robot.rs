@@ -299,6 +299,35 @@ impl PyRobot {
         self.robot.body_names().to_vec()
     }
 
+    /// Each joint's position limits ``[lower, upper]`` (rad), shape (n, 2), from the URDF's
+    /// ``<limit lower upper>``; ``[-inf, inf]`` for a continuous joint (or one whose limits the
+    /// model does not state).
+    #[getter]
+    fn position_limits<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
+        let values = self
+            .robot
+            .position_limits()
+            .iter()
+            .flat_map(|&(lower, upper)| [lower, upper])
+            .collect();
+        super::convert::row_major(py, self.robot.dof(), 2, values)
+    }
+
+    /// Each joint's speed limit ``|q̇|`` (rad/s), shape (n,), from the URDF's ``<limit
+    /// velocity>``; ``inf`` where the model states none.
+    #[getter]
+    fn velocity_limits<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        array1(py, &self.robot.velocity_limits())
+    }
+
+    /// Each joint's effort limit ``|τ|`` (N·m, link side: for a flexible joint, the motor torque
+    /// after the gearbox), shape (n,), from the URDF's ``<limit effort>``; ``inf`` where the
+    /// model states none.
+    #[getter]
+    fn effort_limits<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        array1(py, &self.robot.effort_limits())
+    }
+
     /// The URDF robot name.
     #[getter]
     fn name(&self) -> String {

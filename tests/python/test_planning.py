@@ -19,6 +19,7 @@ import sys
 import textwrap
 import threading
 import time
+import warnings
 from fractions import Fraction
 from pathlib import Path
 
@@ -31,10 +32,14 @@ from orbitflex import cli
 from conftest import erd_case
 from urdf_gen import random_chain
 
-# The demo's slew (README, `orbitflex demo`): the built-in arm, free floating.
+# The test slew: the demo's goal on the built-in arm, free floating, under limits chosen so that
+# a motor torque binds (the elbow's 30 N·m): 0.5 rad/s, more than the built-in URDF's 0.15–0.4
+# rad/s, so every plan here would warn (LimitWarning). The planner's mechanics are tested where
+# torque binds, and the URDF's own limits in their own tests below (`orbitflex demo` uses them).
 GOAL = np.array([0.8, -0.6, 0.5, 1.0, -0.7, 0.6, 0.9])
 MOTOR_TORQUE = np.array([60.0, 60.0, 60.0, 30.0, 15.0, 15.0, 15.0])
 KP, KD, DT = 1000.0, 100.0, 1e-3
+pytestmark = pytest.mark.filterwarnings("ignore::orbitflex.LimitWarning")
 
 
 # ---------------------------------------------------------------------------------------------
@@ -604,8 +609,13 @@ def test_bad_plan_requests_are_model_errors(space_arm):
     bad[2] = np.inf
     assert error(GOAL, limits=limits, waypoints=[GOAL / 2, bad]) == "waypoints[1]: element 2 is not finite (inf)"
     assert error(GOAL, limits=Limits(1e-300, 0.5)).startswith("limits: no duration up to ")
-    with pytest.raises(TypeError, match=r"^plan_slew: limits is required: limits=orbitflex.Limits\(motor_torque, "):
-        plan_slew(space_arm, GOAL)
+    # without limits, the URDF's: a model that states none is an error naming every joint
+    unstated = FlexibleArm(orbitflex.Robot.from_urdf_string(LIMITED), FlexibleJoints(500.0, 0.1))
+    with pytest.raises(ModelError) as e:
+        plan_slew(unstated, np.full(3, 0.1))
+    assert str(e.value) == ("motor_torque: the model (<urdf string>) states no effort limit (<limit effort=\"…\">), "
+                            "or a zero one, for 'unstated'; give motor_torque yourself, or pass "
+                            "limits=orbitflex.Limits(motor_torque, joint_speed, base_force=None, base_torque=None)")
     with pytest.raises(TypeError, match="^plan_slew: limits: expected an orbitflex.Limits, given dict$"):
         plan_slew(space_arm, GOAL, limits={"motor_torque": 30})
 
@@ -801,8 +811,9 @@ def cli_error(argv, capsys) -> str:
 
 
 PLAN_CLI_ERRORS = [
-    (["--goal", 0.8, -0.5, "--joint-speed", 1],
-     "the following arguments are required: --motor-torque (see 'orbitflex plan --help')"),
+    (["--goal", 3.5, -0.5, "--joint-speed", 1],
+     "--goal: joint 0 ('shoulder') = 3.5 rad is outside its position limits [-3, 3] rad (the model's <limit "
+     "lower upper>)"),
     (["--goal", 0.8, -0.5, "--motor-torque", 2, "--joint-speed", 1, "--start", 0.8, -0.5],
      "--goal: equals --start: there is nothing to slew between them"),
     (["--goal", 0, "--motor-torque", 2, "--joint-speed", 1],
@@ -989,14 +1000,145 @@ def test_demo_shows_the_planned_slew_beside_the_rigid_one(tmp_path):
     assert result.returncode == 0, result.stderr[-2000:]
     text = result.stdout
     assert "minimum-time slew of 'space_arm' to q = [0.8, -0.6, 0.5, 1, -0.7, 0.6, 0.9] rad, free floating" in text
-    assert "flexible plan       5.7895 s, binding motor_torque on elbow_pitch (joint index 3): 30 of 30 N·m" in text
-    assert "rigid-joint plan    5.7906 s, binding motor_torque on elbow_pitch (joint index 3)" in text
-    assert re.search(r"peak commanded torque +30 N·m = 100\.0% of the limit on elbow_pitch +32\.3 N·m = 107\.7% of "
-                     r"the limit on elbow_pitch OVER", text), text
-    assert re.search(r"residual deflection max\|θ − q\| +1\.08e-07 rad +7\.90e-04 rad", text), text
+    # under the built-in URDF's own limits: its shoulders' 0.15 rad/s binds (T = 0.8 · 630/256 / 0.15)
+    assert ("limits (the URDF's) motor torque [250, 250, 250, 200, 100, 80, 60] N·m, joint speed [0.15, 0.15, "
+            "0.15, 0.2, 0.3, 0.3, 0.4] rad/s") in text
+    assert "flexible plan       13.1250 s, binding joint_speed on shoulder_roll (joint index 0): 0.15 of 0.15 rad/s" in text
+    assert "rigid-joint plan    13.1250 s, binding joint_speed on shoulder_roll (joint index 0)" in text
     summary = json.loads((tmp_path / "out" / "summary.json").read_text())
     planned = summary["planned_slew"]
-    assert planned["flexible"]["duration_s"] == pytest.approx(5.7894809, rel=1e-7)
-    assert planned["rigid"]["peak_torque_over_limit"] == pytest.approx(32.30 / 30, abs=1e-3)
+    assert planned["flexible"]["duration_s"] == pytest.approx(13.125, rel=1e-12)
+    assert planned["limits"]["joint_speed_rad_s"] == [0.15, 0.15, 0.15, 0.2, 0.3, 0.3, 0.4]
+    # within the URDF's effort, the rigid plan's sin is the vibration it leaves: 7.3e-6 rad after
+    # the stop against 1.3e-9, and a 1.3 mrad tracking error against 7e-8
     assert planned["rigid"]["residual_deflection_rad"] > 1000 * planned["flexible"]["residual_deflection_rad"]
+    assert planned["rigid"]["tracking_error_rad"] > 1e4 * planned["flexible"]["tracking_error_rad"]
+    assert planned["flexible"]["peak_torque_over_limit"] < 0.05
     assert planned["kp"] == [KP] * 7 and planned["dt_s"] == DT
+
+
+# ---------------------------------------------------------------------------------------------
+# the URDF's limits: read, planned under, enforced
+# ---------------------------------------------------------------------------------------------
+
+LIMITED = """<robot name="limited">
+  <link name="bus"><inertial><mass value="100"/><inertia ixx="10" iyy="10" izz="10" ixy="0" ixz="0" iyz="0"/></inertial></link>
+  <link name="a"><inertial><origin xyz="0.3 0 0"/><mass value="2"/><inertia ixx="0.1" iyy="0.1" izz="0.1" ixy="0" ixz="0" iyz="0"/></inertial></link>
+  <link name="b"><inertial><origin xyz="0.3 0 0"/><mass value="2"/><inertia ixx="0.1" iyy="0.1" izz="0.1" ixy="0" ixz="0" iyz="0"/></inertial></link>
+  <link name="c"><inertial><origin xyz="0.3 0 0"/><mass value="1"/><inertia ixx="0.1" iyy="0.1" izz="0.1" ixy="0" ixz="0" iyz="0"/></inertial></link>
+  <joint name="revolute" type="revolute"><parent link="bus"/><child link="a"/><axis xyz="0 0 1"/>
+    <limit lower="-1.5" upper="0.5" effort="40" velocity="0.7"/></joint>
+  <joint name="continuous" type="continuous"><parent link="a"/><child link="b"/><origin xyz="0.6 0 0"/><axis xyz="0 1 0"/>
+    <limit effort="20" velocity="1.2"/></joint>
+  <joint name="unstated" type="revolute"><parent link="b"/><child link="c"/><origin xyz="0.6 0 0"/><axis xyz="0 1 0"/></joint>
+</robot>"""
+
+
+def test_the_urdf_limits_are_read_per_joint():
+    robot = orbitflex.Robot.from_urdf_string(LIMITED)
+    # a continuous joint turns freely; a joint without <limit> states nothing
+    np.testing.assert_array_equal(robot.position_limits, [[-1.5, 0.5], [-np.inf, np.inf], [-np.inf, np.inf]])
+    np.testing.assert_array_equal(robot.velocity_limits, [0.7, 1.2, np.inf])
+    np.testing.assert_array_equal(robot.effort_limits, [40, 20, np.inf])
+    space = orbitflex.models.space_arm()
+    np.testing.assert_array_equal(space.velocity_limits, [0.15, 0.15, 0.15, 0.2, 0.3, 0.3, 0.4])
+    np.testing.assert_array_equal(space.effort_limits, [250, 250, 250, 200, 100, 80, 60])
+    assert space.position_limits[6].tolist() == [-3.05, 3.05]
+    # they follow the model through its changes, and a locked joint takes its limits with it
+    assert space.with_payload(10.0).velocity_limits.tolist() == space.velocity_limits.tolist()
+    locked = orbitflex.Robot.from_urdf_string(LIMITED, locked_joints=["continuous"])
+    np.testing.assert_array_equal(locked.effort_limits, [40, np.inf])
+    # and what a URDF cannot mean is refused, naming the joint
+    with pytest.raises(ModelError, match=r"joint 'revolute': position limits: expected finite lower <= upper \(rad\), "
+                                         r"given lower = 1, upper = -1"):
+        orbitflex.Robot.from_urdf_string(LIMITED.replace('lower="-1.5" upper="0.5"', 'lower="1" upper="-1"'))
+    with pytest.raises(ModelError, match=r"joint 'continuous': velocity limit: expected a finite number >= 0, given -1"):
+        orbitflex.Robot.from_urdf_string(LIMITED.replace('velocity="1.2"', 'velocity="-1"'))
+    with pytest.raises(ModelError, match=r'<urdf string>: malformed URDF: line 7: <limit effort="x">: expected a number'):
+        orbitflex.Robot.from_urdf_string(LIMITED.replace('effort="40"', 'effort="x"'))
+
+
+def test_limits_from_the_urdf_and_what_they_cannot_give():
+    robot = orbitflex.models.space_arm()
+    limits = Limits.from_urdf(robot)
+    np.testing.assert_array_equal(limits.motor_torque, robot.effort_limits)  # link-side motor torque
+    np.testing.assert_array_equal(limits.joint_speed, robot.velocity_limits)
+    assert limits.base_force is None and Limits.from_urdf(robot, base_force=50.0).base_force == 50.0
+    with pytest.raises(ModelError) as e:
+        Limits.from_urdf(orbitflex.Robot.from_urdf_string(LIMITED))
+    assert str(e.value) == ("motor_torque: the model (<urdf string>) states no effort limit (<limit effort=\"…\">), "
+                            "or a zero one, for 'unstated'; give motor_torque yourself")
+
+
+def test_a_plan_keeps_to_the_urdf_speeds_by_default(space_arm):
+    # The README and the demo planned at 0.5 rad/s, and peaked at 0.34 rad/s on shoulder_roll
+    # (the URDF allows 0.15) without a word. Without limits a plan takes the URDF's, and more
+    # than them warns.
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        plan = plan_slew(space_arm, GOAL, base="free")
+    speeds = space_arm.robot.velocity_limits
+    assert np.abs(plan.qd).max(axis=0) == pytest.approx(np.minimum(speeds, np.abs(plan.qd).max(axis=0)), rel=1e-12)
+    assert np.all(np.abs(plan.qd).max(axis=0) <= speeds * (1 + 1e-12))
+    # the speed bound is exact: T = |Δq| max σ' / q̇_max, σ'(1/2) = 630/256
+    assert plan.duration == pytest.approx(0.8 * (630 / 256) / 0.15, rel=1e-12)
+    assert plan.binding["limit"] == "joint_speed" and plan.binding["joint_name"] == "shoulder_roll"
+    assert np.all(np.abs(plan.u).max(axis=0) <= space_arm.robot.effort_limits)
+    with pytest.warns(orbitflex.LimitWarning) as record:
+        plan_slew(space_arm, GOAL, limits=Limits(MOTOR_TORQUE, 0.5), base="free")
+    assert str(record[0].message) == (
+        "limits allow more than the robot's model states (its URDF's <limit effort velocity>): joint_speed (rad/s): "
+        "'shoulder_roll' 0.5 > 0.15, 'shoulder_yaw' 0.5 > 0.15, 'shoulder_pitch' 0.5 > 0.15, 'elbow_pitch' 0.5 > 0.2, "
+        "'wrist_pitch' 0.5 > 0.3, 'wrist_yaw' 0.5 > 0.3, 'wrist_roll' 0.5 > 0.4; the plan uses them as given")
+    with pytest.warns(orbitflex.LimitWarning, match=r"motor_torque \(N·m\): 'wrist_roll' 61 > 60; the plan"):
+        plan_slew(space_arm, GOAL, limits=Limits([250, 250, 250, 200, 100, 80, 61], 0.1), base="free")
+
+
+def test_a_stop_outside_the_position_limits_is_refused(space_arm):
+    # plan_slew to 5 rad on wrist_roll (±3.05) returned a 24.6 s plan without a word
+    goal = np.r_[0, 0, 0, 0, 0, 0, 5.0]
+    limits = Limits.from_urdf(space_arm.robot)
+
+    def error(**kwargs) -> str:
+        with pytest.raises(ModelError) as e:
+            plan_slew(space_arm, limits=limits, base="free", **kwargs)
+        return str(e.value)
+
+    assert error(q_goal=goal) == ("q_goal: joint 6 ('wrist_roll') = 5 rad is outside its position limits "
+                                  "[-3.05, 3.05] rad (the model's <limit lower upper>)")
+    assert error(q_goal=np.full(7, 0.1), q_start=np.r_[2.1, 0, 0, 0, 0, -2.2, 0]) == (
+        "q_start: joint 5 ('wrist_yaw') = -2.2 rad is outside its position limits [-2, 2] rad (the model's "
+        "<limit lower upper>)")
+    assert error(q_goal=np.full(7, 0.1), waypoints=[np.full(7, 0.05), np.r_[0, 2.7, 0, 2.61, 0, 0, 0]]) == (
+        "waypoints[1]: joint 1 ('shoulder_yaw') = 2.7 rad is outside its position limits [-2.6, 2.6] rad; joint 3 "
+        "('elbow_pitch') = 2.61 rad is outside its position limits [-2.6, 2.6] rad (the model's <limit lower upper>)")
+    # on the bound is inside
+    assert plan_slew(space_arm, np.r_[0, 0, 0, 0, 0, 0, 3.05], limits=limits, base="free").duration > 0
+
+
+def test_plan_command_takes_the_urdf_limits_unless_told_otherwise(model_files, tmp_path, capsys):
+    # two_link_sat's URDF: effort 50 N·m, velocity 1 rad/s on both joints
+    code = cli.main(plan_args(model_files, "--goal", 0.8, -0.5, "--out", tmp_path / "a", "--no-plots"))
+    out = capsys.readouterr()
+    assert code == 0, out.err
+    assert "limits              motor torque 50 N·m, joint speed 1 rad/s (the URDF's <limit effort velocity>)" in out.out
+    assert "warning" not in out.err
+    limits = json.loads((tmp_path / "a" / "plan_summary.json").read_text())["limits"]
+    assert limits["motor_torque_Nm"] == [50, 50] and limits["joint_speed_rad_s"] == [1, 1]
+    # more than the URDF's: planned as given, with one warning line in the CLI's words
+    code = cli.main(plan_args(model_files, "--goal", 0.8, -0.5, "--joint-speed", 2, "--out", tmp_path / "b",
+                              "--no-plots"))
+    out = capsys.readouterr()
+    assert code == 0, out.err
+    assert "(--joint-speed as given, the other the URDF's <limit effort velocity>)" in out.out
+    warned = [line for line in out.err.splitlines() if "warning" in line]
+    assert warned == ["orbitflex: warning: limits allow more than the robot's model states (its URDF's <limit effort "
+                      "velocity>): joint_speed (rad/s): 'shoulder' 2 > 1, 'elbow' 2 > 1; the plan uses them as given"]
+    # a URDF that states none: the flag to give
+    urdf, params = model_files
+    bare = tmp_path / "bare.urdf"
+    bare.write_text(re.sub(r"<limit[^>]*/>", "", urdf.read_text()))
+    line = cli_error(["plan", str(bare), "--params", str(params), "--locked-joints", "finger_slide", "--goal", "0.5",
+                      "--motor-torque", "5", "--out", str(tmp_path / "c")], capsys)
+    assert line == "--joint-speed: the URDF states no velocity limit (<limit velocity=\"…\">) for shoulder, elbow; give --joint-speed"
+
