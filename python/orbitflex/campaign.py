@@ -1,3 +1,5 @@
+# mypy: disable-error-code="import-not-found,import-untyped,unused-ignore", no-implicit-reexport
+# (pandas, Dask and their stubs come with orbitflex[campaign]: a base install type-checks clean)
 """Monte-Carlo campaigns: many slews of one arm with dispersed parameters, run locally through
 :func:`orbitflex.simulate_batch` or on a Dask cluster, with one table row per run.
 

@@ -1,3 +1,5 @@
+# mypy: disable-error-code="import-not-found,import-untyped,unused-ignore", no-implicit-reexport
+# (tqdm's stubs and pandas are optional: a base install type-checks clean without them)
 """Command line: ``orbitflex demo``, ``orbitflex simulate URDF``, ``orbitflex plan URDF`` and
 ``orbitflex campaign FILE``.
 

@@ -1,3 +1,5 @@
+# mypy: disable-error-code="import-not-found,import-untyped,unused-ignore", no-implicit-reexport
+# (meshcat and umsgpack come with orbitflex[viz], without stubs: a base install type-checks clean)
 """3-D views of a model and its runs: a self-contained HTML animation and a live viewer.
 
 Everything here draws with `meshcat <https://github.com/meshcat-dev/meshcat-python>`_, the
