@@ -523,6 +523,8 @@ def write_outputs(job: Job, outcome: Outcome, summary: Dict[str, Any], out: Path
             if comparison is not None:
                 figures = Figures(out, plan_caption(comparison))
                 plot_plan_vs_rigid(figures, comparison)
+                plot_plan_torque(figures, comparison)  # every limit the plan respects, against it
+                plot_plan_speed(figures, comparison)
                 files += figures.files
     except OSError as e:
         raise CliError("--out", f"cannot write {files[-1]}: {e.strerror or e}") from None
@@ -877,7 +879,8 @@ def plot_attitude(figures: Figures, traj: Trajectory, rows: Rows) -> None:
            title="Euler angles, intrinsic z-y′-x″ (yaw, then pitch, then roll): "
                  "R(base → inertial) = Rz(yaw) · Ry(pitch) · Rx(roll)")
     ax.title.set_fontsize(9)
-    ax.legend(fontsize=8, loc="best")
+    # beside the axes, not on them: inside, it covered the yaw curve during the slew
+    ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))
     figures.save(fig, "base_attitude.png")
 
 
@@ -1021,7 +1024,8 @@ PLAN_OUTPUTS = {
     "plan_summary.json": "the summary above, as numbers",
     "plan_angles.png": "planned link angles q, with the stops and the binding instant",
     "plan_deflection.png": "planned joint deflection θ − q per joint, and the tracking run's",
-    "plan_motor_torque.png": "planned motor torque u per joint against its limits (dashed)",
+    "plan_motor_torque.png": "planned motor torque u per joint against its limit, scaled to the data",
+    "plan_joint_speed.png": "planned joint speed q̇ per joint against its limit, scaled to the data",
     "plan_base.png": "held base: the wrench that holds it, against its limits; free: its attitude",
     "plan_vs_rigid.png": "flexible plan vs rigid-joint plan, both run on the flexible arm",
 }
@@ -1427,6 +1431,7 @@ def plot_plan(c: Comparison, out: Path) -> List[Path]:
     plot_plan_angles(figures, c)
     plot_plan_deflection(figures, c)
     plot_plan_torque(figures, c)
+    plot_plan_speed(figures, c)
     plot_plan_base(figures, c)
     plot_plan_vs_rigid(figures, c)
     return figures.files
@@ -1500,36 +1505,63 @@ def plot_plan_deflection(figures: Figures, c: Comparison) -> None:
     figures.save(fig, "plan_deflection.png")
 
 
-def plot_plan_torque(figures: Figures, c: Comparison) -> None:
-    """One panel per joint: the planned motor torque between its dashed limits; the binding
-    joint's peak marked."""
+def against_limit(ax: Any, peak: float, limit: Optional[float], unit: str, symmetric: bool = True) -> str:
+    """Scales ``ax`` to its data (peak ``|value|``) and draws ``±limit`` (dashed) when it is
+    within view; a limit far above the data (the data under half of it) is left off the scale
+    rather than flattening every curve. Returns the title's words for it."""
+    if limit is None:
+        return "no limit given"
+    share = peak / limit
+    top = 1.15 * (limit if share >= 0.5 else max(peak, 1e-300))
+    for sign in ((1, -1) if symmetric else (1,)):
+        if share >= 0.5:
+            ax.axhline(sign * limit, color="black", ls="--", lw=0.9,
+                       label=f"limit {limit:.3g} {unit}" if sign > 0 else None)
+    ax.set_ylim(-top if symmetric else 0.0, top)
+    text = f"peak {peak:.3g} of {limit:.3g} {unit} ({share:.1%})"
+    if share >= 0.5:
+        return text
+    return text + ", limit off scale"
+
+
+def plot_plan_limited(figures: Figures, c: Comparison, values: Array, limits: Array, what: str, symbol: str,
+                      unit: str, name: str) -> None:
+    """One panel per joint: a planned quantity against its limit, each panel scaled to its data
+    (the limit dashed when within view, else named in the title); the binding peaks marked."""
     plan, names = c.plan, c.plan.arm.robot.joint_names
-    limit = np.asarray(plan.limits.motor_torque)
     bindings = plan.bindings
-    fig, axes = joint_panels(figures, "Planned motor torque u against its limits (dashed); red dots: where "
-                                      "a limit binds", len(names))
+    fig, axes = joint_panels(figures, f"Planned {what} {symbol} against its limits (dashed where in view); red "
+                                      f"dots: where a limit binds", len(names))
+    key = {"u": "motor_torque", "q̇": "joint_speed"}[symbol]
     for i, ax in enumerate(axes.flat[: len(names)]):
-        u = plan.u[:, i]
-        ax.plot(plan.t, u, lw=1.3, color=f"C{i % 10}")
-        for sign in (1, -1):
-            ax.axhline(sign * limit[i], color="black", ls="--", lw=0.9)
+        v = values[:, i]
+        ax.plot(plan.t, v, lw=1.3, color=f"C{i % 10}")
         ax.axhline(0, color="black", lw=0.4)
-        peak = int(np.abs(u).argmax())
-        binds = [b for b in bindings if b["limit"] == "motor_torque" and b["joint"] == i]
+        binds = [b for b in bindings if b["limit"] == key and b["joint"] == i]
         for b in binds:
-            sign = np.sign(np.interp(b["time"], plan.t, u))
+            sign = np.sign(np.interp(b["time"], plan.t, v))
             ax.plot(b["time"], sign * b["value"], "o", color="tab:red", ms=5)
-        ax.set_ylim(-1.15 * limit[i], 1.15 * limit[i])
-        ax.set_ylabel("u (N·m)")
-        share = abs(u[peak]) / limit[i]
+        words = against_limit(ax, float(np.abs(v).max()), float(limits[i]), unit)
+        ax.set_ylabel(f"{symbol} ({unit})")
         where = ""
         if binds:
             where = " — binds" + (" in segment " + ", ".join(str(b["segment"] + 1) for b in binds)
                                   if len(bindings) > 1 else "")
-        ax.set_title(f"{names[i]}: peak {abs(u[peak]):.3g} of {limit[i]:.3g} N·m ({share:.1%}){where}",
-                     fontsize=8.5, color="tab:red" if binds else "black")
+        ax.set_title(f"{names[i]}: {words}{where}", fontsize=8.5, color="tab:red" if binds else "black")
         mark_segments(ax, plan)
-    figures.save(fig, "plan_motor_torque.png")
+    figures.save(fig, name)
+
+
+def plot_plan_torque(figures: Figures, c: Comparison) -> None:
+    """The planned motor torques against their limits."""
+    plot_plan_limited(figures, c, c.plan.u, np.broadcast_to(c.plan.limits.motor_torque, (c.plan.arm.dof,)),
+                      "motor torque", "u", "N·m", "plan_motor_torque.png")
+
+
+def plot_plan_speed(figures: Figures, c: Comparison) -> None:
+    """The planned joint speeds against their limits."""
+    plot_plan_limited(figures, c, c.plan.qd, np.broadcast_to(c.plan.limits.joint_speed, (c.plan.arm.dof,)),
+                      "joint speed", "q̇", "rad/s", "plan_joint_speed.png")
 
 
 def plot_plan_base(figures: Figures, c: Comparison) -> None:
@@ -1545,10 +1577,12 @@ def plot_plan_base(figures: Figures, c: Comparison) -> None:
                 ax.plot(plan.t, values[:, a], lw=1, label=f"${symbol}_{axis}$")
             norm = np.linalg.norm(values, axis=1)
             ax.plot(plan.t, norm, color="black", lw=1.8, label=f"$|{symbol}|$ (peak {norm.max():.3g} {unit})")
-            if bound is not None:
-                ax.axhline(bound, color="black", ls="--", lw=0.9, label=f"limit {bound:.3g} {unit}")
+            words = against_limit(ax, float(norm.max()), bound, unit, symmetric=False)
+            if bound is not None:  # the components are signed: room below zero for them
+                ax.set_ylim(bottom=-ax.get_ylim()[1])
             ax.axhline(0, color="black", lw=0.4)
-            ax.set(ylabel=f"${symbol}_B$ ({unit})", title=what + ("" if bound is not None else " (no limit given)"))
+            title = f"{what}: |{symbol}| {words}" if bound is not None else f"{what} (no limit given)"
+            ax.set(ylabel=f"${symbol}_B$ ({unit})", title=title)
             ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))
         axes[1].set(xlabel="time (s)")
         figures.save(fig, "plan_base.png")
@@ -1624,16 +1658,24 @@ def plot_plan_vs_rigid(figures: Figures, c: Comparison) -> None:
     colours = {"flexible plan": "tab:blue", "rigid-joint plan": "tab:orange"}
     bars = fig.add_subplot(grid[0, 0])
     x = np.arange(len(names))
+    top = 0.0
     for k, (label, plan, run) in enumerate(c.runs):
         share = 100 * run["peak_motor_torque"] / np.asarray(plan.limits.motor_torque)
+        top = max(top, float(share.max()))
         bars.bar(x + (k - 0.5) * 0.38, share, 0.38, color=colours[label], label=label)
         for i in np.flatnonzero(share > 100 + 1e-7):
             bars.annotate(f"{run['peak_motor_torque'][i]:.3g} N·m", (x[i] + (k - 0.5) * 0.38, share[i]),
                           ha="center", va="bottom", fontsize=7.5, color="tab:red")
-    bars.axhline(100, color="tab:red", ls="--", lw=1, label="limit")
     bars.set_xticks(x, names, rotation=35, ha="right", fontsize=8)
-    bars.set(ylabel="peak commanded |u| / limit (%)", ylim=(0, 145),
-             title="peak commanded motor torque (feedforward + PD)")
+    # scaled to the bars: the limit (100 %) is drawn when they come near it, else named
+    title = "peak commanded motor torque (feedforward + PD)"
+    if top >= 50:
+        bars.axhline(100, color="tab:red", ls="--", lw=1, label="limit")
+        bars.set_ylim(0, max(145, 1.3 * top))
+    else:
+        bars.set_ylim(0, 1.45 * top)
+        title += f"\nall under {top:.3g} % of their limits (100 %: off this scale)"
+    bars.set(ylabel="peak commanded |u| / limit (%)", title=title)
     bars.title.set_fontsize(9.5)
     bars.legend(fontsize=7.5, loc="upper center", ncol=3)
     panels = (

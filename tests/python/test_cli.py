@@ -31,7 +31,7 @@ PNGS = {
     "momentum_drift.png",
 }
 # the demo adds its planned slew beside the rigid-joint plan (tests/python/test_planning.py)
-DEMO_PNGS = PNGS | {"plan_vs_rigid.png"}
+DEMO_PNGS = PNGS | {"plan_vs_rigid.png", "plan_motor_torque.png", "plan_joint_speed.png"}
 
 URDF = """<?xml version="1.0"?>
 <robot name="two_link_sat">
@@ -1057,3 +1057,14 @@ def test_every_unsupported_joint_is_named_with_the_flag_that_locks_them_all(tmp_
     flag = re.search(r"--locked-joints (\S+)", result.stderr).group(1)
     result = run_cli("simulate", panda, "--locked-joints", flag, *common, "--out", tmp_path / "b", cwd=tmp_path)
     assert result.returncode == 0, result.stderr[-1500:]
+
+
+def test_the_attitude_legend_sits_beside_the_curves(figures):
+    # it covered the yaw curve over the whole transient (2.5 s to 5.5 s of the demo)
+    kept, _ = figures
+    fig = kept["base_attitude.png"]
+    fig.canvas.draw()
+    ax = fig.axes[0]
+    legend = ax.get_legend().get_window_extent()
+    assert legend.x0 >= ax.get_window_extent().x1, (legend, ax.get_window_extent())
+

@@ -931,7 +931,7 @@ def plan_figures(model_files, tmp_path_factory):
 
 
 def test_every_plan_plot_names_model_duration_and_dt_with_units(plan_figures):
-    unit = re.compile(r"\((s|deg|mrad|µrad|nrad|rad|N·m|N|m|mm|%)\)$")
+    unit = re.compile(r"\((s|deg|mrad|µrad|nrad|rad|rad/s|N·m|N|m|mm|%)\)$")
     names = {name for _, name in plan_figures} - {"comparison"}
     assert names == {n for n in cli.PLAN_OUTPUTS if n.endswith(".png")}
     for (base, name), fig in plan_figures.items():
@@ -953,9 +953,12 @@ def test_motor_torque_plot_draws_the_limits_and_marks_the_binding_peaks(plan_fig
     fig = plan_figures[("free", "plan_motor_torque.png")]
     c = plan_figures[("free", "comparison")]
     shoulder, elbow = [ax for ax in fig.axes if ax.get_visible()]
-    for ax, bound in ((shoulder, 2.0), (elbow, 2.0)):
+    for i, ax in enumerate((shoulder, elbow)):
         dashed = sorted(line.get_ydata()[0] for line in ax.get_lines() if line.get_linestyle() == "--")
-        assert dashed == [-bound, bound]
+        # drawn where the torque comes near it (else the panel is scaled to the torque)
+        near = np.abs(c.plan.u[:, i]).max() >= 0.5 * 2.0
+        assert dashed == ([-2.0, 2.0] if near else []), (i, dashed)
+    assert [line.get_ydata()[0] for line in shoulder.get_lines() if line.get_linestyle() == "--"]
     # segment 1 binds on the shoulder's torque: marked, and said in the title
     assert "binds" in shoulder.get_title() and "binds" not in elbow.get_title()
     dots = [line for line in shoulder.get_lines() if line.get_marker() == "o"]
@@ -1142,3 +1145,54 @@ def test_plan_command_takes_the_urdf_limits_unless_told_otherwise(model_files, t
                       "--motor-torque", "5", "--out", str(tmp_path / "c")], capsys)
     assert line == "--joint-speed: the URDF states no velocity limit (<limit velocity=\"…\">) for shoulder, elbow; give --joint-speed"
 
+
+
+def test_every_limit_a_plan_respects_is_plotted_against_it_scaled_to_the_data(plan_figures, model_files, tmp_path):
+    # `orbitflex plan` on panda: joint speed bound and no plot showed the speeds; the torque plot
+    # drew the torques at 1 % of its scale, every curve flat
+    for base in ("held", "free"):
+        c = plan_figures[(base, "comparison")]
+        for name, values, limits in (("plan_joint_speed.png", c.plan.qd, c.plan.limits.joint_speed),
+                                     ("plan_motor_torque.png", c.plan.u, c.plan.limits.motor_torque)):
+            axes = [ax for ax in plan_figures[(base, name)].axes if ax.get_visible()]
+            assert len(axes) == 2
+            for i, ax in enumerate(axes):
+                peak, limit = float(np.abs(values[:, i]).max()), float(np.broadcast_to(limits, (2,))[i])
+                low, high = ax.get_ylim()
+                dashed = [line.get_ydata()[0] for line in ax.get_lines() if line.get_linestyle() == "--"]
+                assert f"peak {peak:.3g} of {limit:.3g}" in ax.get_title(), ax.get_title()
+                if peak >= 0.5 * limit:  # near it: the limit in view
+                    assert sorted(dashed) == [-limit, limit] and high == pytest.approx(1.15 * limit)
+                else:  # far below: the data fill the panel, the limit is named
+                    assert dashed == [] and high == pytest.approx(1.15 * peak) and "limit off scale" in ax.get_title()
+                assert -low == high and high >= peak
+    # the free plan is bound by the 1 rad/s of a joint speed: shown against it
+    c = plan_figures[("free", "comparison")]
+    speed = [ax for ax in plan_figures[("free", "plan_joint_speed.png")].axes if ax.get_visible()]
+    bound = [ax for ax in speed if "binds" in ax.get_title()]
+    assert any(b["limit"] == "joint_speed" for b in c.plan.bindings) == bool(bound)
+
+
+def test_a_torque_bar_chart_far_below_its_limit_is_scaled_to_the_bars(tmp_path):
+    # the demo's slew under the URDF's limits peaks at 4 % of the motor torque limits
+    from test_cli import run_cli
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    arm = FlexibleArm(orbitflex.models.space_arm(), orbitflex.models.space_arm_joints())
+    plan = plan_slew(arm, GOAL, base="free")
+    comparison = cli.compare("space_arm", plan, 1e-3, np.full(7, KP), np.full(7, KD), 0.5)
+    kept = {}
+    original = cli.Figures.save
+    cli.Figures.save = lambda self, fig, name: kept.__setitem__(name, fig)
+    try:
+        cli.plot_plan_vs_rigid(cli.Figures(tmp_path, "caption"), comparison)
+    finally:
+        cli.Figures.save = original
+    bars = kept["plan_vs_rigid.png"].axes[0]
+    top = max(patch.get_height() for patch in bars.patches)
+    assert top < 5 and bars.get_ylim()[1] == pytest.approx(1.45 * top)
+    assert not [line for line in bars.get_lines() if line.get_ydata()[0] == 100]
+    assert f"all under {top:.3g} % of their limits (100 %: off this scale)" in bars.get_title()
+    matplotlib.pyplot.close(kept["plan_vs_rigid.png"])
