@@ -52,8 +52,9 @@ Rows = npt.NDArray[np.intp]  # indices of the rows drawn in a plot
 
 # Default slew for the built-in arm (rad, link side), one entry per joint.
 SPACE_ARM_SLEW = np.array([0.4, 0.6, -0.5, 0.8, -0.6, 0.5, 1.0])
-# Side (m) of the built-in arm's bus, and of the solid cube that --base-mass alone stands for.
-BUS_SIDE = 1.5
+# Side (m) of the built-in arm's bus, and of the solid cube that --base-mass alone stands for
+# (Robot.with_base_inertia's default).
+BUS_SIDE = models.DEFAULT_BUS_SIDE
 
 # FlexibleJoints.defaults_for, in a few words: printed when a run uses it, and in the help.
 DEFAULTS_SCALING = ("each joint rings at 5 Hz with its motor held, motor inertia = the link-side "
@@ -1779,13 +1780,15 @@ def mount_on_bus(robot: Robot, args: argparse.Namespace) -> Tuple[Robot, float, 
                 raise CliError(flag, "describes the bus given by --base-mass KG; add --base-mass")
         return robot, sketch_side(robot), com
     mass = args.base_mass
-    inertia = np.full(3, mass * BUS_SIDE**2 / 6) if args.base_inertia is None else np.asarray(args.base_inertia)
+    inertia = None if args.base_inertia is None else np.asarray(args.base_inertia)
     try:
-        robot = robot.with_base_inertia(mass, inertia, com)
+        robot = robot.with_base_inertia(mass, inertia, com)  # default: the solid cube of BUS_SIDE
     except ValueError as e:
         message = str(e)
         flag = "--base-com" if message.startswith("com") else "--base-inertia" if "inertia" in message else "--base-mass"
         raise CliError(flag, message) from None
+    if inertia is None:
+        return robot, BUS_SIDE, com
     # the solid cube with this mass and (mean) inertia: I = m s² / 6
     return robot, max(float(np.sqrt(6 * max(float(inertia.mean()), 0.0) / mass)), 1e-3), com
 

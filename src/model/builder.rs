@@ -498,6 +498,10 @@ fn subtree(robot: &Robot, i: usize) -> Vec<&str> {
         .collect()
 }
 
+/// Edge (m) of the solid cube that stands for a spacecraft bus given by its mass alone
+/// ([`crate::spatial::Inertia::solid_cube`]): the built-in bus's size.
+pub const DEFAULT_BUS_SIDE: f64 = 1.5;
+
 impl Robot {
     /// This robot with its base body's inertia replaced, validated like any new model: for
     /// example to mount an arm whose root link weighs a few kilograms on a spacecraft bus.

@@ -38,6 +38,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("LimitWarning", py.get_type::<errors::LimitWarning>())?;
     m.add("SPACE_ARM_URDF", crate::SPACE_ARM_URDF)?;
     m.add("DUAL_ARM_URDF", crate::DUAL_ARM_URDF)?;
+    m.add("DEFAULT_BUS_SIDE", crate::model::DEFAULT_BUS_SIDE)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     m.add_class::<robot::PyRobot>()?;
     m.add_class::<joints::PyFlexibleJoints>()?;

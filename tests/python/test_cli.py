@@ -587,6 +587,23 @@ def test_base_mass_mounts_the_arm_on_a_bus(model_files, tmp_path):
     assert np.abs(x_com - x_cube).max() > 1e-9 and np.abs(x_thin - x_cube).max() > 1e-9
 
 
+def test_python_and_the_cli_share_one_default_bus(model_files):
+    # Python had no default bus inertia while the CLI defaulted to a solid 1.5 m cube: both now
+    # take Robot.with_base_inertia(mass)'s, a solid cube of models.DEFAULT_BUS_SIDE
+    urdf, params = model_files
+    args = cli.build_parser().parse_args(["simulate", str(urdf), "--locked-joints", "finger_slide",
+                                          "--base-mass", "500"])
+    robot = cli.load_robot(args)
+    mounted, side, _ = cli.mount_on_bus(robot, args)
+    assert orbitflex.models.DEFAULT_BUS_SIDE == side == 1.5
+    q = np.array([0.3, -0.2])
+    default = robot.with_base_inertia(500.0)
+    cube = robot.with_base_inertia(500.0, np.full(3, 500.0 * 1.5**2 / 6))
+    np.testing.assert_array_equal(mounted.mass_matrix(q), default.mass_matrix(q))
+    np.testing.assert_array_equal(default.mass_matrix(q), cube.mass_matrix(q))
+    assert default.total_mass == pytest.approx(506.1)
+
+
 @pytest.mark.parametrize("bus, flag", [
     (["--base-inertia", "1", "1", "1"], "--base-inertia"),  # without --base-mass
     (["--base-com", "0", "0", "0"], "--base-com"),  # without --base-mass
