@@ -296,5 +296,8 @@ fn a_solid_cube_bus_has_m_s2_over_6_about_every_axis_through_its_centre() {
     assert_eq!(cube.mass, 500.0);
     assert_eq!(cube.com, com);
     let about = cube.inertia_about_com();
-    assert!((about - Mat3::identity() * 187.5).abs().max() < 1e-12, "{about}");
+    assert!(
+        (about - Mat3::identity() * 187.5).abs().max() < 1e-12,
+        "{about}"
+    );
 }

@@ -550,12 +550,7 @@ class Campaign:
                                    self.steps, u=[s[2] for s in setups], base_wrench=self._base_wrench(),
                                    threads=threads, record_every=self.record_every, progress=progress)
         for w in caught:
-            # the batch numbers its runs from 0: name them as the campaign does
-            message = re.sub(r"\(runs ([\d, …]+);",
-                             lambda m: "(runs " + ", ".join(str(int(i) + start) if i.strip().isdigit() else i.strip()
-                                                           for i in m.group(1).split(",")) + ";",
-                             str(w.message))
-            warnings.warn(message.replace(" runs (runs", " runs of this chunk (runs", 1), w.category, stacklevel=2)
+            warnings.warn(_campaign_numbers(str(w.message), start), w.category, stacklevel=2)
         n = robot.dof
         columns: Dict[str, Any] = {"run": np.asarray(runs, dtype=np.int64)}
         for d in self.dispersions:
@@ -706,6 +701,18 @@ class Campaign:
         finally:
             if own:
                 client.close()
+
+
+def _campaign_numbers(message: str, start: int) -> str:
+    """A batch's stability warning for a chunk that starts at run ``start``, its runs named as
+    the campaign numbers them (the batch counts from 0)."""
+    def shift(m: "re.Match[str]") -> str:
+        return ", ".join(str(int(i) + start) if i.strip().isdigit() else i.strip() for i in m.group(1).split(","))
+
+    message = message.replace(" of the run (", f" of run {start} (", 1)
+    message = re.sub(r"(?<= of run )(\d+) of \d+(?= \()", lambda m: str(int(m.group(1)) + start), message, count=1)
+    message = re.sub(r"(?<=\(runs )([\d, …]+)(?=;)", shift, message, count=1)
+    return re.sub(r" of (all \d+|\d+ of \d+) runs \(", r" of \1 runs of this chunk (", message, count=1)
 
 
 def _offset(progress: Callable[[int, int], Any], start: int, total: int) -> Callable[[int, int], Any]:
