@@ -2069,19 +2069,49 @@ def campaign_command(args: argparse.Namespace) -> int:
     return 1 if failed else 0
 
 
-def reject_extra(args: argparse.Namespace, extra: List[str]) -> NoReturn:
-    """Arguments argparse did not place: most likely a list given to --locked-joints with spaces."""
-    if getattr(args, "locked_joints", None):
+def reject_extra(args: argparse.Namespace, extra: List[str], parser: Optional[argparse.ArgumentParser] = None) -> NoReturn:
+    """Arguments argparse did not place: most likely a list given to --locked-joints with spaces,
+    or a flag misspelt (``--base_mass``: did you mean ``--base-mass``?)."""
+    if getattr(args, "locked_joints", None) and not any(word.startswith("-") for word in extra):
         fail(f"--locked-joints: takes one name or a comma-separated list per occurrence "
              f"(--locked-joints a,b); unexpected: {' '.join(extra)}")
-    fail(f"unrecognized arguments: {' '.join(extra)} (see 'orbitflex --help')")
+    known = command_flags(parser, args.command) if parser is not None else []
+    hints = [(flag.split("=", 1)[0], match) for flag in extra if flag.startswith("--")
+             for match in [closest_flag(flag, known)] if match]
+    where = f"(see 'orbitflex {args.command} --help')" if args.command else "(see 'orbitflex --help')"
+    if hints:
+        flag, match = hints[0]
+        fail(f"{flag}: no such flag; did you mean {match}? {where}")
+    fail(f"unrecognized arguments: {' '.join(extra)} {where}")
+
+
+def command_flags(parser: argparse.ArgumentParser, command: Optional[str]) -> List[str]:
+    """The long flags of ``orbitflex COMMAND`` (or of ``orbitflex`` itself)."""
+    target = parser
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction) and command in action.choices:
+            target = action.choices[command]
+    return [flag for flag in target._option_string_actions if flag.startswith("--")]
+
+
+def closest_flag(flag: str, known: Sequence[str]) -> Optional[str]:
+    """The known flag ``flag`` most likely meant: the same with ``_`` for ``-`` or in another
+    case, else the closest spelling (difflib, at least 80 % alike)."""
+    import difflib
+
+    name = flag.split("=", 1)[0]
+    normal = name.replace("_", "-").lower()
+    if normal in known:
+        return normal
+    close = difflib.get_close_matches(normal, known, n=1, cutoff=0.8)
+    return close[0] if close else None
 
 
 def main(argv: Optional[List[str]] = None) -> int:
     parser = build_parser()
     args, extra = parser.parse_known_args(argv)
     if extra:
-        reject_extra(args, extra)
+        reject_extra(args, extra, parser)
     if args.command is None:
         parser.print_help()
         return 0

@@ -1085,3 +1085,17 @@ def test_the_attitude_legend_sits_beside_the_curves(figures):
     legend = ax.get_legend().get_window_extent()
     assert legend.x0 >= ax.get_window_extent().x1, (legend, ax.get_window_extent())
 
+
+
+def test_a_misspelt_flag_gets_the_flag_it_meant(model_files, tmp_path):
+    # `--base_mass` was only "unrecognized arguments"
+    urdf, params = model_files
+    for typed, meant in (("--base_mass", "--base-mass"), ("--Duration", "--duration"), ("--record_every", "--record-every")):
+        result = run_cli("simulate", urdf, "--params", params, typed, "5", "--out", tmp_path / "o", "--quiet",
+                         cwd=tmp_path)
+        assert_clean_error(result, f"no such flag; did you mean {meant}? (see 'orbitflex simulate --help')",
+                           flag=typed)
+    # nothing close: no guess
+    result = run_cli("demo", "--base-mass", "5", cwd=tmp_path)  # demo has no bus option
+    assert_clean_error(result, "unrecognized arguments: --base-mass 5 (see 'orbitflex demo --help')")
+    assert not (tmp_path / "o").exists()
