@@ -714,7 +714,8 @@ PLOT_POINTS = 2000  # rows drawn per line at most: long runs are thinned to keep
 def plot_rows(k: int) -> Rows:
     """Indices of the rows to draw: every row, or evenly spaced rows and the last one."""
     stride = max(1, math.ceil(k / PLOT_POINTS))
-    return np.unique(np.r_[np.arange(0, k, stride), k - 1])
+    rows: Rows = np.unique(np.r_[np.arange(0, k, stride), k - 1])
+    return rows
 
 
 def seconds(dt: float) -> str:
