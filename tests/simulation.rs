@@ -692,16 +692,31 @@ fn motor_pd_gains_become_the_rigid_rule_for_stiff_joints_and_refuse_what_a_sprin
             && !error.contains("joint 0"),
         "{error}"
     );
-    for (hz, zeta) in [
-        (0.0, 1.0),
-        (f64::NAN, 1.0),
-        (1.0, -1.0),
-        (f64::INFINITY, 1.0),
+    for (hz, zeta, message) in [
+        (0.0, 1.0, "bandwidth: expected a finite number > 0, given 0"),
+        (
+            f64::NAN,
+            1.0,
+            "bandwidth: expected a finite number > 0, given NaN",
+        ),
+        (
+            0.2,
+            0.0,
+            "damping_ratio: expected a finite number > 0, given 0",
+        ),
+        (
+            0.2,
+            -1.0,
+            "damping_ratio: expected a finite number > 0, given -1",
+        ),
+        (
+            f64::INFINITY,
+            1.0,
+            "bandwidth: expected a finite number > 0, given inf",
+        ),
     ] {
-        assert!(
-            arm.motor_pd_gains(&[0.0; 7], hz, zeta).is_err(),
-            "{hz} {zeta}"
-        );
+        let error = arm.motor_pd_gains(&[0.0; 7], hz, zeta).unwrap_err();
+        assert_eq!(error.to_string(), message, "{hz} {zeta}");
     }
     assert!(arm.motor_pd_gains(&[0.0; 6], 0.25, 1.0).is_err());
 }
