@@ -164,6 +164,11 @@ def test_a_draw_out_of_the_domain_names_the_run():
 def test_toml_file_and_its_errors(tmp_path):
     c = Campaign.from_toml(EXAMPLE)
     assert c.name == "space-arm-slew" and c.runs == 200 and len(c.dispersions) == 5
+    # the example a user runs first settles, every run, and stays settled (at 10 s some runs had
+    # settled only at the last row)
+    table = c.run(runs=16)
+    assert table["ok"].all() and table["settling_time"].notna().all()
+    assert (table["settling_time"] < c.duration - 1.0).all() and (table["final_error"] < c.settle_tolerance).all()
     bad = tmp_path / "bad.toml"
     bad.write_text(EXAMPLE.read_text().replace('parameter = "kp"', 'parameter = "kp"\nscale = 2'))
     with pytest.raises(CampaignError, match=r"dispersion\[3\]: 'scale' is not a known key"):
@@ -302,7 +307,7 @@ def test_killing_a_worker_mid_campaign_still_completes_every_run(cluster, refere
 
 def test_cli_writes_the_table_summary_and_plots(tmp_path):
     spec = tmp_path / "c.toml"
-    spec.write_text(EXAMPLE.read_text().replace("duration = 10.0", "duration = 0.4")
+    spec.write_text(EXAMPLE.read_text().replace("duration = 12.0", "duration = 0.4")
                     .replace("slew_time = 5.0", "slew_time = 0.3"))
     out = tmp_path / "out"
     done = subprocess.run([sys.executable, "-m", "orbitflex", "campaign", str(spec), "--runs", "12",
