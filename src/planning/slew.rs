@@ -58,8 +58,8 @@ const LONGEST_TRIED: f64 = 1e9;
 /// positive. Each value is then within a few ulps of the exact one (or, near a root of `σ'''` or
 /// `σ''''`, within a few ulps of the function's scale). The monomial coefficients
 /// `126, −420, 540, −315, 70` would cancel: up to 1471 ulps of error in `σ` and 10⁶ in `σ''''`
-/// (up to 350 ulps in a planned `q̇`), and those digits then moved with the processor's
-/// rounding of the fused multiply-adds.
+/// (up to 350 ulps in a planned `q̇`), so that any other evaluation of the same path (numpy's,
+/// whose `power` rounds differently on AVX-512) disagrees with it in those digits.
 pub fn sigma(s: f64) -> [f64; 5] {
     let r = 1.0 - s;
     let u = s * r;
