@@ -6,7 +6,8 @@
 A campaign is a nominal slew and a list of dispersions. The nominal slew is either a quintic
 rest-to-rest motion of the motor references followed by a motor-side PD, or a planned slew
 (:meth:`Campaign.from_plan`: a :class:`~orbitflex.Plan`'s per-step motor reference and
-feedforward torque, and for a held base the wrench that holds it, under the same PD). Run ``i`` draws its parameters from its own
+feedforward torque, and for a held base the wrench that holds it, under the same PD).
+Run ``i`` draws its parameters from its own
 random generator, ``numpy.random.default_rng([seed, i])``, in the order the dispersions are
 declared, so a run's parameters and results depend only on the campaign and ``i``: the table is
 the same, bit for bit, whether the runs go one chunk at a time on a laptop or as tasks on a
