@@ -1668,6 +1668,22 @@ fn the_model_s_limits_are_read_planned_under_and_enforced() {
         (f64::NEG_INFINITY, f64::INFINITY)
     );
     assert_eq!(robot_c.velocity_limits()[0], 0.15);
+    // a revolute <limit> with neither bound states no range; with one, the other is 0 (URDF)
+    let partial = orbitflex::SPACE_ARM_URDF
+        .replacen(
+            r#"lower="-3.05" upper="3.05" effort="250""#,
+            r#"effort="250""#,
+            1,
+        )
+        .replacen(
+            r#"lower="-2.6" upper="2.6" effort="250""#,
+            r#"lower="-2.6" effort="250""#,
+            1,
+        );
+    let robot_p = Robot::from_urdf_string(&partial, &UrdfOptions::default()).unwrap();
+    assert_eq!(robot_p.joints()[0].limits.position, None);
+    assert_eq!(robot_p.joints()[0].limits.effort, Some(250.0));
+    assert_eq!(robot_p.joints()[1].limits.position, Some((-2.6, 0.0)));
     // Limits::from_robot: effort as the motor torque, velocity as the joint speed
     let limits = Limits::from_robot(&robot, None, Some(40.0)).unwrap();
     assert_eq!(limits.motor_torque, robot.effort_limits());
