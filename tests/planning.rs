@@ -1726,8 +1726,17 @@ fn the_model_s_limits_are_read_planned_under_and_enforced() {
         "q_goal: joint 6 ('wrist_roll') = 5 rad is outside its position limits [-3.05, 3.05] rad \
          (the model's <limit lower upper>)"
     );
-    goal[6] = -3.05;
-    assert!(plan_slew(&arm, &goal, None, &limits, BaseMode::Free, &[]).is_ok());
+    for bound in [-3.05, 3.05] {
+        goal[6] = bound; // on the bound is within
+        assert!(plan_slew(&arm, &goal, None, &limits, BaseMode::Free, &[]).is_ok());
+    }
+    // a zero effort limit is no limit to plan under, said as such
+    let zero = orbitflex::SPACE_ARM_URDF.replacen(r#"effort="60""#, r#"effort="0""#, 1);
+    let robot_z = Robot::from_urdf_string(&zero, &UrdfOptions::default()).unwrap();
+    let err = Limits::from_robot(&robot_z, None, None)
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("or a zero one, for 'wrist_roll' (0)"), "{err}");
     // the builder checks what it is given, naming the joint
     use orbitflex::spatial::{Inertia, Mat3, Transform, Vec3};
     let bad = |limits: JointLimits| {
