@@ -1604,10 +1604,15 @@ fn plans_stay_between_the_shortest_and_the_longest_duration_planned() {
         "{}",
         plan.duration()
     );
-    // a slew too large for floating point names the stop it ends at
+    // a slew too large for floating point names the stop it ends at (on continuous joints:
+    // the space arm's revolute joints would refuse such a goal for its position limits)
     let huge = [1e100; 7];
+    let continuous =
+        orbitflex::SPACE_ARM_URDF.replace(r#"type="revolute""#, r#"type="continuous""#);
+    let robot = Robot::from_urdf_string(&continuous, &orbitflex::UrdfOptions::default()).unwrap();
+    let free_arm = FlexibleArm::new(robot, FlexibleJoints::space_arm()).unwrap();
     let err = message(plan_slew(
-        &arm,
+        &free_arm,
         &huge,
         None,
         &space_limits(BaseMode::Held),
