@@ -31,6 +31,7 @@ out = Path(tempfile.mkdtemp(prefix="orbitflex_gallery_"))
 commands = [
     ["orbitflex", "demo", "--quiet", "--no-animation", "--out", str(out / "demo")],
     ["orbitflex", "modes", "--motors", "clamped", "--q", "0", "0.3", "0", "1.2", "0", "0", "0",
+     "--inputs", "ee_wrench", "--outputs", "ee_position",
      "--sweep", "elbow_pitch", "0", "2.5", "40", "--out", str(out / "modes")],
 ]
 for command in commands:
@@ -68,8 +69,11 @@ FIGURES = [
     ("modes", "modes.png", "The first six structural modes drawn on the arm: at rest (grey) and displaced "
      "by the real part of the mode shape (red), scaled to a tenth of the arm's reach (factor in each "
      "title).", MODES),
-    ("modes", "bode.png", "Magnitude and phase of the frequency response from each motor torque to its "
-     "joint angle, with each mode's damped natural frequency dotted and numbered.", MODES),
+    ("modes", "bode.png", "Magnitude and phase of the frequency response from the wrench the "
+     "end-effector exerts (moment, N·m, and force, N, in its frame) to its inertial position (m): the "
+     "first 12 input–output pairs, with each mode's damped natural frequency dotted and numbered. A line "
+     "that rises as 1/f² towards low frequency is the free-floating spacecraft moving as a whole.",
+     MODES),
     ("modes", "campbell.png", "Campbell diagram: each structural mode's damped natural frequency against "
      "the elbow angle, 40 configurations from 0 to 2.5 rad.", MODES),
 ]

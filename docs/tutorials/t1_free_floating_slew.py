@@ -36,9 +36,12 @@ print("joint stiffness k (N·m/rad):", k)
 # %% [markdown]
 # ## The reference and the controller
 #
-# The motors follow a quintic `s(τ) = 10τ³ − 15τ⁴ + 6τ⁵`, `τ = t / T`, which starts and ends at
-# rest. The PD gains come from the physics, not from the step: `motor_pd_gains(bandwidth)` gives
-# each joint a critically damped closed loop of 0.25 Hz from its motor inertia, the link inertia
+# The motors follow a quintic, which starts and ends at rest:
+#
+# $$\theta_\text{ref}(t) = s(t/T)\, \theta_\text{goal}, \qquad s(\tau) = 10\tau^3 - 15\tau^4 + 6\tau^5 .$$
+#
+# The PD gains come from the physics, not from the step: `motor_pd_gains(bandwidth)` gives each
+# joint a critically damped closed loop of 0.25 Hz from its motor inertia, the link inertia
 # it drives and its spring. `MotorPD` takes per-step tables (row `k` held during step `k`), and
 # runs in Rust without the GIL.
 
@@ -68,8 +71,8 @@ TITLE = f"space_arm, free floating, RK4 dt = {dt * 1e3:g} ms"
 # ## Links and motors
 #
 # At the scale of the slew, the link angles `q` and the motor angles `θ` lie on top of each other:
-# the joints are stiff compared with the loads. The difference `θ − q` (the *deflection*) is what
-# the spring feels, so the spring torque is `k (θ − q) + d (θ̇ − q̇)`.
+# the joints are stiff compared with the loads. The difference $\theta - q$ (the *deflection*) is
+# what the spring feels: the spring torque is $\tau = k(\theta - q) + d(\dot\theta - \dot q)$.
 
 # %%
 fig, (top, bottom) = plt.subplots(2, 1, figsize=(9, 6), sharex=True, height_ratios=[2, 1])
@@ -149,10 +152,14 @@ print(f"largest drift: {np.abs(drift[:, :3]).max():.1e} N·m·s, {np.abs(drift[:
 # %% [markdown]
 # ## Where the energy goes
 #
-# The motors do work `u · θ̇`; the joint dampers and the motor friction take out
-# `d (θ̇ − q̇)² + β θ̇²`. The energy `E` (kinetic energy of bus, links and rotors plus the springs'
-# energy) must change by the difference: `E(t) − E(0) = W_motor − W_loss`. Both integrals use the
-# trapezoid rule over the steps; the residual is the integrator's and the quadrature's error.
+# The motors do work at the rate $u \cdot \dot\theta$; the joint dampers and the motor friction take
+# out $d(\dot\theta - \dot q)^2 + \beta \dot\theta^2$. The energy $E$ (kinetic energy of bus, links
+# and rotors plus the springs' energy) must change by the difference:
+#
+# $$E(t) - E(0) = \int_0^t u \cdot \dot\theta \, dt' - \int_0^t \left( d(\dot\theta - \dot q)^2 + \beta \dot\theta^2 \right) dt' .$$
+#
+# Both integrals use the trapezoid rule over the steps; the residual is the integrator's and the
+# quadrature's error.
 
 # %%
 qd, thd = traj.qd, traj.theta_dot

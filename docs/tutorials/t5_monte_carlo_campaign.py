@@ -73,8 +73,11 @@ table.head()
 # ## The results
 #
 # `summary` gives each metric's percentiles with its unit. Following the plan's feedforward and
-# motor reference, every run ends close to the goal: the dispersions change how far the springs
-# wind up and how much torque the PD adds, not where the arm arrives.
+# motor reference, every run ends within a fraction of a milliradian of the goal in joint space
+# (`final_error`). Where the end-effector ends up in inertial space is another matter: `ee_error`,
+# its distance from the nominal run's final position, reaches tens of centimetres, because a
+# payload changes how far the free-floating bus turns during the slew (`base_attitude_change`).
+# A free-floating slew planned for one mass distribution points the arm elsewhere for another.
 
 # %%
 print(summary(table)[["unit", "p50", "p95", "max"]])
@@ -96,9 +99,11 @@ fig.suptitle(f"{campaign.name}: space_arm, planned free-floating slew, {campaign
 fig.tight_layout()
 
 # %% [markdown]
-# A heavier payload winds the springs up further and needs more torque. The worst run can be run
-# again, bit for bit, as a `Trajectory`, to look at it in detail (or animate it with
-# `worst.animate("worst.html")`):
+# The peak motor torque grows in proportion to the payload: the feedforward carries the plan's
+# nominal torque and the PD adds what the extra mass needs. The peak deflection depends on both
+# dispersions: it tends to grow with the payload, and it is highest where the joints came out soft
+# (the dark points). The worst run can be run again, bit for bit, as a `Trajectory`, to look at it
+# in detail (or animate it with `worst.animate("worst.html")`):
 
 # %%
 worst_run = int(table["peak_deflection"].idxmax())
