@@ -16,6 +16,7 @@ pub mod error;
 pub mod flex;
 pub mod integrate;
 pub mod io;
+pub mod lanes;
 pub mod linalg;
 pub mod model;
 pub mod operators;
