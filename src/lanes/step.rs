@@ -4,7 +4,6 @@
 use super::lane::L;
 use super::spatial::{bias_force, Art, Sv, Xf, M3, V3};
 use crate::flex::{normalise_quaternion, FlexibleArm, StateLayout};
-use crate::spatial::quaternion_to_rotation;
 
 /// The inputs of one step in lanes, held over the step: motor torques `u` (n), `f_B` and the
 /// end-effector wrenches (one per end-effector, or none), each lane its run's.
@@ -277,20 +276,7 @@ impl<const W: usize> LaneGroup<W> {
         self.aba(arm, omega_b, q, qd, inputs, ok);
 
         let quat = layout.quaternion().start;
-        let mut rotation = M3::default();
-        for k in 0..W {
-            let r = quaternion_to_rotation(&[
-                x[quat].0[k],
-                x[quat + 1].0[k],
-                x[quat + 2].0[k],
-                x[quat + 3].0[k],
-            ]);
-            for i in 0..3 {
-                for j in 0..3 {
-                    rotation.m[i][j].0[k] = r[(i, j)];
-                }
-            }
-        }
+        let rotation = attitude(&x[quat..quat + 4]);
         let r_dot = rotation.mul_vec(&v_b);
         let p = layout.position().start;
         (xdot[p], xdot[p + 1], xdot[p + 2]) = (r_dot.x, r_dot.y, r_dot.z);
@@ -339,18 +325,38 @@ impl<const W: usize> LaneGroup<W> {
         s.ia[0] = Art::splat(&articulated[0]);
         s.pa[0] = bias_force(&inertias[0], &omega_b);
         for i in 1..=n {
-            // (A.5) Φ_{i,λ}(q), each lane's from the scalar code (one sin_cos per lane)
-            let mut x = Xf::default();
+            // (A.5) Φ_{i,λ}(q) as `joint_transform` builds it, one libm sin_cos per lane
+            let (origin, tilt) = robot.joint_frame(i);
+            let angle = match tilt {
+                Some((gamma, _, _)) => q[i - 1] + gamma,
+                None => q[i - 1],
+            };
+            let (mut s_q, mut c_q) = (L::<W>::zero(), L::<W>::zero());
             for k in 0..W {
-                let t = robot.joint_transform(i, q[i - 1].0[k]);
-                for r in 0..3 {
-                    for c in 0..3 {
-                        x.rotation.m[r][c].0[k] = t.rotation[(r, c)];
+                (s_q.0[k], c_q.0[k]) = angle.0[k].sin_cos();
+            }
+            let mut x = Xf::<W> {
+                rotation: M3::splat(&origin.rotation),
+                translation: V3::splat(&origin.translation),
+            };
+            let m = &mut x.rotation.m;
+            match tilt {
+                // R_z(−(q + γ)) R_x(−α) (`tilted_rotation`)
+                Some((_, ca, sa)) => {
+                    *m = [
+                        [c_q, s_q * ca, s_q * sa],
+                        [-s_q, c_q * ca, c_q * sa],
+                        [L::zero(), L::splat(-sa), L::splat(ca)],
+                    ];
+                }
+                // the first two rows of R'_0 turned by q
+                None => {
+                    for j in 0..3 {
+                        let (a, b) = (m[0][j], m[1][j]);
+                        m[0][j] = c_q * a + s_q * b;
+                        m[1][j] = c_q * b - s_q * a;
                     }
                 }
-                x.translation.x.0[k] = t.translation.x;
-                x.translation.y.0[k] = t.translation.y;
-                x.translation.z.0[k] = t.translation.z;
             }
             // (A.4), (A.7): ω_i = R ω_λ + e_z q̇_i, a_i = [q̇_i (R ω_λ) × e_z; R (ω_λ × (ω_λ × p))]
             let parent = s.omega[parents[i]];
@@ -425,6 +431,32 @@ impl<const W: usize> LaneGroup<W> {
             s.acc[i] = acc;
             ddq[5 + i] = qdd;
         }
+    }
+}
+
+/// `R_B` from `quat_B = (x, y, z, w)`, as `crate::spatial::quaternion_to_rotation` computes it
+/// through nalgebra: the quaternion divided by its norm `√((x² + z²) + (y² + w²))`, then
+/// `UnitQuaternion::to_rotation_matrix`'s products and sums, in their order.
+#[inline(always)]
+fn attitude<const W: usize>(quat: &[L<W>]) -> M3<W> {
+    // nalgebra's dot product of 4-vectors pairs the first and third, second and fourth terms
+    let norm =
+        ((quat[0] * quat[0] + quat[2] * quat[2]) + (quat[1] * quat[1] + quat[3] * quat[3])).sqrt();
+    let (i, j, k, w) = (
+        quat[0] / norm,
+        quat[1] / norm,
+        quat[2] / norm,
+        quat[3] / norm,
+    );
+    let (ww, ii, jj, kk) = (w * w, i * i, j * j, k * k);
+    let (ij, wk, wj) = (i * j * 2.0, w * k * 2.0, w * j * 2.0);
+    let (ik, jk, wi) = (i * k * 2.0, j * k * 2.0, w * i * 2.0);
+    M3 {
+        m: [
+            [ww + ii - jj - kk, ij - wk, wj + ik],
+            [wk + ij, ww - ii + jj - kk, jk - wi],
+            [ik - wj, wi + jk, ww - ii - jj + kk],
+        ],
     }
 }
 
