@@ -314,3 +314,39 @@ pub fn check_dt(dt: f64) -> Result<()> {
     }
     Ok(())
 }
+
+/// The domain of a parameter.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Domain {
+    /// `> 0`
+    Positive,
+    /// `≥ 0`
+    NonNegative,
+}
+
+impl Domain {
+    pub(crate) fn contains(self, v: f64) -> bool {
+        match self {
+            Domain::Positive => v > 0.0,
+            Domain::NonNegative => v >= 0.0,
+        }
+    }
+    pub(crate) fn describe(self) -> &'static str {
+        match self {
+            Domain::Positive => "> 0",
+            Domain::NonNegative => ">= 0",
+        }
+    }
+}
+
+/// Checks `n` finite values in `domain`; errors name the element, e.g. `stiffness[2]`.
+pub(crate) fn check_parameter(what: &str, values: &[f64], n: usize, domain: Domain) -> Result<()> {
+    check_vector(what, values, n)?;
+    match values.iter().position(|&v| !domain.contains(v)) {
+        Some(i) => Err(Error::InvalidArgument {
+            what: format!("{what}[{i}]"),
+            message: format!("expected {}, given {}", domain.describe(), values[i]),
+        }),
+        None => Ok(()),
+    }
+}

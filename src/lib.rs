@@ -10,6 +10,7 @@
 pub mod algorithms;
 pub mod analysis;
 pub mod args;
+pub mod control;
 pub mod dynamics;
 pub mod error;
 pub mod flex;
@@ -22,17 +23,19 @@ pub(crate) mod overflow;
 pub mod planning;
 mod simd;
 pub mod spatial;
+pub mod state;
 #[doc(hidden)]
 pub mod testing;
 
 pub use algorithms::Data;
 pub use args::{Loads, RigidState};
+pub use control::{Controller, MotorPD, Schedule, Wrenches};
 pub use dynamics::Method;
 pub use error::{Error, Result};
 pub use flex::{
     ArmWorkspace, FlexibleArm, FlexibleJoints, Inputs, MotorGains, StateLayout, StateSpec,
 };
-pub use integrate::{Controller, MotorPD, Schedule, SimulationFailure, Trajectory, Wrenches};
+pub use integrate::{SimulationFailure, Trajectory};
 pub use model::{
     check_mesh_bytes, check_mesh_file, EndEffector, Geometry, JointLimits, JointModel, LinkFrame,
     MeshFormat, MeshSearch, Robot, RobotBuilder, Scene, Shape, UrdfOptions, Visual, DUAL_ARM_URDF,

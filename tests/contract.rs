@@ -137,7 +137,7 @@ fn ee_pose_by_hand() {
 fn times_and_controller_calls() {
     struct Recorder(Vec<(usize, f64, f64)>);
     impl Controller for Recorder {
-        fn torque(
+        fn output(
             &mut self,
             step: usize,
             t: f64,
@@ -258,7 +258,7 @@ fn stability_limits_pinned() {
     // a controller whose feedback is unknown is analysed open loop, and says so
     struct Opaque;
     impl Controller for Opaque {
-        fn torque(&mut self, _: usize, _: f64, _: &[f64], _: &mut [f64]) -> orbitflex::Result<()> {
+        fn output(&mut self, _: usize, _: f64, _: &[f64], _: &mut [f64]) -> orbitflex::Result<()> {
             Ok(())
         }
     }

@@ -263,9 +263,9 @@ fn schedule_torque_refuses_a_step_past_its_table() {
         width: 1,
     };
     let mut u = [0.0];
-    table.torque(1, 0.0, &[], &mut u).unwrap();
+    table.output(1, 0.0, &[], &mut u).unwrap();
     assert_eq!(u, [2.0]);
-    match table.torque(2, 0.0, &[], &mut u) {
+    match table.output(2, 0.0, &[], &mut u) {
         Err(Error::Dimension { what, given, .. }) => {
             assert_eq!(what, "u");
             assert_eq!(given, "2 rows");
@@ -276,16 +276,20 @@ fn schedule_torque_refuses_a_step_past_its_table() {
 
 #[test]
 fn schedule_check_run_checks_width_rows_and_values() {
-    assert!(Schedule::Constant(vec![1.0; 3]).check_run(2, 5).is_err());
-    assert!(Schedule::Constant(vec![1.0; 2]).check_run(2, 5).is_ok());
+    assert!(Schedule::Constant(vec![1.0; 3])
+        .check_run("u", 2, 5)
+        .is_err());
+    assert!(Schedule::Constant(vec![1.0; 2])
+        .check_run("u", 2, 5)
+        .is_ok());
     let table = |rows: usize, value: f64| Schedule::Table {
         values: vec![value; 2 * rows],
         width: 2,
     };
-    assert!(table(4, 1.0).check_run(2, 5).is_err());
-    assert!(table(6, 1.0).check_run(2, 5).is_err());
-    assert!(table(5, f64::NAN).check_run(2, 5).is_err());
-    assert!(table(5, 1.0).check_run(2, 5).is_ok());
+    assert!(table(4, 1.0).check_run("u", 2, 5).is_err());
+    assert!(table(6, 1.0).check_run("u", 2, 5).is_err());
+    assert!(table(5, f64::NAN).check_run("u", 2, 5).is_err());
+    assert!(table(5, 1.0).check_run("u", 2, 5).is_ok());
 }
 
 #[test]
@@ -306,10 +310,10 @@ fn motor_pd_reports_its_joints_and_refuses_a_step_past_its_table() {
     let x = vec![0.0; StateLayout { n: 3 }.len()];
     let mut u = [0.0; 3];
     // θ = 0: u = 2 θ_ref of row 1
-    pd.torque(1, 0.0, &x, &mut u).unwrap();
+    pd.output(1, 0.0, &x, &mut u).unwrap();
     assert_eq!(u, [1.0, 1.0, 1.0]);
     assert!(matches!(
-        pd.torque(2, 0.0, &x, &mut u),
+        pd.output(2, 0.0, &x, &mut u),
         Err(Error::Dimension { .. })
     ));
 }
@@ -549,7 +553,7 @@ fn simulate_refuses_a_record_that_overflows() {
 struct Failing;
 
 impl Controller for Failing {
-    fn torque(&mut self, _: usize, _: f64, _: &[f64], _: &mut [f64]) -> orbitflex::Result<()> {
+    fn output(&mut self, _: usize, _: f64, _: &[f64], _: &mut [f64]) -> orbitflex::Result<()> {
         Err(Error::InvalidArgument {
             what: "u".into(),
             message: "failing on purpose".into(),

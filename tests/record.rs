@@ -25,7 +25,7 @@ struct Sines {
 }
 
 impl Controller for Sines {
-    fn torque(&mut self, step: usize, t: f64, _: &[f64], u: &mut [f64]) -> orbitflex::Result<()> {
+    fn output(&mut self, step: usize, t: f64, _: &[f64], u: &mut [f64]) -> orbitflex::Result<()> {
         if Some(step) == self.fail_at {
             return Err(Error::InvalidArgument {
                 what: "test".into(),

@@ -4,15 +4,16 @@
 use super::jacobians::{self, Jacobians, StepScratch};
 use super::joints::FlexibleJoints;
 use super::stability::{self, StabilityLimit};
-use super::state::{normalise_quaternion, quaternion_rate, StateLayout};
 use crate::algorithms::{self, Data};
 use crate::args::{check_base_pose, check_length, check_vector, Loads, RigidState};
+use crate::control::{Controller, Wrenches};
 use crate::dynamics::{momentum_in_inertial_frame, Method};
 use crate::error::{Error, Result};
-use crate::integrate::{self, Controller, Rk4, SimulationFailure, Trajectory, Wrenches};
+use crate::integrate::{self, Rk4, SimulationFailure, Trajectory};
 use crate::model::Robot;
 use crate::overflow::{check_result_named, Input};
-use crate::spatial::{quaternion_to_rotation, Vec3};
+use crate::spatial::{normalise_quaternion, quaternion_rate, quaternion_to_rotation, Vec3};
+use crate::state::StateLayout;
 
 /// A floating-base arm with Spong flexible joints: the robot, its joint parameters and the
 /// rigid-body dynamics method used by [`FlexibleArm::derivative`].

@@ -21,11 +21,12 @@
 //! removes). The inputs are held over the step, so their Jacobians chain the same way.
 
 use super::arm::{ArmWorkspace, FlexibleArm, Inputs};
-use super::state::{normalise_quaternion, quaternion_product};
 use crate::algorithms;
 use crate::args::RigidState;
 use crate::error::{Error, Result};
-use crate::spatial::{quaternion_to_rotation, skew, Mat3, Vec3};
+use crate::spatial::{
+    normalise_quaternion, quaternion_product, quaternion_to_rotation, skew, Mat3, Vec3,
+};
 use nalgebra::{DMatrix, DMatrixViewMut};
 
 /// Jacobians with respect to the state's tangent and to the inputs. Rows: the tangent of the

@@ -21,14 +21,15 @@ pub mod gains;
 pub mod jacobians;
 pub mod joints;
 pub mod stability;
-pub mod state;
 
 pub use arm::{ArmWorkspace, FlexibleArm, Inputs, StateSpec};
 pub use gains::MotorGains;
 pub use jacobians::Jacobians;
 pub use joints::{reflected_inertia, FlexibleJoints};
 pub use stability::StabilityLimit;
-pub use state::{
+// the layout is defined below the model (`crate::state`), the quaternions in `crate::spatial`;
+// re-exported here where they have always been found
+pub use crate::spatial::{
     normalise_quaternion, quaternion_exp, quaternion_log, quaternion_product, quaternion_rate,
-    StateLayout, StateParts,
 };
+pub use crate::state::{StateLayout, StateParts};

@@ -40,8 +40,8 @@
 use super::arm::{FlexibleArm, Inputs};
 use crate::algorithms;
 use crate::args::{Loads, RigidState};
+use crate::control::Feedback;
 use crate::error::{Error, Result};
-use crate::integrate::Feedback;
 use crate::linalg::eigenvalues;
 use nalgebra::{Complex, DMatrix};
 

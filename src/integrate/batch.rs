@@ -54,11 +54,11 @@
 //! # Ok::<(), orbitflex::Error>(())
 //! ```
 
-use super::control::{Controller, MotorPD, Schedule};
 use super::record::{check_record_every, is_recorded, recorded_rows, Recorder};
-use super::simulate::{check_run, simulate_into, Observer, Wrenches};
+use super::simulate::{check_run, simulate_into, Observer};
 use super::trajectory::Trajectory;
 use crate::args::check_dt;
+use crate::control::{Controller, MotorPD, Schedule, Wrenches};
 use crate::error::{Error, Result};
 use crate::flex::{FlexibleArm, StateLayout};
 use rayon::prelude::*;

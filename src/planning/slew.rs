@@ -21,9 +21,10 @@ use super::deflection;
 use super::flatness::{classical, rigid_jets, BaseMode, JetScratch, RigidJets};
 use crate::args::{check_dt, check_vector, number};
 use crate::error::{Error, Result};
-use crate::flex::state::{normalise_quaternion, quaternion_product};
 use crate::flex::FlexibleArm;
-use crate::spatial::{quaternion_to_rotation, Motion, Vec3};
+use crate::spatial::{
+    normalise_quaternion, quaternion_product, quaternion_to_rotation, Motion, Vec3,
+};
 use std::sync::atomic::{AtomicBool, Ordering};
 
 /// Sample intervals per segment (a power of two, so `s = 1/2`, where the speed peaks, is one).

@@ -3,8 +3,8 @@
 use super::convert::{array1, as_float_array, matrix, real, row_major, vector};
 use super::errors::ModelError;
 use super::joints::Param;
+use crate::control::{Controller, MotorPD, Schedule};
 use crate::error::Error;
-use crate::integrate::{Controller, MotorPD, Schedule};
 use numpy::PyArray1;
 use pyo3::prelude::*;
 use pyo3::types::PyTuple;
@@ -152,7 +152,7 @@ pub(crate) struct PyCallable<'py> {
 }
 
 impl Controller for PyCallable<'_> {
-    fn torque(&mut self, _step: usize, t: f64, x: &[f64], u: &mut [f64]) -> crate::Result<()> {
+    fn output(&mut self, _step: usize, t: f64, x: &[f64], u: &mut [f64]) -> crate::Result<()> {
         let py = self.func.py();
         let result = self
             .func
