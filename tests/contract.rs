@@ -391,7 +391,9 @@ fn input_checks_say_what_is_wrong() {
     let arm = one_link_arm();
     let x = moving(&arm);
     let run = |dt: f64, wrenches: &Wrenches| {
-        integrate::check_run(&arm, &x, dt, 5, &Schedule::Zero, wrenches)
+        let mut u = Schedule::Zero;
+        integrate::Run::new(&x, dt, 5)
+            .check(&arm, &integrate::Drive::new(&mut u, &mut wrenches.clone()))
     };
     check(
         run(0.0, &Wrenches::ZERO),
@@ -408,7 +410,10 @@ fn input_checks_say_what_is_wrong() {
         "base_wrench: expected length 6, given length 5",
     );
     check(
-        integrate::check_run(&arm, &x[..5], 1e-3, 5, &Schedule::Zero, &Wrenches::ZERO),
+        integrate::Run::new(&x[..5], 1e-3, 5).check(
+            &arm,
+            &integrate::Drive::new(&mut Schedule::Zero, &mut Wrenches::default()),
+        ),
         "x0: expected length 17, given length 5",
     );
 }

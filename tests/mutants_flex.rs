@@ -5,7 +5,9 @@
 
 use orbitflex::flex::{normalise_quaternion, quaternion_log, reflected_inertia, StateLayout};
 use orbitflex::integrate::simulate::record_bytes;
-use orbitflex::integrate::{simulate, stability_warning, Observer, StateRows, Unobserved};
+use orbitflex::integrate::{
+    simulate, stability_warning, Drive, Observer, Run, StateRows, Unobserved,
+};
 use orbitflex::testing::random_chain;
 use orbitflex::{
     Controller, Error, FlexibleArm, FlexibleJoints, Inputs, Method, MotorPD, Robot, Schedule,
@@ -436,11 +438,8 @@ fn simulate_asks_the_observer_before_every_nth_step_but_the_first() {
     };
     let traj = simulate(
         &arm,
-        &x0,
-        1e-3,
-        10,
-        &mut Schedule::Zero,
-        &Wrenches::ZERO,
+        &Run::new(&x0, 1e-3, 10),
+        &mut Drive::new(&mut Schedule::Zero, &mut Wrenches::default()),
         &mut observer,
     )
     .unwrap();
@@ -454,11 +453,8 @@ fn simulate_asks_the_observer_before_every_nth_step_but_the_first() {
     };
     let traj = simulate(
         &arm,
-        &x0,
-        1e-3,
-        4,
-        &mut Schedule::Zero,
-        &Wrenches::ZERO,
+        &Run::new(&x0, 1e-3, 4),
+        &mut Drive::new(&mut Schedule::Zero, &mut Wrenches::default()),
         &mut never,
     )
     .unwrap();
@@ -476,11 +472,8 @@ fn simulate_stops_when_the_observer_says_so() {
     };
     let failure = simulate(
         &arm,
-        &arm.rest_state(),
-        1e-3,
-        10,
-        &mut Schedule::Zero,
-        &Wrenches::ZERO,
+        &Run::new(&arm.rest_state(), 1e-3, 10),
+        &mut Drive::new(&mut Schedule::Zero, &mut Wrenches::default()),
         &mut observer,
     )
     .unwrap_err();
@@ -514,11 +507,8 @@ fn simulate_allocates_the_record_once_and_exactly() {
     // doubling and go unnoticed)
     let traj = simulate(
         &arm,
-        &arm.rest_state(),
-        1e-3,
-        9,
-        &mut Schedule::Zero,
-        &Wrenches::ZERO,
+        &Run::new(&arm.rest_state(), 1e-3, 9),
+        &mut Drive::new(&mut Schedule::Zero, &mut Wrenches::default()),
         &mut Unobserved,
     )
     .unwrap();
@@ -534,11 +524,8 @@ fn simulate_refuses_a_record_that_overflows() {
     let arm = two_joint_arm();
     let failure = simulate(
         &arm,
-        &arm.rest_state(),
-        1e-3,
-        usize::MAX,
-        &mut Schedule::Zero,
-        &Wrenches::ZERO,
+        &Run::new(&arm.rest_state(), 1e-3, usize::MAX),
+        &mut Drive::new(&mut Schedule::Zero, &mut Wrenches::default()),
         &mut Unobserved,
     )
     .unwrap_err();
@@ -574,11 +561,8 @@ fn simulate_refuses_a_record_larger_than_the_available_memory() {
     assert!(record_bytes(arm.layout(), steps).unwrap() as u64 > available);
     let failure = simulate(
         &arm,
-        &arm.rest_state(),
-        1e-3,
-        steps,
-        &mut Failing,
-        &Wrenches::ZERO,
+        &Run::new(&arm.rest_state(), 1e-3, steps),
+        &mut Drive::new(&mut Failing, &mut Wrenches::default()),
         &mut Unobserved,
     )
     .unwrap_err();

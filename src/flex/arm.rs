@@ -6,10 +6,9 @@ use super::joints::FlexibleJoints;
 use super::stability::{self, StabilityLimit};
 use crate::algorithms::{self, Data};
 use crate::args::{check_base_pose, check_length, check_vector, Loads, RigidState};
-use crate::control::{Controller, Wrenches};
+use crate::control::Controller;
 use crate::dynamics::{momentum_in_inertial_frame, Method};
 use crate::error::{Error, Result};
-use crate::integrate::{self, Rk4, SimulationFailure, Trajectory};
 use crate::model::Robot;
 use crate::overflow::{check_result_named, Input};
 use crate::spatial::{normalise_quaternion, quaternion_rate, quaternion_to_rotation, Vec3};
@@ -25,7 +24,7 @@ use crate::state::StateLayout;
 /// let arm = FlexibleArm::new(robot, FlexibleJoints::uniform(n, 2e4, 1.0, 2.0, 1.0)?)?;
 /// let q = vec![0.1; n];
 /// let x = arm.state(&StateSpec { q: Some(&q), ..StateSpec::default() })?;
-/// let mut ws = arm.workspace();
+/// let mut ws = arm.workspace(); // the integrator's workspace, which holds a `ModelWorkspace`
 /// let mut xdot = vec![0.0; x.len()];
 /// arm.derivative(&mut ws, &x, &Inputs::torques(&vec![1.0; n]), &mut xdot)?;
 /// // θ̈ = (u − τ − β θ̇) / j with relaxed springs and motors at rest: u / j = 1
@@ -83,30 +82,30 @@ pub struct StateSpec<'a> {
     pub base_twist: Option<&'a [f64]>,
 }
 
-/// Scratch memory for one [`FlexibleArm`]: the rigid-body [`Data`], the spring torques and the
-/// RK4 stages, and, from the first [`FlexibleArm::step_jacobians`] on, that call's O(n²)
-/// buffers (reused by the next calls). Made by [`FlexibleArm::workspace`]; one per thread.
+/// Scratch memory of the model's calls on one [`FlexibleArm`]: the rigid-body [`Data`], the
+/// spring torques and, from the first [`FlexibleArm::step_jacobians`] on, that call's O(n²)
+/// buffers (reused by the next calls). One per thread. The integrator's
+/// [`ModelWorkspace`](crate::integrate::ModelWorkspace) (made by `FlexibleArm::workspace`) holds one
+/// and the RK4 stages, and stands in for it wherever a `&mut ModelWorkspace` is asked for.
 #[derive(Debug, Clone)]
-pub struct ArmWorkspace {
+pub struct ModelWorkspace {
     pub(crate) data: Data,
     pub(crate) tau: Vec<f64>,
-    pub(crate) rk4: Rk4,
     /// The step Jacobians' buffers, sized by their first call.
     pub(crate) jacobians: StepScratch,
 }
 
-impl ArmWorkspace {
+impl ModelWorkspace {
     /// Buffers for `arm`.
     pub fn new(arm: &FlexibleArm) -> Self {
         Self {
             data: Data::new(&arm.robot),
             tau: vec![0.0; arm.robot.dof()],
-            rk4: Rk4::new(arm.layout().len()),
             jacobians: StepScratch::default(),
         }
     }
 
-    fn check(&self, arm: &FlexibleArm) -> Result<()> {
+    pub(crate) fn check(&self, arm: &FlexibleArm) -> Result<()> {
         algorithms::check_data(&arm.robot, &self.data)
     }
 }
@@ -159,11 +158,6 @@ impl FlexibleArm {
         StateLayout {
             n: self.robot.dof(),
         }
-    }
-
-    /// A workspace for this arm ([`ArmWorkspace::new`]).
-    pub fn workspace(&self) -> ArmWorkspace {
-        ArmWorkspace::new(self)
     }
 
     /// Builds a state `x` (model §4) from the parts in `spec`. Defaults: zero angles and rates,
@@ -248,7 +242,7 @@ impl FlexibleArm {
     /// ```
     pub fn derivative(
         &self,
-        ws: &mut ArmWorkspace,
+        ws: &mut ModelWorkspace,
         x: &[f64],
         inputs: &Inputs,
         xdot: &mut [f64],
@@ -317,36 +311,11 @@ impl FlexibleArm {
         }
     }
 
-    /// One classic RK4 step of length `dt` in place, inputs held over the step; the quaternion is
-    /// renormalised afterwards (model §5). Allocation-free. See [`integrate::step()`].
-    pub fn step(
-        &self,
-        ws: &mut ArmWorkspace,
-        x: &mut [f64],
-        dt: f64,
-        inputs: &Inputs,
-    ) -> Result<()> {
-        integrate::step(self, ws, x, dt, inputs)
-    }
-
-    /// Integrates `steps` RK4 steps of `dt` from `x0` under the controller `u` and the
-    /// `wrenches`. See [`integrate::simulate()`].
-    pub fn simulate(
-        &self,
-        x0: &[f64],
-        dt: f64,
-        steps: usize,
-        u: &mut dyn Controller,
-        wrenches: &Wrenches,
-    ) -> std::result::Result<Trajectory, Box<SimulationFailure>> {
-        integrate::simulate(self, x0, dt, steps, u, wrenches, &mut integrate::Unobserved)
-    }
-
     /// The Jacobians of [`derivative`](Self::derivative) at `x` with `inputs`, in tangent
     /// coordinates: `d(dx)/dt = F dx + G du + G_B df_B + G_E df` ([`super::jacobians`]).
     pub fn derivative_jacobians(
         &self,
-        ws: &mut ArmWorkspace,
+        ws: &mut ModelWorkspace,
         x: &[f64],
         inputs: &Inputs,
     ) -> Result<Jacobians> {
@@ -370,7 +339,7 @@ impl FlexibleArm {
     /// renormalisation ([`super::jacobians`]).
     pub fn step_jacobians(
         &self,
-        ws: &mut ArmWorkspace,
+        ws: &mut ModelWorkspace,
         x: &[f64],
         dt: f64,
         inputs: &Inputs,
@@ -419,7 +388,7 @@ impl FlexibleArm {
 
     /// Total energy (model §6.2): rigid kinetic energy `½ νᵀ 𝓜 ν`, motor kinetic energy
     /// `½ θ̇ᵀ diag(j) θ̇` and spring energy `½ (θ − q)ᵀ diag(k) (θ − q)` (J).
-    pub fn energy(&self, ws: &mut ArmWorkspace, x: &[f64]) -> f64 {
+    pub fn energy(&self, ws: &mut ModelWorkspace, x: &[f64]) -> f64 {
         let s = self.layout().split(x);
         let rigid = RigidState::new(s.q, s.base_twist, s.qd);
         algorithms::velocities_unchecked(&self.robot, &mut ws.data, &rigid);
@@ -435,7 +404,7 @@ impl FlexibleArm {
 
     /// Total spatial momentum `[angular; linear]` of base and links in the inertial frame, about
     /// the inertial origin (model §6.1). The motors' spin is not included (model §3).
-    pub fn momentum(&self, ws: &mut ArmWorkspace, x: &[f64]) -> [f64; 6] {
+    pub fn momentum(&self, ws: &mut ModelWorkspace, x: &[f64]) -> [f64; 6] {
         let layout = self.layout();
         let s = layout.split(x);
         let rigid = RigidState::new(s.q, s.base_twist, s.qd);

@@ -22,7 +22,7 @@ pub mod jacobians;
 pub mod joints;
 pub mod stability;
 
-pub use arm::{ArmWorkspace, FlexibleArm, Inputs, StateSpec};
+pub use arm::{FlexibleArm, Inputs, ModelWorkspace, StateSpec};
 pub use gains::MotorGains;
 pub use jacobians::Jacobians;
 pub use joints::{reflected_inertia, FlexibleJoints};

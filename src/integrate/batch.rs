@@ -55,7 +55,8 @@
 //! ```
 
 use super::record::{check_record_every, is_recorded, recorded_rows, Recorder};
-use super::simulate::{check_run, simulate_into, Observer};
+use super::run::{Drive, Run};
+use super::simulate::{simulate_into, Observer};
 use super::trajectory::Trajectory;
 use crate::args::check_dt;
 use crate::control::{Controller, MotorPD, Schedule, Wrenches};
@@ -445,6 +446,17 @@ struct RunInputs<'a> {
     wrenches: Wrenches,
 }
 
+impl RunInputs<'_> {
+    /// The run's channels, as a [`Drive`].
+    fn drive(&mut self) -> Drive<'_> {
+        Drive {
+            u: self.control.controller(),
+            base_wrench: &mut self.wrenches.base,
+            ee_wrench: &mut self.wrenches.ee,
+        }
+    }
+}
+
 impl<'a> Batch<'a> {
     fn inputs(&self, run: usize, steps: usize) -> RunInputs<'a> {
         RunInputs {
@@ -552,15 +564,10 @@ impl<'a> Batch<'a> {
         (0..self.runs).into_par_iter().try_for_each(|run| {
             interrupted(cancel, "the checks of the runs")?;
             let mut inputs = self.inputs(run, settings.steps);
-            check_run(
-                inputs.arm,
-                inputs.x0,
-                settings.dt,
-                settings.steps,
-                inputs.control.controller(),
-                &inputs.wrenches,
-            )
-            .map_err(|e| in_run(run, e))
+            let x0 = inputs.x0;
+            Run::new(x0, settings.dt, settings.steps)
+                .check(inputs.arm, &inputs.drive())
+                .map_err(|e| in_run(run, e))
         })
     }
 
@@ -870,14 +877,11 @@ fn one_run(
             message: "interrupted by the caller".into(),
         };
     }
+    let (arm, x0) = (inputs.arm, inputs.x0);
     let outcome = simulate_into(
-        inputs.arm,
-        inputs.x0,
-        settings.dt,
-        settings.steps,
-        1,
-        inputs.control.controller(),
-        &inputs.wrenches,
+        arm,
+        &Run::new(x0, settings.dt, settings.steps),
+        &mut inputs.drive(),
         &mut Cancel(cancel),
         &mut recorder,
     );
