@@ -213,7 +213,11 @@ pub fn check_finite(what: &str, values: &[f64]) -> Result<()> {
 /// of non-zero norm (it is normalised where it is used).
 pub fn check_base_pose(base_pose: &[f64]) -> Result<()> {
     check_vector("base_pose", base_pose, 7)?;
-    let norm = base_pose[3..7].iter().map(|v| v * v).sum::<f64>().sqrt();
+    let norm = base_pose[crate::spatial::POSE_QUATERNION]
+        .iter()
+        .map(|v| v * v)
+        .sum::<f64>()
+        .sqrt();
     if !norm.is_finite() {
         return Err(Error::InvalidArgument {
             what: "base_pose".into(),

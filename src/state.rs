@@ -2,7 +2,9 @@
 //! its offsets live (and those of its tangent), split into named parts. The quaternion arithmetic
 //! it uses lives in [`crate::spatial`].
 
-use crate::spatial::{quaternion_exp, quaternion_log, quaternion_product, Vec3};
+use crate::spatial::{
+    quaternion_exp, quaternion_log, quaternion_product, Vec3, POSE_POSITION, POSE_QUATERNION,
+};
 use std::ops::Range;
 
 /// Offsets of the blocks of the state `x ∈ R^{13+4n}` (model §4):
@@ -37,11 +39,11 @@ impl StateLayout {
     }
     /// `r_B`: base origin in the inertial frame (m).
     pub fn position(&self) -> Range<usize> {
-        0..3
+        POSE_POSITION
     }
     /// `quat_B = (x, y, z, w)`: base-frame to inertial-frame components.
     pub fn quaternion(&self) -> Range<usize> {
-        3..7
+        POSE_QUATERNION
     }
     /// `[r_B; quat_B]`.
     pub fn base_pose(&self) -> Range<usize> {
@@ -88,7 +90,7 @@ impl StateLayout {
             .zip(x[..3].iter().zip(&dx[..3]))
             .for_each(|(o, (a, b))| *o = a + b);
         let turn = quaternion_exp(&Vec3::new(dx[3], dx[4], dx[5]));
-        out[3..7].copy_from_slice(&quaternion_product(&x[3..7], &turn));
+        out[POSE_QUATERNION].copy_from_slice(&quaternion_product(&x[POSE_QUATERNION], &turn));
         out[7..]
             .iter_mut()
             .zip(x[7..].iter().zip(&dx[6..]))
@@ -102,9 +104,9 @@ impl StateLayout {
             .iter_mut()
             .zip(x1[..3].iter().zip(&x0[..3]))
             .for_each(|(o, (a, b))| *o = a - b);
-        let q0 = &x0[3..7];
+        let q0 = &x0[POSE_QUATERNION];
         let conjugate = [-q0[0], -q0[1], -q0[2], q0[3]];
-        let relative = quaternion_product(&conjugate, &x1[3..7]);
+        let relative = quaternion_product(&conjugate, &x1[POSE_QUATERNION]);
         out[3..6].copy_from_slice(quaternion_log(&relative).as_slice());
         out[6..]
             .iter_mut()

@@ -11,7 +11,7 @@ use crate::dynamics::{momentum_in_inertial_frame, Method};
 use crate::error::{Error, Result};
 use crate::model::Robot;
 use crate::overflow::{check_result_named, Input};
-use crate::spatial::{normalise_quaternion, quaternion_rate, quaternion_to_rotation, Vec3};
+use crate::spatial::{base_pose_rate, normalise_quaternion, quaternion_to_rotation, Vec3};
 use crate::state::StateLayout;
 
 /// A floating-base arm with Spong flexible joints: the robot, its joint parameters and the
@@ -294,9 +294,7 @@ impl FlexibleArm {
         let layout = self.layout();
         let s = layout.split(x);
         let (omega, v) = (s.omega(), s.velocity());
-        let r_dot = quaternion_to_rotation(s.quaternion) * v;
-        xdot[layout.position()].copy_from_slice(r_dot.as_slice());
-        xdot[layout.quaternion()].copy_from_slice(&quaternion_rate(s.quaternion, &omega));
+        base_pose_rate(s.quaternion, &omega, &v, &mut xdot[layout.base_pose()]);
         xdot[layout.q()].copy_from_slice(s.qd);
         xdot[layout.theta()].copy_from_slice(s.theta_dot);
         let v_dot = Vec3::new(acc[3], acc[4], acc[5]) - omega.cross(&v);

@@ -22,9 +22,8 @@ use super::flatness::{classical, rigid_jets, BaseMode, JetScratch, RigidJets};
 use crate::args::{check_dt, check_vector, number};
 use crate::error::{Error, Result};
 use crate::flex::FlexibleArm;
-use crate::spatial::{
-    normalise_quaternion, quaternion_product, quaternion_to_rotation, Motion, Vec3,
-};
+use crate::integrate::{OdeSystem, Rk4};
+use crate::spatial::{base_pose_rate, normalise_quaternion, Motion, Vec3, POSE_QUATERNION};
 use std::sync::atomic::{AtomicBool, Ordering};
 
 /// Sample intervals per segment (a power of two, so `s = 1/2`, where the speed peaks, is one).
@@ -1109,6 +1108,7 @@ impl Plan {
         let n = self.arm.dof();
         let mut out = Samples::default();
         let mut pose = self.base_pose0;
+        let mut rk4 = Rk4::new(7);
         for (k, seg) in self.segments.iter().enumerate() {
             let w = 1.0 / seg.duration;
             let mut previous_twist: Option<(f64, [Motion; 2])> = None;
@@ -1119,7 +1119,7 @@ impl Plan {
                     // the middle by cubic Hermite interpolation in s: fourth-order accurate
                     let ds = seg.s[j] - s_prev;
                     let mid = (a[0] + twist[0]) * 0.5 + (a[1] - twist[1]) * (ds / 8.0);
-                    pose = rk4_pose(&pose, &a[0], &mid, &twist[0], ds);
+                    rk4_pose(&mut rk4, &mut pose, [a[0], mid, twist[0]], ds);
                 }
                 previous_twist = Some((seg.s[j], twist));
                 if k > 0 && j == 0 {
@@ -1270,6 +1270,7 @@ impl Plan {
             base_pose: Vec::with_capacity((steps + 1) * 7),
         };
         let mut pose = self.base_pose0;
+        let mut rk4 = Rk4::new(7);
         let mut scratch = JetScratch::new(self.arm.robot());
         // the plan's end, once: every instant after it is this point settled (as in `at`)
         let last = self.segments.last().expect("a plan has a segment");
@@ -1299,7 +1300,12 @@ impl Plan {
             r.q.extend_from_slice(&start.q);
             r.base_pose.extend_from_slice(&pose);
             let twist = |p: &Point| Motion::from_slice(&p.base_twist);
-            pose = rk4_pose(&pose, &twist(&start), &twist(&mid), &twist(&end), dt);
+            rk4_pose(
+                &mut rk4,
+                &mut pose,
+                [twist(&start), twist(&mid), twist(&end)],
+                dt,
+            );
             for i in 0..n {
                 r.u.push((start.u[i] + 4.0 * mid.u[i] + end.u[i]) / 6.0);
             }
@@ -1328,31 +1334,39 @@ fn vertex(x0: f64, x1: f64, x2: f64, y0: f64, y1: f64, y2: f64) -> Option<f64> {
     (x > x0 && x < x2).then_some(x)
 }
 
-/// One RK4 step of the base pose kinematics `ṙ = R v`, `quat' = ½ quat ⊗ ω` over `h`, with the
-/// twist at the start, middle and end of the step.
-fn rk4_pose(pose: &[f64; 7], a: &Motion, mid: &Motion, b: &Motion, h: f64) -> [f64; 7] {
-    let rate = |x: &[f64; 7], v: &Motion| -> [f64; 7] {
-        let r = quaternion_to_rotation(&x[3..]) * v.linear;
-        let q = quaternion_product(&x[3..], &[v.angular.x, v.angular.y, v.angular.z, 0.0]);
-        [
-            r.x,
-            r.y,
-            r.z,
-            0.5 * q[0],
-            0.5 * q[1],
-            0.5 * q[2],
-            0.5 * q[3],
-        ]
-    };
-    let add = |x: &[f64; 7], k: &[f64; 7], c: f64| -> [f64; 7] {
-        std::array::from_fn(|i| x[i] + c * k[i])
-    };
-    let k1 = rate(pose, a);
-    let k2 = rate(&add(pose, &k1, h / 2.0), mid);
-    let k3 = rate(&add(pose, &k2, h / 2.0), mid);
-    let k4 = rate(&add(pose, &k3, h), b);
-    let mut out: [f64; 7] =
-        std::array::from_fn(|i| pose[i] + h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]));
-    normalise_quaternion(&mut out[3..]);
-    out
+/// The base pose `[r_B; quat_B]` under a twist given at the start, the middle and the end of a
+/// step: the system [`Rk4`] integrates for the free base of a plan ([`base_pose_rate`]). Its
+/// stages are called in order, `k₁` at the start, `k₂` and `k₃` at the middle, `k₄` at the end.
+struct PoseKinematics {
+    /// The twist at the start, the middle and the end of the step.
+    twists: [Motion; 3],
+    /// The stage the next derivative is for (0 to 3).
+    stage: usize,
+}
+
+impl OdeSystem for PoseKinematics {
+    fn state_len(&self) -> usize {
+        7
+    }
+    fn derivative(&mut self, x: &[f64], xdot: &mut [f64]) -> Result<()> {
+        let v = &self.twists[match self.stage {
+            0 => 0,
+            1 | 2 => 1,
+            _ => 2,
+        }];
+        self.stage += 1;
+        base_pose_rate(&x[POSE_QUATERNION], &v.angular, &v.linear, xdot);
+        Ok(())
+    }
+    fn project(&mut self, x: &mut [f64]) {
+        normalise_quaternion(&mut x[POSE_QUATERNION]);
+    }
+}
+
+/// One RK4 step of the base pose over `h` with the twist at the start, middle and end of the
+/// step (`rk4`: buffers of length 7, reused from step to step).
+fn rk4_pose(rk4: &mut Rk4, pose: &mut [f64; 7], twists: [Motion; 3], h: f64) {
+    let mut system = PoseKinematics { twists, stage: 0 };
+    rk4.step(&mut system, pose, h)
+        .expect("the pose kinematics cannot fail, and their buffers have its length");
 }

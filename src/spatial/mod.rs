@@ -35,8 +35,8 @@ mod vectors;
 pub use articulated::{ArticulatedInertia, Symmetric3};
 pub use inertia::{bias_force, coriolis_acceleration, Inertia};
 pub use quaternion::{
-    normalise_quaternion, quaternion_exp, quaternion_log, quaternion_product, quaternion_rate,
-    quaternion_to_rotation,
+    base_pose_rate, normalise_quaternion, quaternion_exp, quaternion_log, quaternion_product,
+    quaternion_rate, quaternion_to_rotation, POSE_POSITION, POSE_QUATERNION,
 };
 pub use transform::{congruence, rotation_about_axis, Transform};
 pub use vectors::{Force, Motion};

@@ -3,6 +3,13 @@
 //! renormalisation. The one home of rotation arithmetic in the crate.
 
 use super::{Mat3, Vec3};
+use std::ops::Range;
+
+/// Where the position `r` (m) sits in a pose `[r; quat]` of 7 numbers (the base pose, an EE
+/// pose, the first block of the state).
+pub const POSE_POSITION: Range<usize> = 0..3;
+/// Where the unit quaternion `(x, y, z, w)` sits in a pose `[r; quat]` of 7 numbers.
+pub const POSE_QUATERNION: Range<usize> = 3..7;
 
 /// Rotation matrix of a unit quaternion `(x, y, z, w)` (scalar last, model §1): it maps base-frame
 /// components to inertial-frame components. The quaternion is normalised first.
@@ -21,6 +28,17 @@ pub fn quaternion_rate(quat: &[f64], omega: &Vec3) -> [f64; 4] {
     let v = Vec3::new(quat[0], quat[1], quat[2]);
     let d = (omega * quat[3] + v.cross(omega)) * 0.5;
     [d.x, d.y, d.z, -0.5 * v.dot(omega)]
+}
+
+/// The rate of the base pose `[r_B; quat_B]` (model §4): `ṙ_B = R_B v_B` (inertial frame, m/s)
+/// and `quat_B' = ½ quat_B ⊗ (ω_B, 0)` ([`quaternion_rate`]), from the base twist `[ω_B; v_B]`
+/// in base-frame components, into `out` (7). The one statement of the base's kinematics: the
+/// state derivative and the planner's pose integration both use it.
+#[inline]
+pub fn base_pose_rate(quat: &[f64], omega: &Vec3, v: &Vec3, out: &mut [f64]) {
+    let r_dot = quaternion_to_rotation(quat) * v;
+    out[POSE_POSITION].copy_from_slice(r_dot.as_slice());
+    out[POSE_QUATERNION].copy_from_slice(&quaternion_rate(quat, omega));
 }
 
 /// The Hamilton product `a ⊗ b` of quaternions `(x, y, z, w)`, scalar last.
