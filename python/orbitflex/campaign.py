@@ -85,6 +85,7 @@ from typing import TYPE_CHECKING, Any, Callable, Dict, List, Mapping, Optional, 
 import numpy as np
 import numpy.typing as npt
 
+from ._reference import quintic
 from . import FlexibleArm, FlexibleJoints, ModelError, MotorPD, Plan, Robot, Trajectory, models, simulate_batch
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -551,8 +552,6 @@ class Campaign:
         return names
 
     def _reference(self, n: int, q0: Array, goal: Array, steps: int) -> Tuple[Array, Array]:
-        from .cli import quintic
-
         t = np.arange(steps, dtype=np.float64) * self.dt
         shape, dshape = quintic(t / self.slew_time)
         delta = goal - q0
