@@ -18,12 +18,15 @@
 
 pub mod arm;
 pub mod gains;
+pub mod inverse;
 pub mod jacobians;
+pub mod jets;
 pub mod joints;
 pub mod stability;
 
 pub use arm::{FlexibleArm, Inputs, ModelWorkspace, StateSpec};
 pub use gains::MotorGains;
+pub use inverse::{BaseMode, FlexibleInverse, LinkMotion};
 pub use jacobians::Jacobians;
 pub use joints::{reflected_inertia, FlexibleJoints};
 pub use stability::StabilityLimit;

@@ -18,9 +18,11 @@
 //! that sample onto it), up to six rounds, so a peak between samples is not missed.
 
 use super::deflection;
-use super::flatness::{classical, rigid_jets, BaseMode, JetScratch, RigidJets};
 use crate::args::{check_dt, check_vector, number};
 use crate::error::{Error, Result};
+use crate::flex::inverse::{
+    classical, rigid_jets, BaseMode, FlexibleInverse, JetScratch, RigidJets,
+};
 use crate::flex::FlexibleArm;
 use crate::integrate::{OdeSystem, Rk4};
 use crate::spatial::{base_pose_rate, normalise_quaternion, Motion, Vec3, POSE_QUATERNION};
@@ -359,23 +361,19 @@ pub struct PlanPoint {
     pub base_wrench: [f64; 6],
 }
 
-/// Everything at one instant of a plan, link side.
-#[derive(Debug, Clone, Default)]
+/// Everything at one instant of a plan, link side: the link motion, what the motors and the base
+/// do for it ([`FlexibleInverse`], the result of [`FlexibleArm::inverse_dynamics`]), and the
+/// deflection with the scaled torque jets it is integrated from.
+#[derive(Debug, Clone)]
 struct Point {
     q: Vec<f64>,
     qd: Vec<f64>,
     qdd: Vec<f64>,
-    theta: Vec<f64>,
-    theta_dot: Vec<f64>,
-    theta_ddot: Vec<f64>,
-    u: Vec<f64>,
-    tau: Vec<f64>,
+    /// The motors and the base.
+    flexible: FlexibleInverse,
     /// Scaled `[τ, τ̇, τ̈]` per joint, for the deflection integration.
     tau_jet: Vec<[f64; 3]>,
     deflection: Vec<f64>,
-    base_twist: [f64; 6],
-    base_acc: [f64; 6],
-    base_wrench: [f64; 6],
 }
 
 impl Point {
@@ -384,14 +382,9 @@ impl Point {
             q: vec![0.0; n],
             qd: vec![0.0; n],
             qdd: vec![0.0; n],
-            theta: vec![0.0; n],
-            theta_dot: vec![0.0; n],
-            theta_ddot: vec![0.0; n],
-            u: vec![0.0; n],
-            tau: vec![0.0; n],
+            flexible: FlexibleInverse::zeros(n),
             tau_jet: vec![[0.0; 3]; n],
             deflection: vec![0.0; n],
-            ..Self::default()
         }
     }
 }
@@ -673,7 +666,6 @@ impl Plan {
             let tj = &jets.tau[i];
             let tau = [tj[0] * w2, tj[1] * w3, tj[2] * w4];
             p.tau_jet[i] = tau;
-            p.tau[i] = tau[0];
             let (k, damping) = (joints.stiffness[i], joints.damping[i]);
             let [delta, rate, acc] = if self.rigid {
                 [0.0; 3]
@@ -693,22 +685,18 @@ impl Plan {
                 [tau[0] / k, tau[1] / k, tau[2] / k]
             };
             p.deflection[i] = delta;
-            p.theta[i] = p.q[i] + delta;
-            p.theta_dot[i] = p.qd[i] + rate;
-            let theta_ddot = p.qdd[i] + acc;
-            p.theta_ddot[i] = theta_ddot;
-            p.u[i] = joints.motor_inertia[i] * theta_ddot
-                + joints.motor_damping[i] * p.theta_dot[i]
-                + tau[0];
+            let link = [p.q[i], p.qd[i], p.qdd[i]];
+            p.flexible
+                .set_joint(joints, i, link, [delta, rate, acc], tau[0]);
         }
-        p.base_twist = (jets.base_twist[0] * w).to_array();
-        p.base_acc = classical(&[
+        p.flexible.base_twist = (jets.base_twist[0] * w).to_array();
+        p.flexible.base_acc = classical(&[
             jets.base_twist[0] * w,
             jets.base_twist[1] * w2,
             Motion::zero(),
             Motion::zero(),
         ]);
-        p.base_wrench = (jets.base_wrench[0] * w2).to_array();
+        p.flexible.base_wrench = (jets.base_wrench[0] * w2).to_array();
     }
 
     /// The largest ratio of a quantity to its limit at `p`, and which.
@@ -725,9 +713,9 @@ impl Plan {
                 worst = (ratio, c, joint, value, limit);
             }
         };
-        for i in 0..p.u.len() {
+        for i in 0..p.flexible.u.len() {
             consider(
-                p.u[i].abs(),
+                p.flexible.u[i].abs(),
                 self.limits.motor_torque[i],
                 Constraint::MotorTorque,
                 Some(i),
@@ -740,7 +728,7 @@ impl Plan {
             );
         }
         if self.base == BaseMode::Held {
-            let f = &p.base_wrench;
+            let f = &p.flexible.base_wrench;
             if let Some(limit) = self.limits.base_torque {
                 consider(
                     Vec3::new(f[0], f[1], f[2]).norm(),
@@ -869,10 +857,10 @@ impl Plan {
         let mut out = vec![Vec::with_capacity(seg.s.len()); 2 * n + 2];
         self.walk(seg, w, |_, p| {
             for i in 0..n {
-                out[i].push(p.u[i].abs() / self.limits.motor_torque[i]);
+                out[i].push(p.flexible.u[i].abs() / self.limits.motor_torque[i]);
                 out[n + i].push(p.qd[i].abs() / self.limits.joint_speed[i]);
             }
-            let f = &p.base_wrench;
+            let f = &p.flexible.base_wrench;
             let held = self.base == BaseMode::Held;
             out[2 * n].push(match (held, self.limits.base_torque) {
                 (true, Some(l)) => Vec3::new(f[0], f[1], f[2]).norm() / l,
@@ -1129,12 +1117,12 @@ impl Plan {
                 out.q.extend_from_slice(&p.q);
                 out.qd.extend_from_slice(&p.qd);
                 out.qdd.extend_from_slice(&p.qdd);
-                out.theta.extend_from_slice(&p.theta);
-                out.theta_dot.extend_from_slice(&p.theta_dot);
-                out.u.extend_from_slice(&p.u);
-                out.tau.extend_from_slice(&p.tau);
-                out.base_wrench.extend_from_slice(&p.base_wrench);
-                out.base_twist.extend_from_slice(&p.base_twist);
+                out.theta.extend_from_slice(&p.flexible.theta);
+                out.theta_dot.extend_from_slice(&p.flexible.theta_dot);
+                out.u.extend_from_slice(&p.flexible.u);
+                out.tau.extend_from_slice(&p.flexible.tau);
+                out.base_wrench.extend_from_slice(&p.flexible.base_wrench);
+                out.base_twist.extend_from_slice(&p.flexible.base_twist);
                 out.base_pose.extend_from_slice(&pose);
                 true
             });
@@ -1195,10 +1183,10 @@ impl Plan {
                 let [delta, rate, acc] =
                     deflection::advance(k, d, overtime, out.deflection[i], &[0.0; 3], &[0.0; 3]);
                 out.deflection[i] = delta;
-                out.theta[i] = out.q[i] + delta;
-                out.theta_dot[i] = rate;
-                out.theta_ddot[i] = acc;
-                out.u[i] = joints.motor_inertia[i] * acc + joints.motor_damping[i] * rate;
+                out.flexible.theta[i] = out.q[i] + delta;
+                out.flexible.theta_dot[i] = rate;
+                out.flexible.theta_ddot[i] = acc;
+                out.flexible.u[i] = joints.motor_inertia[i] * acc + joints.motor_damping[i] * rate;
             }
         }
     }
@@ -1217,15 +1205,15 @@ impl Plan {
             q: p.q,
             qd: p.qd,
             qdd: p.qdd,
-            theta: p.theta,
+            theta: p.flexible.theta,
             deflection: p.deflection,
-            theta_dot: p.theta_dot,
-            theta_ddot: p.theta_ddot,
-            u: p.u,
-            tau: p.tau,
-            base_twist: p.base_twist,
-            base_acc: p.base_acc,
-            base_wrench: p.base_wrench,
+            theta_dot: p.flexible.theta_dot,
+            theta_ddot: p.flexible.theta_ddot,
+            u: p.flexible.u,
+            tau: p.flexible.tau,
+            base_twist: p.flexible.base_twist,
+            base_acc: p.flexible.base_acc,
+            base_wrench: p.flexible.base_wrench,
         })
     }
 
@@ -1295,11 +1283,11 @@ impl Plan {
             let t = k as f64 * dt;
             evaluate(&mut scratch, t + 0.5 * dt, &mut mid)?;
             evaluate(&mut scratch, t + dt, &mut end)?;
-            r.theta_ref.extend_from_slice(&start.theta);
-            r.theta_dot_ref.extend_from_slice(&start.theta_dot);
+            r.theta_ref.extend_from_slice(&start.flexible.theta);
+            r.theta_dot_ref.extend_from_slice(&start.flexible.theta_dot);
             r.q.extend_from_slice(&start.q);
             r.base_pose.extend_from_slice(&pose);
-            let twist = |p: &Point| Motion::from_slice(&p.base_twist);
+            let twist = |p: &Point| Motion::from_slice(&p.flexible.base_twist);
             rk4_pose(
                 &mut rk4,
                 &mut pose,
@@ -1307,11 +1295,14 @@ impl Plan {
                 dt,
             );
             for i in 0..n {
-                r.u.push((start.u[i] + 4.0 * mid.u[i] + end.u[i]) / 6.0);
+                r.u.push((start.flexible.u[i] + 4.0 * mid.flexible.u[i] + end.flexible.u[i]) / 6.0);
             }
             for c in 0..6 {
                 r.base_wrench.push(
-                    (start.base_wrench[c] + 4.0 * mid.base_wrench[c] + end.base_wrench[c]) / 6.0,
+                    (start.flexible.base_wrench[c]
+                        + 4.0 * mid.flexible.base_wrench[c]
+                        + end.flexible.base_wrench[c])
+                        / 6.0,
                 );
             }
             std::mem::swap(&mut start, &mut end);
