@@ -424,6 +424,22 @@ pub struct Reference {
     pub base_pose: Vec<f64>,
 }
 
+impl Reference {
+    /// Empty tables with room for `steps` steps of `n` joints.
+    fn reserved(dt: f64, steps: usize, n: usize) -> Self {
+        Self {
+            dt,
+            steps,
+            u: Vec::with_capacity(steps * n),
+            theta_ref: Vec::with_capacity(steps * n),
+            theta_dot_ref: Vec::with_capacity(steps * n),
+            base_wrench: Vec::with_capacity(steps * 6),
+            q: Vec::with_capacity((steps + 1) * n),
+            base_pose: Vec::with_capacity((steps + 1) * 7),
+        }
+    }
+}
+
 /// The arrays of a plan at its samples ([`Plan::samples`]); row-major, one row per sample.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct Samples {
@@ -1247,16 +1263,7 @@ impl Plan {
                 ),
             });
         }
-        let mut r = Reference {
-            dt,
-            steps,
-            u: Vec::with_capacity(steps * n),
-            theta_ref: Vec::with_capacity(steps * n),
-            theta_dot_ref: Vec::with_capacity(steps * n),
-            base_wrench: Vec::with_capacity(steps * 6),
-            q: Vec::with_capacity((steps + 1) * n),
-            base_pose: Vec::with_capacity((steps + 1) * 7),
-        };
+        let mut r = Reference::reserved(dt, steps, n);
         let mut pose = self.base_pose0;
         let mut rk4 = Rk4::new(7);
         let mut scratch = JetScratch::new(self.arm.robot());

@@ -35,8 +35,9 @@ mod vectors;
 pub use articulated::{ArticulatedInertia, Symmetric3};
 pub use inertia::{bias_force, coriolis_acceleration, Inertia};
 pub use quaternion::{
-    base_pose_rate, normalise_quaternion, quaternion_exp, quaternion_log, quaternion_product,
-    quaternion_rate, quaternion_to_rotation, POSE_POSITION, POSE_QUATERNION,
+    base_pose_rate, euler_zyx, normalise_quaternion, quaternion_exp, quaternion_log,
+    quaternion_product, quaternion_rate, quaternion_to_rotation, rotation_angle, POSE_POSITION,
+    POSE_QUATERNION,
 };
 pub use transform::{congruence, rotation_about_axis, Transform};
 pub use vectors::{Force, Motion};

@@ -101,3 +101,26 @@ pub fn normalise_quaternion(quat: &mut [f64]) {
     };
     quat.iter_mut().for_each(|v| *v /= norm);
 }
+
+/// The intrinsic z-y′-x″ Euler angles `[yaw, pitch, roll]` (rad) of a unit quaternion
+/// `(x, y, z, w)`: `R = R_z(yaw) R_y(pitch) R_x(roll)`, `yaw, roll ∈ (−π, π]`,
+/// `pitch ∈ [−π/2, π/2]` (at `±π/2`, gimbal lock: yaw and roll are then not separable).
+#[inline]
+pub fn euler_zyx(quat: &[f64]) -> [f64; 3] {
+    let (x, y, z, w) = (quat[0], quat[1], quat[2], quat[3]);
+    let roll = (2.0 * (w * x + y * z)).atan2(1.0 - 2.0 * (x * x + y * y));
+    let pitch = (2.0 * (w * y - z * x)).clamp(-1.0, 1.0).asin();
+    let yaw = (2.0 * (w * z + x * y)).atan2(1.0 - 2.0 * (y * y + z * z));
+    [yaw, pitch, roll]
+}
+
+/// The angle (rad, in `[0, π]`) of the rotation from attitude `a` to attitude `b` (unit
+/// quaternions `(x, y, z, w)`): `2 atan2(|vec(a* ⊗ b)|, |w(a* ⊗ b)|)`, accurate for tiny angles
+/// too (the arccosine of `a · b` loses them below about 1e-8 rad).
+#[inline]
+pub fn rotation_angle(a: &[f64], b: &[f64]) -> f64 {
+    let conjugate = [-a[0], -a[1], -a[2], a[3]];
+    let relative = quaternion_product(&conjugate, b);
+    let v = Vec3::new(relative[0], relative[1], relative[2]);
+    2.0 * v.norm().atan2(relative[3].abs())
+}

@@ -9,7 +9,7 @@ from typing import Any, Dict, List, Optional, Sequence, TYPE_CHECKING, Tuple
 
 import numpy as np
 
-from .. import Plan
+from .. import Plan, rotation_angle
 from .plots import Figures, euler_zyx, joint_legend, plot_rows, seconds
 from .summary import angle_unit, gain_range, rotation_angle_deg, torque_share
 
@@ -223,12 +223,8 @@ def run_series(run: Dict[str, Any]) -> Dict[str, Array]:
 
 def relative_rotation(a: Array, b: Array) -> Array:
     """The angle (rad) of the rotation from unit quaternions ``a`` to ``b`` (x, y, z, w), (k, 4)
-    each: ``2 atan2(|vec(a* ⊗ b)|, |w(a* ⊗ b)|)``, accurate for small angles too (unlike
-    ``arccos`` of the dot product, which bottoms out near 1e-8 rad)."""
-    av, aw, bv, bw = a[:, :3], a[:, 3], b[:, :3], b[:, 3]
-    w = aw * bw + np.sum(av * bv, axis=1)
-    v = aw[:, None] * bv - bw[:, None] * av - np.cross(av, bv)
-    angle: Array = 2 * np.arctan2(np.linalg.norm(v, axis=1), np.abs(w))
+    each (:func:`orbitflex.rotation_angle`, accurate for small angles too)."""
+    angle: Array = rotation_angle(a, b)
     return angle
 
 

@@ -9,7 +9,7 @@ from typing import Any, List, Optional, Sequence, TYPE_CHECKING, Tuple
 
 import numpy as np
 
-from .. import Trajectory
+from .. import euler_zyx as orbitflex_euler_zyx, rotation_matrix as orbitflex_rotation_matrix, Trajectory
 from .summary import angle_unit, ee_paths, rotation_angle_deg
 
 if TYPE_CHECKING:
@@ -46,22 +46,16 @@ def power_of_ten(values: Array, unit: str) -> Tuple[float, str]:
 
 def euler_zyx(quat: Array) -> Tuple[Array, Array, Array]:
     """``(yaw, pitch, roll)`` (rad) of unit quaternions (x, y, z, w), (k, 4): the intrinsic
-    z-y'-x'' sequence, ``R = Rz(yaw) Ry(pitch) Rx(roll)``; yaw and roll unwrapped in time."""
-    x, y, z, w = quat.T
-    roll = np.arctan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y))
-    pitch = np.arcsin(np.clip(2 * (w * y - z * x), -1, 1))
-    yaw = np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
+    z-y'-x'' sequence, ``R = Rz(yaw) Ry(pitch) Rx(roll)`` (:func:`orbitflex.euler_zyx`); yaw and
+    roll unwrapped in time."""
+    yaw, pitch, roll = orbitflex_euler_zyx(quat).T
     return np.unwrap(yaw), pitch, np.unwrap(roll)
 
 
 def rotation_matrix(quat: Array) -> Array:
-    """The rotation matrix of a unit quaternion (x, y, z, w)."""
-    x, y, z, w = quat
-    return np.array([
-        [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-        [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-        [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
-    ])
+    """The rotation matrix of a unit quaternion (x, y, z, w) (:func:`orbitflex.rotation_matrix`)."""
+    matrix: Array = orbitflex_rotation_matrix(quat)
+    return matrix
 
 
 def cube_edges(pose: Array, centre: Array, side: float) -> List[Array]:

@@ -7,7 +7,7 @@ from typing import Any, Dict, Optional, TYPE_CHECKING, Tuple
 
 import numpy as np
 
-from .. import Plan, Trajectory
+from .. import rotation_angle, Plan, Trajectory
 from .jobs import failure_reason
 
 if TYPE_CHECKING:
@@ -17,8 +17,8 @@ if TYPE_CHECKING:
 
 def rotation_angle_deg(q0: Array, q1: Array) -> Array:
     """Angle (deg) of the rotation between unit quaternions (x, y, z, w): ``q0`` (4,) and ``q1``
-    (4,) or (k, 4)."""
-    angle: Array = np.degrees(2 * np.arccos(np.clip(np.abs(q1 @ q0), 0.0, 1.0)))
+    (4,) or (k, 4) (:func:`orbitflex.rotation_angle`)."""
+    angle: Array = np.degrees(rotation_angle(q0, q1))
     return angle
 
 

@@ -90,15 +90,8 @@ def _meshcat() -> Any:
 
 def _matrix(pose: Sequence[float]) -> _Array:
     """4×4 homogeneous matrix of ``[position; quat (x, y, z, w)]`` (shape axes to parent)."""
-    x, y, z, w = (float(v) for v in pose[3:7])
-    n = math.sqrt(x * x + y * y + z * z + w * w)
-    x, y, z, w = x / n, y / n, z / n, w / n
     m = np.eye(4)
-    m[:3, :3] = [
-        [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-        [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-        [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
-    ]
+    m[:3, :3] = _core.rotation_matrix(np.asarray(pose[3:7], dtype=float))
     m[:3, 3] = pose[:3]
     return m
 
