@@ -22,7 +22,7 @@ pub enum Feedback<'a> {
 /// Computes one channel's input once per step: a row of `width` numbers from the step, the time
 /// and the state at the start of the step, held over the step (zero-order hold). The motor
 /// torques `u` (width n) are one channel, the base wrench (6) and the EE wrenches (6k) two
-/// others; [`Schedule`] (zero, constant, table), [`MotorPD`](super::MotorPD) and the Python
+/// others; [`Schedule`](super::Schedule) (zero, constant, table), [`MotorPD`](super::MotorPD) and the Python
 /// callables implement it, and users can too.
 pub trait Controller {
     /// Writes the row of step `step` (time `t`, state `x`) into `out`.

@@ -85,7 +85,7 @@ pub struct StateSpec<'a> {
 /// Scratch memory of the model's calls on one [`FlexibleArm`]: the rigid-body [`Data`], the
 /// spring torques and, from the first [`FlexibleArm::step_jacobians`] on, that call's O(n²)
 /// buffers (reused by the next calls). One per thread. The integrator's
-/// [`ModelWorkspace`](crate::integrate::ModelWorkspace) (made by `FlexibleArm::workspace`) holds one
+/// [`ArmWorkspace`](crate::integrate::ArmWorkspace) (made by `FlexibleArm::workspace`) holds one
 /// and the RK4 stages, and stands in for it wherever a `&mut ModelWorkspace` is asked for.
 #[derive(Debug, Clone)]
 pub struct ModelWorkspace {

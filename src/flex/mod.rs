@@ -10,7 +10,9 @@
 //! with `u_i` the motor torque reflected to the link side (N·m).
 //!
 //! - [`joints`]: the parameters `k, d, j, β` ([`FlexibleJoints`]), from arrays, gear data or TOML;
-//! - [`state`]: the state vector's layout ([`StateLayout`]) and quaternion helpers;
+//! - [`StateLayout`]: the state vector's layout (defined in [`crate::state`]);
+//! - [`inverse`]: the flexible-joint inverse dynamics (differential flatness), on the time jets of
+//!   [`jets`];
 //! - [`arm`]: [`FlexibleArm`], its derivative, energy, momentum and EE pose;
 //! - [`jacobians`]: the Jacobians of the derivative and of one RK4 step, in tangent coordinates;
 //! - [`gains`]: motor PD gains from a bandwidth and a damping ratio;

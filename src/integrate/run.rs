@@ -80,7 +80,7 @@ impl<'a> Run<'a> {
 ///   environment.
 ///
 /// A [`Schedule`](crate::control::Schedule) (owned, or a `&Schedule` lent by
-/// [`Wrenches`](crate::control::Wrenches)), a [`MotorPD`](crate::control::MotorPD) or any other
+/// [`Wrenches`]), a [`MotorPD`](crate::control::MotorPD) or any other
 /// controller can drive any channel.
 pub struct Drive<'a> {
     /// The motor torques `u`.

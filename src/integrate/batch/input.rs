@@ -226,8 +226,8 @@ impl<'a> Batch<'a> {
         }
     }
 
-    /// Checks everything [`simulate_batch`] needs before its first step, run by run as
-    /// [`check_run`] does for one run: `dt`, `record_every`, the number of runs, the same number
+    /// Checks everything [`simulate_batch`](super::simulate_batch) needs before its first step,
+    /// run by run as [`Run::check`] does for one run: `dt`, `record_every`, the number of runs, the same number
     /// of joints in every arm, the shapes, and each run's start, controller and wrench tables,
     /// on `settings.threads` threads. An error names the run.
     pub fn check(&self, settings: &BatchSettings) -> Result<()> {

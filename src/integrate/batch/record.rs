@@ -12,7 +12,7 @@ pub enum RunStatus {
     /// Every step was taken.
     Finished,
     /// The run stopped during step `step` (from `t = step dt`), as
-    /// [`simulate`](super::simulate()) would have raised it: a diverged state, a failed
+    /// [`simulate`](crate::integrate::simulate()) would have raised it: a diverged state, a failed
     /// controller, or an interruption.
     Failed {
         /// The failing step `k`; state `k` is the last good one.
@@ -39,7 +39,7 @@ impl RunStatus {
 pub struct BatchRecord {
     /// Number of runs `B`.
     pub runs: usize,
-    /// Rows per run ([`recorded_rows`]; 0 without rows).
+    /// Rows per run ([`recorded_rows`](crate::integrate::recorded_rows); 0 without rows).
     pub rows: usize,
     /// Steps per run.
     pub steps: usize,
@@ -65,9 +65,9 @@ pub struct BatchRecord {
 }
 
 impl BatchRecord {
-    /// Run `run` as the [`Trajectory`] that [`simulate`](super::simulate()) with the same
+    /// Run `run` as the [`Trajectory`] that [`simulate`](crate::integrate::simulate()) with the same
     /// `record_every` returns for it ([`RunRecord::to_trajectory`]). `None` without rows
-    /// ([`BatchSettings::keep_rows`] false) or for a run out of range.
+    /// ([`BatchSettings::keep_rows`](super::BatchSettings::keep_rows) false) or for a run out of range.
     pub fn run(&self, run: usize) -> Option<Trajectory> {
         if self.rows == 0 || run >= self.runs {
             return None;
@@ -106,9 +106,9 @@ pub struct RunRecord<'a> {
 }
 
 impl RunRecord<'_> {
-    /// The [`Trajectory`] that [`simulate`](super::simulate()) with the same `record_every`
+    /// The [`Trajectory`] that [`simulate`](crate::integrate::simulate()) with the same `record_every`
     /// returns for this run: its kept rows and, for a failed run, the trajectory of its
-    /// [`SimulationFailure`](super::SimulationFailure): the rows kept up to the failing step,
+    /// [`SimulationFailure`](crate::integrate::SimulationFailure): the rows kept up to the failing step,
     /// ending on the last good state.
     pub fn to_trajectory(&self) -> Trajectory {
         let (len, n, every) = (self.layout.len(), self.layout.n, self.record_every);
