@@ -30,7 +30,9 @@ pub use args::{Loads, RigidState};
 pub use dynamics::Method;
 pub use error::{Error, Result};
 pub use flex::{ArmWorkspace, FlexibleArm, FlexibleJoints, Inputs, StateLayout, StateSpec};
-pub use integrate::{Controller, MotorPD, Schedule, SimulationFailure, Trajectory, Wrenches};
+pub use integrate::{
+    Controller, MotorPD, Schedule, SimulationFailure, Simulator, Trajectory, Wrenches,
+};
 pub use model::{
     check_mesh_bytes, check_mesh_file, EndEffector, Geometry, JointModel, LinkFrame, MeshFormat,
     MeshSearch, Robot, RobotBuilder, Scene, Shape, UrdfOptions, Visual, DUAL_ARM_URDF,

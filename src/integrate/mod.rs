@@ -9,6 +9,7 @@
 //!   over a leading run axis, one record with a status per run;
 //! - [`record`]: which rows a run keeps (`record_every`) and where they go: the [`Recorder`]
 //!   trait, the in-memory [`Trajectory`], the streaming [`Chunks`];
+//! - [`simulator`]: a [`Simulator`] stepped by its caller with held inputs (co-simulation);
 //! - [`trajectory`]: the [`Trajectory`] a run returns and the diagnostics along it.
 //!
 //! ```
@@ -33,6 +34,7 @@ pub mod control;
 pub mod record;
 pub mod rk4;
 pub mod simulate;
+pub mod simulator;
 pub mod trajectory;
 
 pub use batch::{simulate_batch, Batch, BatchRecord, BatchSettings, RunRecord, RunStatus};
@@ -43,4 +45,5 @@ pub use simulate::{
     check_run, simulate, simulate_into, stability_warning, step, Observer, SimulationFailure,
     Unobserved, Wrenches,
 };
+pub use simulator::{arm_fingerprint, Outputs, Simulator, STATE_FORMAT_VERSION};
 pub use trajectory::{StateRows, Trajectory};
