@@ -17,7 +17,7 @@
 //!
 //! One file per class: `robot` (`Robot`), `joints` (`FlexibleJoints`), `control` (`MotorPD`,
 //! input schedules, Python controllers), `arm` (`FlexibleArm`), `trajectory` (`Trajectory`),
-//! `plan` (`Limits`, `Plan`, `plan_slew`), `batch` (`simulate_batch`, `BatchTrajectory`); `analysis` (the linear analysis's private
+//! `plan` (`Limits`, `Plan`, `plan_slew`), `batch` (`simulate_batch`, `BatchTrajectory`); `simulator` (`Simulator`); `analysis` (the linear analysis's private
 //! functions, wrapped by `orbitflex.analysis`);
 //! `batched` gives the per-call dynamics their leading batch axis and `out=`; `run` drives a
 //! simulation with or without the GIL; `errors` maps [`crate::Error`] onto the Python
@@ -36,6 +36,7 @@ mod parallel;
 mod plan;
 mod robot;
 mod run;
+mod simulator;
 mod trajectory;
 mod workspaces;
 
@@ -57,6 +58,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<plan::PyLimits>()?;
     m.add_class::<plan::PyPlan>()?;
     m.add_class::<batch::PyBatchTrajectory>()?;
+    m.add_class::<simulator::PySimulator>()?;
     m.add_function(wrap_pyfunction!(plan::py_plan_slew, m)?)?;
     m.add_function(wrap_pyfunction!(batch::py_simulate_batch, m)?)?;
     m.add_function(wrap_pyfunction!(analysis::py_state_space, m)?)?;
