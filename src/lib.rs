@@ -13,6 +13,7 @@ pub mod args;
 pub mod dynamics;
 pub mod error;
 pub mod flex;
+pub mod fmu;
 pub mod integrate;
 pub mod io;
 pub mod linalg;
