@@ -42,7 +42,7 @@ def timed(f) -> float:
 
 def batch_rows(n: int, runs: int, steps: int, rounds: int) -> list[str]:
     arm = arm_for(n)
-    dt = 0.5 * arm.rk4_stability_limit()
+    dt = 0.5 * arm.rk4_stability_limit().dt
     x0 = arm.state()
     u = np.stack([np.full(arm.dof, 0.1 * (b + 1)) for b in range(runs)])
     one = lambda: orbitflex.simulate_batch(arm, x0, dt, steps, u=u, threads=1, keep_rows=False)  # noqa: E731

@@ -44,8 +44,9 @@ def run(settle: float = 2.0, hold_kp: float = 5000.0, hold_kd: float = 300.0):
     n = robot.dof
     goal = np.zeros(n)
     goal[:7] = LEFT_GOAL
+    # the URDF's joint speeds (0.15–0.4 rad/s), and a motor budget within its efforts
     torque = [60, 60, 60, 30, 15, 15, 15] * 2
-    limits = orbitflex.Limits(motor_torque=torque, joint_speed=0.5)
+    limits = orbitflex.Limits(motor_torque=torque, joint_speed=robot.velocity_limits)
     plan = orbitflex.plan_slew(arm, goal, limits=limits, base="free")
 
     steps = int(np.ceil((plan.duration + settle) / DT))

@@ -274,6 +274,12 @@ pub fn number(x: f64) -> String {
     }
 }
 
+/// [`number`] rounded to four significant digits, for measured quantities in messages
+/// (`105.9`, not `105.88242839002942`).
+pub fn short(x: f64) -> String {
+    number(format!("{x:.3e}").parse().unwrap_or(x))
+}
+
 /// A byte count for messages: `2.6 GB`.
 pub fn describe_bytes(bytes: Option<usize>) -> String {
     match bytes {

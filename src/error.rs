@@ -50,15 +50,17 @@ pub enum Error {
         message: String,
     },
 
-    /// A joint type orbitflex does not model (prismatic, planar, floating, spherical).
-    #[error("{source_name}: joint '{joint}' has type '{kind}'; orbitflex models revolute and continuous joints only (lock it with locked_joints=[\"{joint}\"] to treat it as fixed)")]
+    /// Joints of types orbitflex does not model (prismatic, planar, floating, spherical): every
+    /// such joint of the file, with the one `locked_joints` list that holds them all (those
+    /// already locked first).
+    #[error("{source_name}: {}; orbitflex models revolute and continuous joints only (lock {} with locked_joints=[{}] to treat {} as fixed)", unsupported_list(joints), if joints.len() == 1 { "it" } else { "them" }, locked.iter().chain(joints.iter().map(|(j, _)| j)).map(|j| format!("\"{j}\"")).collect::<Vec<_>>().join(", "), if joints.len() == 1 { "it" } else { "them" })]
     UnsupportedJoint {
         /// The file.
         source_name: String,
-        /// The joint's name.
-        joint: String,
-        /// Its URDF type.
-        kind: String,
+        /// Each such joint's name and URDF type, in file order.
+        joints: Vec<(String, String)>,
+        /// The joints locked already (`locked_joints`), in the order given.
+        locked: Vec<String>,
     },
 
     /// A link or joint name that does not exist in the file.
@@ -192,4 +194,20 @@ pub type Result<T> = std::result::Result<T, Error>;
 /// Times in messages without float noise (`0.30000000000000004` prints as `0.3`).
 fn round_time(t: f64) -> f64 {
     (t * 1e9).round() / 1e9
+}
+
+/// `joint 'a' has type 'prismatic'`, or `joints 'a' (prismatic) and 'b' (planar) have types …`.
+fn unsupported_list(joints: &[(String, String)]) -> String {
+    match joints {
+        [(joint, kind)] => format!("joint '{joint}' has type '{kind}'"),
+        _ => format!(
+            "{} joints have types orbitflex does not model: {}",
+            joints.len(),
+            joints
+                .iter()
+                .map(|(joint, kind)| format!("'{joint}' ({kind})"))
+                .collect::<Vec<_>>()
+                .join(", ")
+        ),
+    }
 }

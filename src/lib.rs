@@ -30,13 +30,15 @@ pub use algorithms::Data;
 pub use args::{Loads, RigidState};
 pub use dynamics::Method;
 pub use error::{Error, Result};
-pub use flex::{ArmWorkspace, FlexibleArm, FlexibleJoints, Inputs, StateLayout, StateSpec};
+pub use flex::{
+    ArmWorkspace, FlexibleArm, FlexibleJoints, Inputs, MotorGains, StateLayout, StateSpec,
+};
 pub use integrate::{
     Controller, MotorPD, Schedule, SimulationFailure, Simulator, Trajectory, Wrenches,
 };
 pub use model::{
-    check_mesh_bytes, check_mesh_file, EndEffector, Geometry, JointModel, LinkFrame, MeshFormat,
-    MeshSearch, Robot, RobotBuilder, Scene, Shape, UrdfOptions, Visual, DUAL_ARM_URDF,
+    check_mesh_bytes, check_mesh_file, EndEffector, Geometry, JointLimits, JointModel, LinkFrame,
+    MeshFormat, MeshSearch, Robot, RobotBuilder, Scene, Shape, UrdfOptions, Visual, DUAL_ARM_URDF,
     MAX_MESH_BYTES, MAX_SCENE_MESH_BYTES, SPACE_ARM_URDF,
 };
 pub use operators::Operators;

@@ -287,3 +287,17 @@ fn configuration_dependent_singularity_is_an_error() {
         .to_string();
     assert!(err.contains("singular") && err.contains("'j1'"), "{err}");
 }
+
+#[test]
+fn a_solid_cube_bus_has_m_s2_over_6_about_every_axis_through_its_centre() {
+    use orbitflex::spatial::{Inertia, Mat3, Vec3};
+    let com = Vec3::new(0.1, -0.2, 0.3);
+    let cube = Inertia::solid_cube(500.0, orbitflex::model::DEFAULT_BUS_SIDE, com);
+    assert_eq!(cube.mass, 500.0);
+    assert_eq!(cube.com, com);
+    let about = cube.inertia_about_com();
+    assert!(
+        (about - Mat3::identity() * 187.5).abs().max() < 1e-12,
+        "{about}"
+    );
+}

@@ -227,3 +227,30 @@ fn hot_paths_do_not_allocate() {
     drop(sink);
     assert_eq!(rows, 5 + 668 + 2001 + 11);
 }
+
+/// The same, with the portable copies chosen by `ORBITFLEX_PORTABLE=1` (the README's test
+/// command run that way must pass): reading the variable allocates, so the choice is made when a
+/// workspace is built, not in the first hot call. Runs the test above in a child process, since
+/// the choice is made once per process.
+#[test]
+fn hot_paths_do_not_allocate_in_the_portable_copies_either() {
+    if std::env::var_os("ORBITFLEX_PORTABLE").is_some() {
+        return; // this process already runs one way; the test above covers it
+    }
+    let output = std::process::Command::new(std::env::current_exe().unwrap())
+        .args([
+            "--exact",
+            "hot_paths_do_not_allocate",
+            "--test-threads",
+            "1",
+        ])
+        .env("ORBITFLEX_PORTABLE", "1")
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&output.stdout);
+    assert!(
+        output.status.success() && text.contains("1 passed"),
+        "{text}{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+}

@@ -1604,10 +1604,15 @@ fn plans_stay_between_the_shortest_and_the_longest_duration_planned() {
         "{}",
         plan.duration()
     );
-    // a slew too large for floating point names the stop it ends at
+    // a slew too large for floating point names the stop it ends at (on continuous joints:
+    // the space arm's revolute joints would refuse such a goal for its position limits)
     let huge = [1e100; 7];
+    let continuous =
+        orbitflex::SPACE_ARM_URDF.replace(r#"type="revolute""#, r#"type="continuous""#);
+    let robot = Robot::from_urdf_string(&continuous, &orbitflex::UrdfOptions::default()).unwrap();
+    let free_arm = FlexibleArm::new(robot, FlexibleJoints::space_arm()).unwrap();
     let err = message(plan_slew(
-        &arm,
+        &free_arm,
         &huge,
         None,
         &space_limits(BaseMode::Held),
@@ -1618,4 +1623,198 @@ fn plans_stay_between_the_shortest_and_the_longest_duration_planned() {
         err.starts_with("q_goal: too large for floating point: the slew from q_start"),
         "{err}"
     );
+}
+
+/// `σ⁽ᵏ⁾(s)` by compensated Horner on the monomial coefficients (Graillat, Langlois & Louvet's
+/// error-free transformations): as accurate as Horner in twice the working precision, so a
+/// reference to about 1e-30 relative of the terms' scale.
+fn sigma_reference(s: f64, k: usize) -> f64 {
+    const C: [f64; 10] = [0.0, 0.0, 0.0, 0.0, 0.0, 126.0, -420.0, 540.0, -315.0, 70.0];
+    let two_sum = |a: f64, b: f64| {
+        let x = a + b;
+        let z = x - a;
+        (x, (a - (x - z)) + (b - z))
+    };
+    let two_product = |a: f64, b: f64| {
+        let x = a * b;
+        (x, a.mul_add(b, -x))
+    };
+    let (mut hi, mut lo) = (0.0, 0.0);
+    for i in (k..10).rev() {
+        let falling: f64 = (0..k).map(|j| (i - j) as f64).product();
+        let (p, e_p) = two_product(hi, s);
+        let (sum, e_s) = two_sum(p, C[i] * falling);
+        hi = sum;
+        lo = lo * s + (e_p + e_s);
+    }
+    hi + lo
+}
+
+#[test]
+fn the_path_shape_is_accurate_to_a_few_ulps() {
+    // The monomial form 126 s⁵ − 420 s⁶ + … cancels (126 − 420 + 540 − 315 + 70 = 1): 350 ulps
+    // off in σ' at s = 0.76, a million near s = 1, and its last bits moved with the processor.
+    // The factored forms are within a few ulps of σ⁽ᵏ⁾, or, near a root of σ''' or σ'''', of
+    // the size of the factors that cancel there (the function's own conditioning in s).
+    for i in 0..=4096 {
+        let s = i as f64 / 4096.0 + if i % 3 == 1 { 1e-7 } else { 0.0 };
+        let s = s.min(1.0);
+        let got = orbitflex::planning::sigma(s);
+        let u = s * (1.0 - s);
+        for (k, &value) in got.iter().enumerate() {
+            let want = sigma_reference(s, k);
+            // relative to the value, or near a root to the size of the factors that cancel there
+            let size = match k {
+                3 => want.abs().max(2520.0 * 3.0 * u * u),
+                4 => want.abs().max(15120.0 * u),
+                _ => want.abs(),
+            };
+            let ulps = (value - want).abs() / (f64::EPSILON * size.max(f64::MIN_POSITIVE));
+            assert!(
+                ulps <= 16.0,
+                "σ^({k})({s}) = {value} vs {want}: {ulps:.1} ulps"
+            );
+        }
+    }
+    assert_eq!(orbitflex::planning::sigma(0.0), [0.0; 5]);
+    assert_eq!(orbitflex::planning::sigma(1.0)[..3], [1.0, 0.0, 0.0]);
+}
+
+#[test]
+fn the_model_s_limits_are_read_planned_under_and_enforced() {
+    use orbitflex::{JointLimits, UrdfOptions};
+    let robot = Robot::space_arm();
+    assert_eq!(
+        robot.velocity_limits(),
+        [0.15, 0.15, 0.15, 0.2, 0.3, 0.3, 0.4]
+    );
+    assert_eq!(
+        robot.effort_limits(),
+        [250.0, 250.0, 250.0, 200.0, 100.0, 80.0, 60.0]
+    );
+    assert_eq!(robot.position_limits()[6], (-3.05, 3.05));
+    assert_eq!(
+        robot.joints()[3].limits,
+        JointLimits {
+            position: Some((-2.6, 2.6)),
+            velocity: Some(0.2),
+            effort: Some(200.0),
+        }
+    );
+    // a continuous joint turns freely, whatever its <limit> says of lower and upper
+    let continuous = orbitflex::SPACE_ARM_URDF.replacen(
+        r#"name="shoulder_roll" type="revolute""#,
+        r#"name="shoulder_roll" type="continuous""#,
+        1,
+    );
+    let robot_c = Robot::from_urdf_string(&continuous, &UrdfOptions::default()).unwrap();
+    assert_eq!(
+        robot_c.position_limits()[0],
+        (f64::NEG_INFINITY, f64::INFINITY)
+    );
+    assert_eq!(robot_c.velocity_limits()[0], 0.15);
+    // a revolute <limit> with neither bound states no range; with one, the other is 0 (URDF)
+    let partial = orbitflex::SPACE_ARM_URDF
+        .replacen(
+            r#"lower="-3.05" upper="3.05" effort="250""#,
+            r#"effort="250""#,
+            1,
+        )
+        .replacen(
+            r#"lower="-2.6" upper="2.6" effort="250""#,
+            r#"lower="-2.6" effort="250""#,
+            1,
+        );
+    let robot_p = Robot::from_urdf_string(&partial, &UrdfOptions::default()).unwrap();
+    assert_eq!(robot_p.joints()[0].limits.position, None);
+    assert_eq!(robot_p.joints()[0].limits.effort, Some(250.0));
+    assert_eq!(robot_p.joints()[1].limits.position, Some((-2.6, 0.0)));
+    // Limits::from_robot: effort as the motor torque, velocity as the joint speed
+    let limits = Limits::from_robot(&robot, None, Some(40.0)).unwrap();
+    assert_eq!(limits.motor_torque, robot.effort_limits());
+    assert_eq!(limits.joint_speed, robot.velocity_limits());
+    assert_eq!(limits.base_torque, Some(40.0));
+    let limits = Limits::from_robot(&robot, None, None).unwrap();
+    assert!(limits.exceeding(&robot).unwrap().is_empty());
+    let fast = Limits::new(vec![250.0], vec![0.2], None, None).unwrap();
+    assert_eq!(
+        fast.exceeding(&robot).unwrap(),
+        [
+            "motor_torque (N·m): 'elbow_pitch' 250 > 200, 'wrist_pitch' 250 > 100, 'wrist_yaw' \
+             250 > 80, 'wrist_roll' 250 > 60",
+            "joint_speed (rad/s): 'shoulder_roll' 0.2 > 0.15, 'shoulder_yaw' 0.2 > 0.15, \
+             'shoulder_pitch' 0.2 > 0.15"
+        ]
+    );
+    // a model without them says so, per joint
+    let unlimited = orbitflex::SPACE_ARM_URDF.replace(r#" effort="80" velocity="0.3""#, "");
+    let robot_u = Robot::from_urdf_string(&unlimited, &UrdfOptions::default()).unwrap();
+    assert_eq!(robot_u.velocity_limits()[5], f64::INFINITY);
+    assert_eq!(robot_u.joints()[5].limits.position, Some((-2.0, 2.0)));
+    let err = Limits::from_robot(&robot_u, None, None)
+        .unwrap_err()
+        .to_string();
+    assert_eq!(
+        err,
+        "motor_torque: the model (<urdf string>) states no effort limit (<limit effort=\"…\">), or \
+         a zero one, for 'wrist_yaw'; give motor_torque yourself"
+    );
+    // the stops must lie within the position limits
+    let arm = FlexibleArm::new(robot, FlexibleJoints::space_arm()).unwrap();
+    let mut goal = vec![0.0; 7];
+    goal[6] = 5.0;
+    let err = plan_slew(&arm, &goal, None, &limits, BaseMode::Free, &[])
+        .unwrap_err()
+        .to_string();
+    assert_eq!(
+        err,
+        "q_goal: joint 6 ('wrist_roll') = 5 rad is outside its position limits [-3.05, 3.05] rad \
+         (the model's <limit lower upper>)"
+    );
+    for bound in [-3.05, 3.05] {
+        goal[6] = bound; // on the bound is within
+        assert!(plan_slew(&arm, &goal, None, &limits, BaseMode::Free, &[]).is_ok());
+    }
+    // a zero effort limit is no limit to plan under, said as such
+    let zero = orbitflex::SPACE_ARM_URDF.replacen(r#"effort="60""#, r#"effort="0""#, 1);
+    let robot_z = Robot::from_urdf_string(&zero, &UrdfOptions::default()).unwrap();
+    let err = Limits::from_robot(&robot_z, None, None)
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("or a zero one, for 'wrist_roll' (0)"), "{err}");
+    // the builder checks what it is given, naming the joint
+    use orbitflex::spatial::{Inertia, Mat3, Transform, Vec3};
+    let bad = |limits: JointLimits| {
+        let link = Inertia::from_com(2.0, Vec3::new(0.5, 0.0, 0.0), Mat3::identity() * 0.1);
+        let bus = Inertia::from_com(100.0, Vec3::zeros(), Mat3::identity() * 20.0);
+        orbitflex::RobotBuilder::new("one", "bus", bus)
+            .joint("hinge", Transform::identity(), Vec3::z(), "arm", link)
+            .limits(limits)
+            .build()
+            .map(|r| r.joints()[0].limits)
+            .map_err(|e| e.to_string())
+    };
+    assert_eq!(
+        bad(JointLimits {
+            position: Some((1.0, -1.0)),
+            ..JointLimits::NONE
+        })
+        .unwrap_err(),
+        "<builder>: joint 'hinge': position limits: expected finite lower <= upper (rad), given \
+         lower = 1, upper = -1"
+    );
+    for (velocity, effort) in [(Some(-1.0), None), (None, Some(f64::NAN))] {
+        assert!(bad(JointLimits {
+            velocity,
+            effort,
+            ..JointLimits::NONE
+        })
+        .is_err());
+    }
+    let fine = JointLimits {
+        position: Some((-1.0, 1.0)),
+        velocity: Some(0.0),
+        effort: Some(3.0),
+    };
+    assert_eq!(bad(fine).unwrap(), fine);
 }

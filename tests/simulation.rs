@@ -569,3 +569,154 @@ fn joint_by_joint_stability_estimate_tracks_the_dense_analysis() {
     assert!(run(0.98 * dense.dt).is_ok());
     assert!(run(1.05 * dense.dt).is_err());
 }
+
+/// `P(s) = A(s) + (k_p + k_d s) B(s)` of one joint under its PD (docs/model.md §5.3), and the
+/// sum of its terms' magnitudes (for a relative check).
+fn closed_loop_polynomial(
+    [j, m, k, d, beta]: [f64; 5],
+    kp: f64,
+    kd: f64,
+    s: nalgebra::Complex<f64>,
+) -> (nalgebra::Complex<f64>, f64) {
+    let b = s * s * m + s * d + k;
+    let a = b * (s * s * j + s * beta) + s * s * m * (s * d + k);
+    let p = a + (s * kd + kp) * b;
+    let scale = a.norm() + (s * kd + kp).norm() * b.norm();
+    (p, scale)
+}
+
+#[test]
+fn motor_pd_gains_place_the_requested_poles_on_each_joint() {
+    use nalgebra::Complex;
+    for seed in [3, 11] {
+        let arm = arm(5, seed, 0.5, 0.05);
+        let q = Rng::new(seed).vector(5, -1.0, 1.0);
+        // the link inertia: the diagonal of M_r − M_br M_b⁻¹ M_rb, by the operator form
+        let ops =
+            orbitflex::Operators::new(arm.robot(), &RigidState::at_rest(&q, &[0.0; 5])).unwrap();
+        let h = &ops.m_r - &ops.m_br * ops.m_b.clone().try_inverse().unwrap() * &ops.m_rb;
+        for (hz, zeta) in [(0.5, 0.7), (1.0, 1.0), (0.8, 1.5), (0.3, 0.2)] {
+            let gains = arm.motor_pd_gains(&q, hz, zeta).unwrap();
+            let w = 2.0 * std::f64::consts::PI * hz;
+            // the roots of s² + 2ζω s + ω²
+            let disc = Complex::new(zeta * zeta - 1.0, 0.0).sqrt() * w;
+            let roots = [
+                Complex::new(-zeta * w, 0.0) + disc,
+                Complex::new(-zeta * w, 0.0) - disc,
+            ];
+            let p = arm.joints();
+            for i in 0..5 {
+                let m = gains.link_inertia[i];
+                assert!(
+                    (m - h[(i, i)]).abs() < 1e-12 * h[(i, i)],
+                    "{m} vs {}",
+                    h[(i, i)]
+                );
+                let params = [
+                    p.motor_inertia[i],
+                    m,
+                    p.stiffness[i],
+                    p.damping[i],
+                    p.motor_damping[i],
+                ];
+                assert!(gains.kp[i] > 0.0 && gains.kd[i] >= 0.0);
+                if gains.kd[i] == 0.0 {
+                    // clamped: the friction alone damps more than asked
+                    continue;
+                }
+                for s in roots {
+                    let (value, scale) =
+                        closed_loop_polynomial(params, gains.kp[i], gains.kd[i], s);
+                    assert!(
+                        value.norm() < 1e-12 * scale,
+                        "{seed} {hz} {zeta} joint {i}: {value}"
+                    );
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn motor_pd_gains_become_the_rigid_rule_for_stiff_joints_and_refuse_what_a_spring_cannot_carry() {
+    let robot = Robot::space_arm();
+    let stiff =
+        FlexibleJoints::new(vec![1e14; 7], vec![0.8; 7], vec![0.0; 7], vec![0.3; 7]).unwrap();
+    let arm = FlexibleArm::new(robot.clone(), stiff).unwrap();
+    let (hz, zeta) = (0.4, 0.8);
+    let w = 2.0 * std::f64::consts::PI * hz;
+    let gains = arm.motor_pd_gains(&[0.0; 7], hz, zeta).unwrap();
+    // the spring's correction is of relative size m ω²/k ≤ 1e-11 here
+    for i in 0..7 {
+        let inertia = 0.8 + gains.link_inertia[i];
+        let (kp, kd) = (inertia * w * w, 2.0 * zeta * w * inertia - 0.3);
+        assert!(
+            (gains.kp[i] - kp).abs() < 1e-9 * kp,
+            "{} vs {kp}",
+            gains.kp[i]
+        );
+        assert!(
+            (gains.kd[i] - kd.max(0.0)).abs() < 1e-9 * kd.abs(),
+            "{} vs {kd}",
+            gains.kd[i]
+        );
+    }
+    // friction above the damping asked for: k_d = 0 (the wrist's 0.03 kg·m² link)
+    assert_eq!(arm.motor_pd_gains(&[0.0; 7], hz, 0.05).unwrap().kd[6], 0.0);
+    // the built-in arm: the documented gains (docs/model.md §5.3) and no dt anywhere
+    let arm = FlexibleArm::new(robot, FlexibleJoints::space_arm()).unwrap();
+    let gains = arm.motor_pd_gains(&[0.0; 7], 0.25, 1.0).unwrap();
+    let kp = [20.75, 244.2, 238.2, 97.08, 5.785, 2.726, 1.021];
+    let kd = [25.46, 318.1, 310.1, 125.1, 6.381, 2.473, 0.2998];
+    for i in 0..7 {
+        assert!(
+            (gains.kp[i] / kp[i] - 1.0).abs() < 5e-4,
+            "kp {i}: {}",
+            gains.kp[i]
+        );
+        assert!(
+            (gains.kd[i] / kd[i] - 1.0).abs() < 5e-4,
+            "kd {i}: {}",
+            gains.kd[i]
+        );
+    }
+    // the shoulder's link (106 kg·m² on 1e4 N·m/rad) resonates at 1.55 Hz with its motor held
+    let error = arm
+        .motor_pd_gains(&[0.0; 7], 3.0, 1.0)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        error.contains("bandwidth")
+            && error
+                .contains("1.547 Hz for joint 1 ('shoulder_yaw', 105.9 kg·m² on 10000 N·m/rad)")
+            && !error.contains("joint 0"),
+        "{error}"
+    );
+    for (hz, zeta, message) in [
+        (0.0, 1.0, "bandwidth: expected a finite number > 0, given 0"),
+        (
+            f64::NAN,
+            1.0,
+            "bandwidth: expected a finite number > 0, given NaN",
+        ),
+        (
+            0.2,
+            0.0,
+            "damping_ratio: expected a finite number > 0, given 0",
+        ),
+        (
+            0.2,
+            -1.0,
+            "damping_ratio: expected a finite number > 0, given -1",
+        ),
+        (
+            f64::INFINITY,
+            1.0,
+            "bandwidth: expected a finite number > 0, given inf",
+        ),
+    ] {
+        let error = arm.motor_pd_gains(&[0.0; 7], hz, zeta).unwrap_err();
+        assert_eq!(error.to_string(), message, "{hz} {zeta}");
+    }
+    assert!(arm.motor_pd_gains(&[0.0; 6], 0.25, 1.0).is_err());
+}

@@ -262,6 +262,37 @@ fn tree_urdf_errors_name_what_is_wrong() {
         "<urdf string>: joint 'slide' has type 'prismatic'; orbitflex models revolute and \
          continuous joints only (lock it with locked_joints=[\"slide\"] to treat it as fixed)"
     );
+    // every unsupported joint in one message, and one locked_joints list that holds them all
+    // (with those already locked): following the advice works the first time
+    let two = BRANCHED.replace(
+        r#"<joint name="tb" type="fixed">"#,
+        r#"<joint name="tb" type="planar">"#,
+    );
+    let err = Robot::from_urdf_string(
+        &two,
+        &UrdfOptions {
+            locked_joints: vec!["ja2".into()],
+            ..UrdfOptions::default()
+        },
+    )
+    .unwrap_err()
+    .to_string();
+    assert_eq!(
+        err,
+        "<urdf string>: 2 joints have types orbitflex does not model: 'tb' (planar), 'slide' \
+         (prismatic); orbitflex models revolute and continuous joints only (lock them with \
+         locked_joints=[\"ja2\", \"tb\", \"slide\"] to treat them as fixed)"
+    );
+    let advised = UrdfOptions {
+        locked_joints: vec!["ja2".into(), "tb".into(), "slide".into()],
+        ..UrdfOptions::default()
+    };
+    assert_eq!(
+        Robot::from_urdf_string(&two, &advised)
+            .unwrap()
+            .joint_names(),
+        ["ja1", "jb1", "jb2"]
+    );
     let locked = || UrdfOptions {
         locked_joints: vec!["slide".into()],
         ..UrdfOptions::default()

@@ -193,7 +193,7 @@ class StateSpace:
     def to_control(self) -> Any:
         """A python-control ``StateSpace`` with the same names (``pip install 'orbitflex[analysis]'``)."""
         try:
-            import control  # type: ignore[import-untyped]
+            import control  # type: ignore[import-untyped,import-not-found,unused-ignore]
         except ImportError as e:
             raise ImportError(f"StateSpace.to_control needs python-control ({e}); "
                               "pip install 'orbitflex[analysis]'") from None
@@ -207,7 +207,7 @@ class StateSpace:
         ``s = load(path); sys = ss(s.A, s.B, s.C, s.D, 'StateName', s.StateName, 'InputName',
         s.InputName, 'OutputName', s.OutputName)``. Returns the path."""
         try:
-            from scipy.io import savemat  # type: ignore[import-untyped,unused-ignore]
+            from scipy.io import savemat  # type: ignore[import-untyped,import-not-found,unused-ignore]
         except ImportError as e:
             raise ImportError(f"StateSpace.savemat needs scipy ({e}); pip install 'orbitflex[analysis]'") from None
         path = Path(path)

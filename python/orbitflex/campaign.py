@@ -1,8 +1,13 @@
+# mypy: disable-error-code="import-not-found,import-untyped,unused-ignore", no-implicit-reexport
+# (pandas, Dask and their stubs come with orbitflex[campaign]: a base install type-checks clean)
 """Monte-Carlo campaigns: many slews of one arm with dispersed parameters, run locally through
 :func:`orbitflex.simulate_batch` or on a Dask cluster, with one table row per run.
 
-A campaign is a nominal slew (a quintic rest-to-rest motion of the motor references, followed
-by a motor-side PD) and a list of dispersions. Run ``i`` draws its parameters from its own
+A campaign is a nominal slew and a list of dispersions. The nominal slew is either a quintic
+rest-to-rest motion of the motor references followed by a motor-side PD, or a planned slew
+(:meth:`Campaign.from_plan`: a :class:`~orbitflex.Plan`'s per-step motor reference and
+feedforward torque, and for a held base the wrench that holds it, under the same PD).
+Run ``i`` draws its parameters from its own
 random generator, ``numpy.random.default_rng([seed, i])``, in the order the dispersions are
 declared, so a run's parameters and results depend only on the campaign and ``i``: the table is
 the same, bit for bit, whether the runs go one chunk at a time on a laptop or as tasks on a
@@ -17,6 +22,7 @@ Python, then call :meth:`Campaign.run`::
                         dispersions=[Dispersion("stiffness", "lognormal", sigma=0.2)])
     table = campaign.run()                        # local, every core
     table = campaign.run(scheduler="tcp://host:8786")   # on a Dask cluster
+    worst = campaign.trajectory(int(table["peak_deflection"].idxmax()))   # that run, again
 
 Dispersed parameters (``parameter =``), with their units and nominal values:
 
@@ -79,7 +85,7 @@ from typing import TYPE_CHECKING, Any, Callable, Dict, List, Mapping, Optional, 
 import numpy as np
 import numpy.typing as npt
 
-from . import FlexibleArm, FlexibleJoints, ModelError, MotorPD, Robot, models, simulate_batch
+from . import FlexibleArm, FlexibleJoints, ModelError, MotorPD, Plan, Robot, Trajectory, models, simulate_batch
 
 if TYPE_CHECKING:  # pragma: no cover
     import pandas as pd
@@ -193,7 +199,7 @@ class Campaign:
     (N·m/rad), ``kd`` (N·m·s/rad) and ``q0`` (rad) are scalars or per joint; the reference moves
     from ``q0`` to ``goal`` on a quintic over ``slew_time`` seconds, then holds. The runs last
     ``duration`` seconds in steps of ``dt``, and keep every ``record_every``-th row for the
-    settling time."""
+    settling time. With ``plan`` (see :meth:`from_plan`) the runs follow that plan instead."""
 
     goal: Any
     kp: Any
@@ -216,9 +222,34 @@ class Campaign:
     payload_ee: Union[None, str, int] = None
     record_every: int = 10
     settle_tolerance: float = 5e-3
+    plan: Optional[Plan] = None
     log: "ChunkLog" = field(default_factory=lambda: ChunkLog(), compare=False, repr=False)
+    # the plan's per-step tables at (dt, steps), made once per process (not sent to workers)
+    _tables: Optional[Dict[str, Array]] = field(default=None, init=False, compare=False, repr=False)
 
     # -- declaration ---------------------------------------------------------------------------
+
+    @classmethod
+    def from_plan(cls, plan: Plan, kp: Any, kd: Any, dt: float, duration: Optional[float] = None,
+                  **fields: Any) -> "Campaign":
+        """A campaign whose nominal is ``plan`` (from :func:`~orbitflex.plan_slew`): every run
+        follows the plan's per-step tables at ``dt`` (:meth:`Plan.reference`: the motor reference
+        ``θ_ref``, ``θ̇_ref`` at each step's start and the feedforward torque ``u`` averaged over
+        it; for a held base, the base wrench that holds it, open loop) under the motor PD
+        ``kp``, ``kd`` (N·m/rad, N·m·s/rad; scalars or per joint), as :meth:`Plan.track` runs it.
+        The robot and the nominal joints are the plan's arm's; the runs start at the plan's start
+        (``q0``, at rest) and are judged against its goal. ``duration`` (s, default: the plan
+        and 2 s at rest) must cover the plan. The other ``fields`` are the constructor's
+        (``runs``, ``seed``, ``dispersions``, ``payload_mass``, ``record_every``, …); every
+        dispersion applies but ``goal``, which the plan fixes (``q0`` disperses the start away
+        from the reference)."""
+        stops = np.asarray(plan.stops)
+        for key in ("goal", "slew_time", "robot", "joints", "ee_link", "ee_links", "locked_joints"):
+            if key in fields:
+                raise CampaignError(f"{key}: a campaign on a plan takes it from the plan; leave it out")
+        return cls(goal=stops[-1].copy(), kp=kp, kd=kd, dt=dt,
+                   duration=plan.duration + 2.0 if duration is None else duration,
+                   slew_time=plan.duration, q0=fields.pop("q0", stops[0].copy()), plan=plan, **fields)
 
     @classmethod
     def from_toml(cls, path: Union[str, "os.PathLike[str]"]) -> "Campaign":
@@ -368,6 +399,8 @@ class Campaign:
         for p in set(seen):
             if seen.count(p) > 1:
                 raise CampaignError(f"dispersion: {p!r} is dispersed {seen.count(p)} times; give it once")
+        if self.plan is not None:
+            self._check_plan()
         robot = self._robot()
         n = robot.dof
         for name in ("goal", "kp", "kd", "q0"):
@@ -407,9 +440,45 @@ class Campaign:
             raise CampaignError(f"{given[0]}: applies when the robot is read from a URDF file (urdf = PATH); "
                                 f"{what} is loaded already")
 
+    def _check_plan(self) -> None:
+        """A campaign on a plan: the plan's robot, joints and goal, a duration that covers it,
+        and no dispersion of the goal."""
+        plan = self.plan
+        assert plan is not None
+        if not isinstance(plan, Plan):
+            raise CampaignError(f"plan: expected an orbitflex.Plan, given {type(plan).__name__}")
+        if self.robot is not None or self.joints is not None:
+            raise CampaignError("robot, joints: a campaign on a plan takes them from the plan's arm; leave them out")
+        goal = np.broadcast_to(np.asarray(self.goal, dtype=np.float64), (plan.arm.dof,))
+        if not np.array_equal(goal, np.asarray(plan.stops)[-1]):
+            raise CampaignError("goal: a campaign on a plan ends at the plan's goal; build it with "
+                                "Campaign.from_plan(plan, ...)")
+        if any(d.parameter == "goal" for d in self.dispersions):
+            raise CampaignError("dispersion: the goal of a campaign on a plan is the plan's; disperse q0 "
+                                "for a start away from the reference")
+        if self.steps * self.dt < plan.duration * (1 - 1e-12):
+            raise CampaignError(f"duration: {self.duration:g} s ends before the plan does "
+                                f"({plan.duration:.6g} s); give at least that")
+
+    def _plan_tables(self) -> Dict[str, Array]:
+        """The plan's per-step tables for this campaign's runs (:meth:`Plan.reference` at ``dt``
+        over ``steps``), made once."""
+        assert self.plan is not None
+        if self._tables is None:
+            self._tables = {k: np.asarray(v) for k, v in self.plan.reference(self.dt, self.steps).items()}
+        return self._tables
+
+    def _base_wrench(self) -> Optional[Array]:
+        """The base wrench of every run, (1, steps, 6): a held base's plan holds it; else none."""
+        if self.plan is None or self.plan.base != "held":
+            return None
+        return self._plan_tables()["base_wrench"][None]
+
     # -- the model and the runs ----------------------------------------------------------------
 
     def _robot(self) -> Robot:
+        if self.plan is not None:
+            return self.plan.arm.robot
         if isinstance(self.robot, Robot):
             return self.robot
         if self.robot is None:
@@ -424,6 +493,8 @@ class Campaign:
         return Robot.from_urdf(self.robot, **kwargs)
 
     def _joints(self, robot: Robot) -> FlexibleJoints:
+        if self.plan is not None:
+            return self.plan.arm.joints
         if self.joints is not None:
             return self.joints
         if self.robot is None:
@@ -506,6 +577,10 @@ class Campaign:
             joints = FlexibleJoints(*(values[p] for p in JOINT_PARAMETERS))
             arm = arms[key] = FlexibleArm(loaded, joints)
         x0 = arm.state(q=values["q0"], base_twist=np.r_[values["base_rate"], 0.0, 0.0, 0.0])
+        if self.plan is not None:
+            tables = self._plan_tables()
+            pd = MotorPD(values["kp"], values["kd"], tables["theta_ref"], tables["theta_dot_ref"], tables["u"])
+            return arm, x0, pd
         theta_ref, theta_dot_ref = self._reference(robot.dof, values["q0"], values["goal"], self.steps)
         pd = MotorPD(values["kp"], values["kd"], theta_ref, theta_dot_ref)
         return arm, x0, pd
@@ -529,7 +604,8 @@ class Campaign:
         (k, 3), one row per end-effector in ``robot.ee_links`` order."""
         robot = self._robot()
         arm, x0, pd = self._setup(robot, self._nominal(robot), {})
-        batch = simulate_batch(arm, x0, self.dt, self.steps, u=pd, threads=1, keep_rows=False)
+        batch = simulate_batch(arm, x0, self.dt, self.steps, u=pd, base_wrench=self._base_wrench(), threads=1,
+                               keep_rows=False)
         if not batch.ok[0]:
             raise CampaignError(f"the nominal run (no dispersion) failed: {batch.messages[0]}")
         return _ee_positions(arm, batch.final_state[0])
@@ -553,15 +629,10 @@ class Campaign:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", RuntimeWarning)
             batch = simulate_batch([s[0] for s in setups], np.stack([s[1] for s in setups]), self.dt,
-                                   self.steps, u=[s[2] for s in setups], threads=threads,
-                                   record_every=self.record_every, progress=progress)
+                                   self.steps, u=[s[2] for s in setups], base_wrench=self._base_wrench(),
+                                   threads=threads, record_every=self.record_every, progress=progress)
         for w in caught:
-            # the batch numbers its runs from 0: name them as the campaign does
-            message = re.sub(r"\(runs ([\d, …]+);",
-                             lambda m: "(runs " + ", ".join(str(int(i) + start) if i.strip().isdigit() else i.strip()
-                                                           for i in m.group(1).split(",")) + ";",
-                             str(w.message))
-            warnings.warn(message.replace(" runs (runs", " runs of this chunk (runs", 1), w.category, stacklevel=2)
+            warnings.warn(_campaign_numbers(str(w.message), start), w.category, stacklevel=2)
         n = robot.dof
         columns: Dict[str, Any] = {"run": np.asarray(runs, dtype=np.int64)}
         for d in self.dispersions:
@@ -609,6 +680,23 @@ class Campaign:
                 "settling_time": settling,
                 "base_attitude_change": nan_if_failed(attitude),
                 "ee_error": nan_if_failed(ee_error)}
+
+    def trajectory(self, run: int, record_every: int = 1) -> Trajectory:
+        """Run ``run`` again, alone, as a :class:`~orbitflex.Trajectory` keeping one row in
+        ``record_every`` (default: every step) and the final row: the same parameters, arm,
+        start, controller and wrenches as its row of the table, through the same
+        :func:`~orbitflex.simulate_batch`, so its states are the ones the row was computed from,
+        bit for bit (a failed run ends on its last good state). The worst run animates in one
+        line: ``campaign.trajectory(int(table["peak_deflection"].idxmax())).animate("worst.html")``."""
+        if isinstance(run, bool) or not isinstance(run, (int, np.integer)) or run < 0:
+            raise CampaignError(f"run: expected an integer >= 0 (a run's index), given {run!r}")
+        self.check()
+        robot = self._robot()
+        arm, x0, pd = self._setup(robot, self.parameters(int(run), robot), {})
+        batch = simulate_batch(arm, x0, self.dt, self.steps, u=pd, base_wrench=self._base_wrench(), threads=1,
+                               record_every=record_every)
+        traj: Trajectory = batch.run(0)
+        return traj
 
     # -- running -------------------------------------------------------------------------------
 
@@ -824,6 +912,17 @@ def reachable(address: str, timeout: float) -> None:
     if not 0 < frames < 1000:
         raise OSError(f"cannot reach the Dask scheduler at {address}: the server there accepts connections "
                       "but does not answer as a Dask scheduler")
+
+def _campaign_numbers(message: str, start: int) -> str:
+    """A batch's stability warning for a chunk that starts at run ``start``, its runs named as
+    the campaign numbers them (the batch counts from 0)."""
+    def shift(m: "re.Match[str]") -> str:
+        return ", ".join(str(int(i) + start) if i.strip().isdigit() else i.strip() for i in m.group(1).split(","))
+
+    message = message.replace(" of the run (", f" of run {start} (", 1)
+    message = re.sub(r"(?<= of run )(\d+) of \d+(?= \()", lambda m: str(int(m.group(1)) + start), message, count=1)
+    message = re.sub(r"(?<=\(runs )([\d, …]+)(?=;)", shift, message, count=1)
+    return re.sub(r" of (all \d+|\d+ of \d+) runs \(", r" of \1 runs of this chunk (", message, count=1)
 
 
 def _offset(progress: Callable[[int, int], Any], start: int, total: int) -> Callable[[int, int], Any]:

@@ -1,9 +1,14 @@
+# mypy: disable-error-code="import-not-found,import-untyped,unused-ignore", no-implicit-reexport
+# (tqdm's stubs and pandas are optional: a base install type-checks clean without them)
 """Command line: ``orbitflex demo``, ``orbitflex simulate URDF``, ``orbitflex plan URDF`` and
 ``orbitflex campaign FILE``.
 
 ``demo`` and ``simulate`` run the same job: a free-floating slew of the arm under the built-in
 motor-side PD controller, long enough to show the base's reaction and the joints' vibration, then
 print a summary and write the trajectory, ``summary.json`` and plots into an output folder. The
+PD's gains come from ``--bandwidth`` and ``--damping-ratio`` (:meth:`FlexibleArm.motor_pd_gains`)
+or from ``--kp``/``--kd``, never from ``--dt``; a ``--dt`` past the closed loop's RK4 stability
+limit is refused unless ``--force``. The
 demo then plans a minimum-time slew of the built-in arm under limits, with the flexible joints
 and as if they were rigid, runs both plans on the flexible arm and compares them.
 
@@ -49,8 +54,9 @@ Rows = npt.NDArray[np.intp]  # indices of the rows drawn in a plot
 
 # Default slew for the built-in arm (rad, link side), one entry per joint.
 SPACE_ARM_SLEW = np.array([0.4, 0.6, -0.5, 0.8, -0.6, 0.5, 1.0])
-# Side (m) of the built-in arm's bus, and of the solid cube that --base-mass alone stands for.
-BUS_SIDE = 1.5
+# Side (m) of the built-in arm's bus, and of the solid cube that --base-mass alone stands for
+# (Robot.with_base_inertia's default).
+BUS_SIDE = models.DEFAULT_BUS_SIDE
 
 # FlexibleJoints.defaults_for, in a few words: printed when a run uses it, and in the help.
 DEFAULTS_SCALING = ("each joint rings at 5 Hz with its motor held, motor inertia = the link-side "
@@ -130,11 +136,13 @@ def cli_words(message: str) -> str:
 
 
 def urdf_error(error: Exception) -> CliError:
-    """A URDF-loading error, under the flag it points to: ``--ee-link`` or ``--locked-joints``
-    if it names one (the first one it names), else ``URDF``."""
+    """A URDF-loading error, under the flag it blames: ``--ee-link`` or ``--locked-joints`` if
+    its statement (before the first ``; ``, where advice begins) names one (the first one it
+    names), else ``URDF``. Advice such as "lock them with --locked-joints a,b" blames no flag."""
     message = cli_words(str(error))
+    statement = message.split("; ", 1)[0]
     named = [(found.start(), flag) for flag in ("--ee-link", "--ee-links", "--locked-joints")
-             for found in [re.search(re.escape(flag) + r"(?![\w-])", message)] if found]
+             for found in [re.search(re.escape(flag) + r"(?![\w-])", statement)] if found]
     if not named:
         return CliError("URDF", message)
     flag = min(named)[1]
@@ -190,34 +198,64 @@ def quintic(s: Array) -> Tuple[Array, Array]:
     return 10 * s**3 - 15 * s**4 + 6 * s**5, 30 * s**2 - 60 * s**3 + 30 * s**4
 
 
-def pd_gains(arm: FlexibleArm, q0: Array, bandwidth_hz: float, dt: float,
-             damping_ratio: float = 1.0) -> Tuple[Array, Array]:
-    """Motor-side PD gains that place each joint's slow (rigid) mode near ``bandwidth_hz``:
-    ``kp = w^2 (m_i + j_i)``, ``kd = 2 zeta w (m_i + j_i)``, with ``m_i`` the diagonal of ``M_r``.
+@dataclass
+class Gains:
+    """The motor PD of a slew: its gains per joint and where they came from."""
 
-    The derivative gain also creates a fast motor pole near ``-kd / j``; RK4 is stable on the real
-    axis only for ``|lambda dt| < 2.78``, so ``kd`` is capped at ``0.5 j / dt``."""
-    _, j, _, _ = arm.parameters
-    m = np.diag(arm.robot.mass_matrix(q0))[6:]
-    w = 2 * np.pi * np.float64(bandwidth_hz)
-    with np.errstate(over="ignore", invalid="ignore"):
-        kp, kd = w**2 * (m + j), np.minimum(2 * damping_ratio * w * (m + j), 0.5 * j / dt)
-    if not (np.isfinite(kp).all() and np.isfinite(kd).all()):
-        raise CliError("--bandwidth", f"{bandwidth_hz:g} Hz makes the PD gains overflow "
-                                      f"(kp = w² (m + j) is not finite); the default is 0.25 Hz")
-    return kp, kd
+    kp: Array  # N·m/rad
+    kd: Array  # N·m·s/rad
+    bandwidth_hz: Optional[float]  # the closed-loop bandwidth they were chosen for (None: both given)
+    damping_ratio: Optional[float]
+    given: Tuple[str, ...] = ()  # the flags that set gains directly: "--kp", "--kd"
+
+    def as_dict(self) -> Dict[str, Any]:
+        return {"kp": self.kp.tolist(), "kd": self.kd.tolist(), "bandwidth_hz": self.bandwidth_hz,
+                "damping_ratio": self.damping_ratio, "given": list(self.given)}
+
+
+def choose_gains(arm: FlexibleArm, args: argparse.Namespace) -> Gains:
+    """The slew's motor PD: ``--kp``/``--kd`` where given, the rest from ``--bandwidth`` and
+    ``--damping-ratio`` (:meth:`FlexibleArm.motor_pd_gains`, at the start, q = 0). Never from dt."""
+    given = tuple(flag for flag, value in (("--kp", args.kp), ("--kd", args.kd)) if value is not None)
+    kp = kd = None
+    if len(given) < 2:
+        try:
+            kp, kd = arm.motor_pd_gains(args.bandwidth, args.damping_ratio)
+        except ValueError as e:
+            raise CliError("--bandwidth", cli_words(str(e)).removeprefix("bandwidth: ")) from None
+    if args.kp is not None:
+        kp = per_joint(args.kp, "--kp", arm.robot)
+    if args.kd is not None:
+        kd = per_joint(args.kd, "--kd", arm.robot)
+    assert kp is not None and kd is not None
+    rule = len(given) < 2
+    return Gains(np.asarray(kp), np.asarray(kd), args.bandwidth if rule else None,
+                 args.damping_ratio if rule else None, given)
 
 
 def slew_controller(arm: FlexibleArm, slew: Array, steps: int, dt: float, slew_time: float,
-                    bandwidth_hz: float) -> MotorPD:
-    """The motor PD that follows a quintic slew of ``slew`` (rad per joint) over ``slew_time``
-    seconds, tabulated for ``steps`` steps of ``dt``."""
-    kp, kd = pd_gains(arm, np.zeros(arm.dof), bandwidth_hz, dt)
+                    gains: Gains) -> MotorPD:
+    """The motor PD with ``gains`` that follows a quintic slew of ``slew`` (rad per joint) over
+    ``slew_time`` seconds, tabulated for ``steps`` steps of ``dt``."""
     t = np.arange(steps, dtype=np.float64) * dt
     shape, dshape = quintic(t / slew_time)
     theta_ref = np.outer(shape, slew)
     theta_dot_ref = np.outer(dshape / slew_time, slew)
-    return MotorPD(kp, kd, theta_ref, theta_dot_ref)
+    return MotorPD(gains.kp, gains.kd, theta_ref, theta_dot_ref)
+
+
+def check_step(arm: FlexibleArm, pd: MotorPD, gains: Gains, dt: float, force: bool) -> float:
+    """The RK4 stability limit (s) of the closed loop at rest; a ``--dt`` past it is refused
+    (with ``--force``: a warning, and the run goes on). The controller never changes with dt."""
+    limit = arm.rk4_stability_limit(u=pd).dt
+    if dt > limit:
+        advice = (f"use --dt {round_down(DT_MARGIN * limit):g} or less, or a lower "
+                  + ("--bandwidth" if gains.bandwidth_hz is not None else "--kp/--kd"))
+        message = (f"{dt:g} s is past the RK4 stability limit {limit:.3g} s of the closed loop (the arm "
+                   f"under its motor PD, the torque held over each step)")
+        if not force:
+            raise CliError("--dt", f"{message}; {advice}, or --force to run anyway")
+    return limit  # with --force, simulate warns and runs
 
 
 # ---------------------------------------------------------------------------------------------
@@ -293,10 +331,19 @@ class Outcome:
     failure: Optional[SimulationError] = None
     warnings: int = 0  # how many warnings simulate emitted (dt past the RK4 stability limit)
     record_every: int = 1  # the run kept rows 0, k, 2k, ... and the final row
+    onset: Optional[int] = None  # a diverged run: the last row before the divergence set in
 
     def steps_done(self, steps: int) -> int:
         """Steps completed: all ``steps``, or those before the failure."""
         return steps if self.failure is None else self.failure.step
+
+    def meaningful(self) -> Trajectory:
+        """The rows the summary and the plots describe: every row, or for a diverged run those
+        up to the onset of the divergence (the files keep every finite row)."""
+        if self.onset is None or self.onset == len(self.traj.t) - 1:
+            return self.traj
+        k = self.onset
+        return Trajectory(self.traj.arm, self.traj.t[: k + 1], self.traj.x[: k + 1], self.traj.u[:k])
 
 
 class ProgressBar:
@@ -359,8 +406,13 @@ def simulate(arm: FlexibleArm, pd: MotorPD, steps: int, dt: float, progress: boo
     outcome.warnings = printer.count
     if outcome.failure is not None:
         kept = outcome.failure.step
-        print(f"orbitflex: the run failed: {failure_reason(outcome.failure)}; the outputs describe "
-              f"the {kept} steps before the failure (exit code 1)", file=sys.stderr)
+        where = ""
+        if record_every == 1 and "diverged" in str(outcome.failure):
+            outcome.onset = divergence_onset(outcome.traj)
+            where = (f"; the divergence set in after step {outcome.onset} (t = {outcome.traj.t[outcome.onset]:.6g} s): "
+                     f"the summary and plots describe the run up to there")
+        print(f"orbitflex: the run failed: {failure_reason(outcome.failure)}; the files keep the {kept} "
+              f"steps before the failure{where} (exit code 1)", file=sys.stderr)
     return outcome
 
 
@@ -373,9 +425,10 @@ def failure_reason(e: SimulationError) -> str:
 def run(job: Job, args: argparse.Namespace) -> int:
     steps = int(round(args.duration / args.dt))
     check_memory(steps, job.arm.dof, record_every=args.record_every)
-    pd = slew_controller(job.arm, job.slew, steps, args.dt, args.slew_time, args.bandwidth)
+    gains = choose_gains(job.arm, args)
+    pd = slew_controller(job.arm, job.slew, steps, args.dt, args.slew_time, gains)
+    limit = check_step(job.arm, pd, gains, args.dt, args.force)
     out = output_folder(args.out)
-    limit = job.arm.rk4_stability_limit(u=pd)
     print(f"{job.name}: {job.arm.dof} joints, total mass {job.arm.robot.total_mass:.1f} kg, "
           f"dt = {args.dt:g} s (RK4 limit of the closed loop at rest: {limit:.3g} s)")
     if job.note:
@@ -384,6 +437,7 @@ def run(job: Job, args: argparse.Namespace) -> int:
     comparison, note = demo_comparison(job.arm, job.name, args.dt) if job.compare_plans else (None, None)
     with np.errstate(all="ignore"):  # a diverged run's finite part may overflow in the summary
         summary = summarise(job.name, outcome, steps)
+        summary["controller"] = {**gains.as_dict(), "rk4_stability_limit_s": limit}
         if comparison is not None:
             summary["planned_slew"] = {"goal_rad": DEMO_PLAN_GOAL.tolist(), "base": comparison.plan.base,
                                        "limits": limits_dict(comparison.plan.limits),
@@ -406,7 +460,7 @@ def print_demo_comparison(c: Comparison, note: Optional[str]) -> None:
     goal = ", ".join(f"{v:g}" for v in DEMO_PLAN_GOAL)
     print(f"\norbitflex: minimum-time slew of '{c.name}' to q = [{goal}] rad, free floating, planned "
           f"with the flexible joints and as if they were rigid")
-    print(f"  limits              motor torque {gain_text(np.asarray(limits.motor_torque))} N·m, "
+    print(f"  limits (the URDF's) motor torque {gain_text(np.asarray(limits.motor_torque))} N·m, "
           f"joint speed {gain_text(np.asarray(limits.joint_speed))} rad/s")
     print(f"  flexible plan       {c.plan.duration:.4f} s, binding {describe_binding(c.plan)}")
     print(f"  rigid-joint plan    {c.rigid.duration:.4f} s, binding {describe_binding(c.rigid)}")
@@ -473,6 +527,8 @@ def write_outputs(job: Job, outcome: Outcome, summary: Dict[str, Any], out: Path
             if comparison is not None:
                 figures = Figures(out, plan_caption(comparison))
                 plot_plan_vs_rigid(figures, comparison)
+                plot_plan_torque(figures, comparison)  # every limit the plan respects, against it
+                plot_plan_speed(figures, comparison)
                 files += figures.files
     except OSError as e:
         raise CliError("--out", f"cannot write {files[-1]}: {e.strerror or e}") from None
@@ -496,11 +552,11 @@ def rotation_angle_deg(q0: Array, q1: Array) -> Array:
     return angle
 
 
-def energy_balance(traj: Trajectory) -> Tuple[float, float, float]:
-    """Energy bookkeeping of the power balance (docs/model.md, section 6) with the trapezoid rule
-    on the recorded states (``traj.u`` held over each step): returns
-    ``(E(T) - E(0), motor work, dissipated energy)``. With no external wrench,
-    ``E(T) - E(0) = motor work - dissipated`` up to the quadrature and RK4 errors."""
+def energy_steps(traj: Trajectory) -> Tuple[Array, Array, Array]:
+    """Per step of the record, the power balance's terms (docs/model.md, section 6) by the
+    trapezoid rule (``traj.u`` held over each step): ``(ΔE, motor work, dissipated energy)``,
+    (rows − 1,) each. With no external wrench, ``ΔE = motor work − dissipated`` up to the
+    quadrature and RK4 errors."""
     u = traj.u
     _, _, d, beta = traj.arm.parameters
     td, qd = traj.theta_dot, traj.qd
@@ -508,9 +564,34 @@ def energy_balance(traj: Trajectory) -> Tuple[float, float, float]:
     dt = np.diff(traj.t[: rows + 1])
     dissipation = ((td - qd) ** 2 * d).sum(axis=1) + (td**2 * beta).sum(axis=1)
     motor = 0.5 * ((u * td[:rows]).sum(axis=1) + (u * td[1 : rows + 1]).sum(axis=1))
-    work = float(np.sum(dt * motor))
-    dissipated = float(np.sum(0.5 * dt * (dissipation[:rows] + dissipation[1 : rows + 1])))
-    return float(traj.energy[rows] - traj.energy[0]), work, dissipated
+    return np.diff(traj.energy[: rows + 1]), dt * motor, 0.5 * dt * (dissipation[:rows] + dissipation[1 : rows + 1])
+
+
+def energy_balance(traj: Trajectory) -> Tuple[float, float, float]:
+    """``(E(T) - E(0), motor work, dissipated energy)`` over the record (:func:`energy_steps`)."""
+    _, work, dissipated = energy_steps(traj)
+    rows = len(traj.u)
+    return float(traj.energy[rows] - traj.energy[0]), float(np.sum(work)), float(np.sum(dissipated))
+
+
+# A run whose energy balance misses by more than this share of the energy that flowed has left
+# the physics: the integrator, not the motors, is making the energy.
+DIVERGED_BALANCE = 0.01
+
+
+def divergence_onset(traj: Trajectory) -> int:
+    """The last row of a diverged run (kept with every step's torque) before the divergence set
+    in: the last row up to which the energy balance ``E(t) − E(0) = motor work − dissipated``
+    still held to ``DIVERGED_BALANCE`` of the energy that flowed (``Σ|ΔE|``). An unstable step
+    makes energy the physics does not: the residual grows with the energy itself from then on,
+    by a factor per step, while a stable run's residual is the quadrature's (1e-7 of the flow in
+    the demo; a few % over the first steps at a coarse dt)."""
+    with np.errstate(all="ignore"):
+        change, work, dissipated = energy_steps(traj)
+        residual = np.abs(np.r_[0.0, np.cumsum(change - (work - dissipated))])
+        flow = np.r_[0.0, np.cumsum(np.abs(change))]
+        held = np.flatnonzero(residual <= DIVERGED_BALANCE * flow)
+    return int(held[-1])  # row 0 always holds (0 ≤ 0)
 
 
 def angle_unit(largest_rad: float) -> Tuple[float, str]:
@@ -526,8 +607,9 @@ def angle_unit(largest_rad: float) -> Tuple[float, str]:
 
 def summarise(name: str, outcome: Outcome, steps_asked: int) -> Dict[str, Any]:
     """The summary; with ``record_every`` > 1 the peaks and drifts are over the kept rows, and the
-    energy balance (which needs the torque of every step) is left out (None)."""
-    traj = outcome.traj
+    energy balance (which needs the torque of every step) is left out (None). A diverged run is
+    summarised up to the onset of its divergence (:func:`divergence_onset`), where known."""
+    traj = outcome.meaningful()
     steps = outcome.steps_done(steps_asked)
     h = traj.momentum
     h_drift = np.abs(h - h[0]).max(axis=0)
@@ -547,8 +629,8 @@ def summarise(name: str, outcome: Outcome, steps_asked: int) -> Dict[str, Any]:
         "steps_requested": steps_asked,
         "steps": steps,
         "record_every": outcome.record_every,
-        "rows": len(traj.t),
-        "simulated_s": float(traj.t[-1]),
+        "rows": len(outcome.traj.t),
+        "simulated_s": float(outcome.traj.t[-1]),
         "steps_per_second": steps / outcome.elapsed if outcome.elapsed > 0 else float("inf"),
         "base_attitude_change_deg": float(rotation_angle_deg(traj.base_pose[0, 3:], traj.base_pose[-1, 3:])),
         "base_displacement_m": float(np.linalg.norm(traj.base_pose[-1, :3] - traj.base_pose[0, :3])),
@@ -562,7 +644,8 @@ def summarise(name: str, outcome: Outcome, steps_asked: int) -> Dict[str, Any]:
     }
     if outcome.failure is not None:
         summary.update(failure_step=outcome.failure.step, failure_time_s=outcome.failure.time,
-                       failure=failure_reason(outcome.failure))
+                       failure=failure_reason(outcome.failure), divergence_onset_step=outcome.onset,
+                       divergence_onset_time_s=None if outcome.onset is None else float(traj.t[-1]))
     return summary
 
 
@@ -571,10 +654,25 @@ def print_summary(s: Dict[str, Any], dof: int) -> None:
     print(f"\norbitflex: free-floating slew of '{s['model']}' ({dof} flexible joints){status}")
     if not s["completed"]:
         print(f"  FAILED at           {s['failure']}")
-        print(f"                      the numbers below describe the finite part before the failure "
-              f"(t = 0 to {s['simulated_s']:.6g} s, {s['steps']} of {s['steps_requested']} steps)")
+        onset = s["divergence_onset_step"]
+        if onset is not None:
+            print(f"  divergence          set in after step {onset} (t = {s['divergence_onset_time_s']:.6g} s): from there "
+                  f"the energy balance stops holding to {DIVERGED_BALANCE:.0%} of the energy that flowed, the")
+            print(f"                      integrator making the energy; the numbers below describe t = 0 to "
+                  f"{s['divergence_onset_time_s']:.6g} s (the files keep every finite step)")
+        else:
+            print(f"                      the numbers below describe the finite part before the failure "
+                  f"(t = 0 to {s['simulated_s']:.6g} s, {s['steps']} of {s['steps_requested']} steps)")
     print(f"  simulated           {s['simulated_s']:.6g} s in {s['steps']} RK4 steps, "
           f"{s['steps_per_second']:,.0f} steps/s")
+    pd = s.get("controller")
+    if pd is not None:
+        rule = ("as given by --kp/--kd" if pd["bandwidth_hz"] is None else
+                f"bandwidth {pd['bandwidth_hz']:g} Hz, damping ratio {pd['damping_ratio']:g}"
+                + (f"; {' and '.join(pd['given'])} as given" if pd["given"] else ""))
+        print(f"  motor PD            kp = {gain_text(np.asarray(pd['kp']))} N·m/rad, "
+              f"kd = {gain_text(np.asarray(pd['kd']))} N·m·s/rad ({rule})")
+        print(f"                      RK4 stability limit of the closed loop {pd['rk4_stability_limit_s']:.3g} s")
     if s["record_every"] > 1:
         print(f"  recorded            {s['rows']} rows: one step in {s['record_every']} and the last "
               f"(--record-every); peaks and drifts below are over these rows")
@@ -619,7 +717,8 @@ PLOT_POINTS = 2000  # rows drawn per line at most: long runs are thinned to keep
 def plot_rows(k: int) -> Rows:
     """Indices of the rows to draw: every row, or evenly spaced rows and the last one."""
     stride = max(1, math.ceil(k / PLOT_POINTS))
-    return np.unique(np.r_[np.arange(0, k, stride), k - 1])
+    rows: Rows = np.unique(np.r_[np.arange(0, k, stride), k - 1])
+    return rows
 
 
 def seconds(dt: float) -> str:
@@ -695,12 +794,13 @@ class Figures:
 
 
 def plot(job: Job, outcome: Outcome, dt: float, out: Path) -> List[Path]:
-    traj = outcome.traj
+    traj = outcome.meaningful()
     caption = f"model {job.name}, dt = {seconds(dt)}, {traj.t[-1]:.6g} s free-floating slew"
     if outcome.record_every > 1:
         caption += f", a row every {seconds(outcome.record_every * dt)} (--record-every {outcome.record_every})"
     if outcome.failure is not None:
-        caption += f", diverged at t = {outcome.failure.time:.6g} s (finite part shown)"
+        shown = "the finite part" if outcome.onset is None else "up to where it set in"
+        caption += f", diverged at t = {outcome.failure.time:.4g} s ({shown} shown)"
     figures = Figures(out, caption)
     rows = plot_rows(len(traj.t))
     plot_angles(figures, traj, rows)
@@ -784,7 +884,8 @@ def plot_attitude(figures: Figures, traj: Trajectory, rows: Rows) -> None:
            title="Euler angles, intrinsic z-y′-x″ (yaw, then pitch, then roll): "
                  "R(base → inertial) = Rz(yaw) · Ry(pitch) · Rx(roll)")
     ax.title.set_fontsize(9)
-    ax.legend(fontsize=8, loc="best")
+    # beside the axes, not on them: inside, it covered the yaw curve during the slew
+    ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))
     figures.save(fig, "base_attitude.png")
 
 
@@ -910,11 +1011,9 @@ def plot_momentum(figures: Figures, traj: Trajectory, rows: Rows) -> None:
 # planned slews: `orbitflex plan` and the demo's planned-vs-rigid comparison
 # ---------------------------------------------------------------------------------------------
 
-# The demo's planned slew (rad) and limits (link side): the shoulder joints may use 60 N·m, the
-# elbow 30 N·m, the wrist 15 N·m; every joint 0.5 rad/s. The elbow's torque binds.
+# The demo's planned slew (rad), under the built-in URDF's own limits (Limits.from_urdf: its
+# <limit effort velocity>): the shoulders' 0.15 rad/s binds.
 DEMO_PLAN_GOAL = np.array([0.8, -0.6, 0.5, 1.0, -0.7, 0.6, 0.9])
-DEMO_MOTOR_TORQUE = np.array([60.0, 60.0, 60.0, 30.0, 15.0, 15.0, 15.0])
-DEMO_JOINT_SPEED = 0.5
 # The demo's tracking PD (N·m/rad, N·m·s/rad): a stiff motor servo (RK4 limit at rest 7.4 ms).
 DEMO_KP, DEMO_KD = 1000.0, 100.0
 # Default tracking PD of `orbitflex plan`: each motor a critically damped servo at this
@@ -930,7 +1029,8 @@ PLAN_OUTPUTS = {
     "plan_summary.json": "the summary above, as numbers",
     "plan_angles.png": "planned link angles q, with the stops and the binding instant",
     "plan_deflection.png": "planned joint deflection θ − q per joint, and the tracking run's",
-    "plan_motor_torque.png": "planned motor torque u per joint against its limits (dashed)",
+    "plan_motor_torque.png": "planned motor torque u per joint against its limit, scaled to the data",
+    "plan_joint_speed.png": "planned joint speed q̇ per joint against its limit, scaled to the data",
     "plan_base.png": "held base: the wrench that holds it, against its limits; free: its attitude",
     "plan_vs_rigid.png": "flexible plan vs rigid-joint plan, both run on the flexible arm",
 }
@@ -940,6 +1040,11 @@ Values per joint (--goal, --start, --waypoint, --motor-torque, --joint-speed, --
 one value for every joint or one per joint, in the model's joint order (depth-first from the
 base: base to EE on a chain, one arm after another on a tree); angles in
 rad, link side.
+
+Limits: by default the URDF's own, <limit effort> as the motor torque after the gearbox and
+<limit velocity> as the joint speed; --motor-torque and --joint-speed replace them (a warning
+says where they allow more). A start, waypoint or goal outside a joint's <limit lower upper>
+is refused.
 
 The planner (orbitflex.plan_slew) moves every joint along q_a + (q_b − q_a) σ(t/T), σ of degree
 9 with derivatives 1–4 zero at both ends, and finds the shortest T per segment for which every
@@ -978,7 +1083,7 @@ def round_down(x: float) -> float:
 def tracking_limit(arm: FlexibleArm, stops: Array, kp: Array, kd: Array) -> float:
     """The RK4 stability limit (s) of the arm under the tracking PD, the smallest over the
     stops (at rest, springs relaxed)."""
-    return min(arm.rk4_stability_limit(arm.state(q=stop), MotorPD(kp, kd, stop)) for stop in stops)
+    return min(arm.rk4_stability_limit(arm.state(q=stop), MotorPD(kp, kd, stop)).dt for stop in stops)
 
 
 def tracking_dt(limit: float, requested: Optional[float], flag: str = "--dt") -> Tuple[float, Optional[str]]:
@@ -1161,15 +1266,37 @@ def plan_job(args: argparse.Namespace) -> Tuple[Job, Plan]:
             if value is not None:
                 raise CliError(flag, "bounds the wrench of the actuators that hold the base; a free-"
                                      "floating base (--base free) has none: add --base held or drop it")
+    limits = plan_limits(robot, args)
+    printer = WarningPrinter()  # a LimitWarning: limits past the URDF's, in the CLI's words
     try:
-        limits = Limits(per_joint(args.motor_torque, "--motor-torque", robot),
-                        per_joint(args.joint_speed, "--joint-speed", robot),
-                        args.base_force, args.base_torque)
-        plan = plan_slew(arm, goal, q_start=start, limits=limits, base=args.base,
-                         waypoints=waypoints or None)
+        with warnings.catch_warnings():
+            warnings.simplefilter("always")
+            warnings.showwarning = printer
+            plan = plan_slew(arm, goal, q_start=start, limits=limits, base=args.base,
+                             waypoints=waypoints or None)
     except ValueError as e:
         raise plan_error(e) from None
     return Job(arm, robot.name, goal - start, side, com, note), plan
+
+
+def plan_limits(robot: Robot, args: argparse.Namespace) -> Limits:
+    """``--motor-torque`` and ``--joint-speed`` where given, else the URDF's own (its ``<limit
+    effort velocity>``: :meth:`Limits.from_urdf`), with ``--base-force``/``--base-torque``."""
+    torque = None if args.motor_torque is None else per_joint(args.motor_torque, "--motor-torque", robot)
+    speed = None if args.joint_speed is None else per_joint(args.joint_speed, "--joint-speed", robot)
+    if torque is None or speed is None:
+        for flag, given, rated, tag in (("--motor-torque", torque, robot.effort_limits, "effort"),
+                                        ("--joint-speed", speed, robot.velocity_limits, "velocity")):
+            missing = [name for name, v in zip(robot.joint_names, rated) if not (np.isfinite(v) and v > 0)]
+            if given is None and missing:
+                raise CliError(flag, f"the URDF states no {tag} limit (<limit {tag}=\"…\">) for "
+                                     f"{', '.join(missing)}; give {flag}")
+        torque = robot.effort_limits if torque is None else torque
+        speed = robot.velocity_limits if speed is None else speed
+    try:
+        return Limits(torque, speed, args.base_force, args.base_torque)
+    except ValueError as e:
+        raise plan_error(e) from None
 
 
 def tracking_setup(arm: FlexibleArm, plan: Plan, args: argparse.Namespace) -> Tuple[float, Array, Array, float, Optional[str]]:
@@ -1223,9 +1350,9 @@ def plan_command(args: argparse.Namespace) -> int:
         return 1
     summary = {"model": job.name, "joints": robot.joint_names, "base": plan.base,
                "stops": plan.stops.tolist(), "segment_durations_s": plan.segment_durations.tolist(),
-               "limits": limits_dict(plan.limits), **comparison_summary(comparison)}
+               "limits": {**limits_dict(plan.limits), "source": limits_source(args)}, **comparison_summary(comparison)}
     files = write_plan_outputs(comparison, summary, out, args.no_plots)
-    print_plan_summary(comparison)
+    print_plan_summary(comparison, limits_source(args))
     width = max(len(str(f)) for f in files)
     print(f"\nwrote {len(files)} files:")
     for f in files:
@@ -1239,11 +1366,24 @@ def limits_dict(limits: Limits) -> Dict[str, Any]:
             "base_force_N": limits.base_force, "base_torque_Nm": limits.base_torque}
 
 
-def print_plan_summary(c: Comparison) -> None:
+def limits_source(args: argparse.Namespace) -> str:
+    """Where ``orbitflex plan``'s motor-torque and joint-speed limits come from."""
+    given = [flag for flag in ("--motor-torque", "--joint-speed") if getattr(args, flag[2:].replace("-", "_")) is not None]
+    if len(given) == 2:
+        return "as given"
+    urdf = "the URDF's <limit effort velocity>" if not given else \
+        f"{given[0]} as given, the other the URDF's <limit effort velocity>"
+    return urdf
+
+
+def print_plan_summary(c: Comparison, source: str) -> None:
     plan = c.plan
+    limits = plan.limits
     segments = len(plan.segment_durations)
     parts = f" ({segments} segments: " + ", ".join(f"{d:.3f}" for d in plan.segment_durations) + " s)" if segments > 1 else ""
     print(f"\norbitflex: minimum-time slew of '{c.name}' ({plan.arm.dof} flexible joints, {plan.base} base)")
+    print(f"  limits              motor torque {gain_text(np.asarray(limits.motor_torque))} N·m, joint speed "
+          f"{gain_text(np.asarray(limits.joint_speed))} rad/s ({source})")
     print(f"  duration            {plan.duration:.4f} s{parts}")
     print(f"  binding limit       {describe_binding(plan)}")
     if segments > 1:
@@ -1317,6 +1457,7 @@ def plot_plan(c: Comparison, out: Path) -> List[Path]:
     plot_plan_angles(figures, c)
     plot_plan_deflection(figures, c)
     plot_plan_torque(figures, c)
+    plot_plan_speed(figures, c)
     plot_plan_base(figures, c)
     plot_plan_vs_rigid(figures, c)
     return figures.files
@@ -1390,36 +1531,63 @@ def plot_plan_deflection(figures: Figures, c: Comparison) -> None:
     figures.save(fig, "plan_deflection.png")
 
 
-def plot_plan_torque(figures: Figures, c: Comparison) -> None:
-    """One panel per joint: the planned motor torque between its dashed limits; the binding
-    joint's peak marked."""
+def against_limit(ax: Any, peak: float, limit: Optional[float], unit: str, symmetric: bool = True) -> str:
+    """Scales ``ax`` to its data (peak ``|value|``) and draws ``±limit`` (dashed) when it is
+    within view; a limit far above the data (the data under half of it) is left off the scale
+    rather than flattening every curve. Returns the title's words for it."""
+    if limit is None:
+        return "no limit given"
+    share = peak / limit
+    top = 1.15 * (limit if share >= 0.5 else max(peak, 1e-300))
+    for sign in ((1, -1) if symmetric else (1,)):
+        if share >= 0.5:
+            ax.axhline(sign * limit, color="black", ls="--", lw=0.9,
+                       label=f"limit {limit:.3g} {unit}" if sign > 0 else None)
+    ax.set_ylim(-top if symmetric else 0.0, top)
+    text = f"peak {peak:.3g} of {limit:.3g} {unit} ({share:.1%})"
+    if share >= 0.5:
+        return text
+    return text + ", limit off scale"
+
+
+def plot_plan_limited(figures: Figures, c: Comparison, values: Array, limits: Array, what: str, symbol: str,
+                      unit: str, name: str) -> None:
+    """One panel per joint: a planned quantity against its limit, each panel scaled to its data
+    (the limit dashed when within view, else named in the title); the binding peaks marked."""
     plan, names = c.plan, c.plan.arm.robot.joint_names
-    limit = np.asarray(plan.limits.motor_torque)
     bindings = plan.bindings
-    fig, axes = joint_panels(figures, "Planned motor torque u against its limits (dashed); red dots: where "
-                                      "a limit binds", len(names))
+    fig, axes = joint_panels(figures, f"Planned {what} {symbol} against its limits (dashed where in view); red "
+                                      f"dots: where a limit binds", len(names))
+    key = {"u": "motor_torque", "q̇": "joint_speed"}[symbol]
     for i, ax in enumerate(axes.flat[: len(names)]):
-        u = plan.u[:, i]
-        ax.plot(plan.t, u, lw=1.3, color=f"C{i % 10}")
-        for sign in (1, -1):
-            ax.axhline(sign * limit[i], color="black", ls="--", lw=0.9)
+        v = values[:, i]
+        ax.plot(plan.t, v, lw=1.3, color=f"C{i % 10}")
         ax.axhline(0, color="black", lw=0.4)
-        peak = int(np.abs(u).argmax())
-        binds = [b for b in bindings if b["limit"] == "motor_torque" and b["joint"] == i]
+        binds = [b for b in bindings if b["limit"] == key and b["joint"] == i]
         for b in binds:
-            sign = np.sign(np.interp(b["time"], plan.t, u))
+            sign = np.sign(np.interp(b["time"], plan.t, v))
             ax.plot(b["time"], sign * b["value"], "o", color="tab:red", ms=5)
-        ax.set_ylim(-1.15 * limit[i], 1.15 * limit[i])
-        ax.set_ylabel("u (N·m)")
-        share = abs(u[peak]) / limit[i]
+        words = against_limit(ax, float(np.abs(v).max()), float(limits[i]), unit)
+        ax.set_ylabel(f"{symbol} ({unit})")
         where = ""
         if binds:
             where = " — binds" + (" in segment " + ", ".join(str(b["segment"] + 1) for b in binds)
                                   if len(bindings) > 1 else "")
-        ax.set_title(f"{names[i]}: peak {abs(u[peak]):.3g} of {limit[i]:.3g} N·m ({share:.1%}){where}",
-                     fontsize=8.5, color="tab:red" if binds else "black")
+        ax.set_title(f"{names[i]}: {words}{where}", fontsize=8.5, color="tab:red" if binds else "black")
         mark_segments(ax, plan)
-    figures.save(fig, "plan_motor_torque.png")
+    figures.save(fig, name)
+
+
+def plot_plan_torque(figures: Figures, c: Comparison) -> None:
+    """The planned motor torques against their limits."""
+    plot_plan_limited(figures, c, c.plan.u, np.broadcast_to(c.plan.limits.motor_torque, (c.plan.arm.dof,)),
+                      "motor torque", "u", "N·m", "plan_motor_torque.png")
+
+
+def plot_plan_speed(figures: Figures, c: Comparison) -> None:
+    """The planned joint speeds against their limits."""
+    plot_plan_limited(figures, c, c.plan.qd, np.broadcast_to(c.plan.limits.joint_speed, (c.plan.arm.dof,)),
+                      "joint speed", "q̇", "rad/s", "plan_joint_speed.png")
 
 
 def plot_plan_base(figures: Figures, c: Comparison) -> None:
@@ -1435,10 +1603,12 @@ def plot_plan_base(figures: Figures, c: Comparison) -> None:
                 ax.plot(plan.t, values[:, a], lw=1, label=f"${symbol}_{axis}$")
             norm = np.linalg.norm(values, axis=1)
             ax.plot(plan.t, norm, color="black", lw=1.8, label=f"$|{symbol}|$ (peak {norm.max():.3g} {unit})")
-            if bound is not None:
-                ax.axhline(bound, color="black", ls="--", lw=0.9, label=f"limit {bound:.3g} {unit}")
+            words = against_limit(ax, float(norm.max()), bound, unit, symmetric=False)
+            if bound is not None:  # the components are signed: room below zero for them
+                ax.set_ylim(bottom=-ax.get_ylim()[1])
             ax.axhline(0, color="black", lw=0.4)
-            ax.set(ylabel=f"${symbol}_B$ ({unit})", title=what + ("" if bound is not None else " (no limit given)"))
+            title = f"{what}: |{symbol}| {words}" if bound is not None else f"{what} (no limit given)"
+            ax.set(ylabel=f"${symbol}_B$ ({unit})", title=title)
             ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))
         axes[1].set(xlabel="time (s)")
         figures.save(fig, "plan_base.png")
@@ -1514,16 +1684,24 @@ def plot_plan_vs_rigid(figures: Figures, c: Comparison) -> None:
     colours = {"flexible plan": "tab:blue", "rigid-joint plan": "tab:orange"}
     bars = fig.add_subplot(grid[0, 0])
     x = np.arange(len(names))
+    top = 0.0
     for k, (label, plan, run) in enumerate(c.runs):
         share = 100 * run["peak_motor_torque"] / np.asarray(plan.limits.motor_torque)
+        top = max(top, float(share.max()))
         bars.bar(x + (k - 0.5) * 0.38, share, 0.38, color=colours[label], label=label)
         for i in np.flatnonzero(share > 100 + 1e-7):
             bars.annotate(f"{run['peak_motor_torque'][i]:.3g} N·m", (x[i] + (k - 0.5) * 0.38, share[i]),
                           ha="center", va="bottom", fontsize=7.5, color="tab:red")
-    bars.axhline(100, color="tab:red", ls="--", lw=1, label="limit")
     bars.set_xticks(x, names, rotation=35, ha="right", fontsize=8)
-    bars.set(ylabel="peak commanded |u| / limit (%)", ylim=(0, 145),
-             title="peak commanded motor torque (feedforward + PD)")
+    # scaled to the bars: the limit (100 %) is drawn when they come near it, else named
+    title = "peak commanded motor torque (feedforward + PD)"
+    if top >= 50:
+        bars.axhline(100, color="tab:red", ls="--", lw=1, label="limit")
+        bars.set_ylim(0, max(145, 1.3 * top))
+    else:
+        bars.set_ylim(0, 1.45 * top)
+        title += f"\nall under {top:.3g} % of their limits (100 %: off this scale)"
+    bars.set(ylabel="peak commanded |u| / limit (%)", title=title)
     bars.title.set_fontsize(9.5)
     bars.legend(fontsize=7.5, loc="upper center", ncol=3)
     panels = (
@@ -1573,11 +1751,10 @@ def key_label(key: str) -> str:
 
 
 def demo_comparison(arm: FlexibleArm, name: str, requested_dt: float) -> Tuple[Comparison, Optional[str]]:
-    """The demo's planned slew of the built-in arm (free floating) and its rigid-joint plan,
-    tracked with the demo's PD at the run's dt (or the largest round dt within the stability
-    limit below it)."""
-    limits = Limits(DEMO_MOTOR_TORQUE, DEMO_JOINT_SPEED)
-    plan = plan_slew(arm, DEMO_PLAN_GOAL, limits=limits, base="free")
+    """The demo's planned slew of the built-in arm (free floating, under its URDF's limits) and
+    its rigid-joint plan, tracked with the demo's PD at the run's dt (or the largest round dt
+    within the stability limit below it)."""
+    plan = plan_slew(arm, DEMO_PLAN_GOAL, limits=Limits.from_urdf(arm.robot), base="free")
     kp, kd = np.full(arm.dof, DEMO_KP), np.full(arm.dof, DEMO_KD)
     limit = tracking_limit(arm, plan.stops, kp, kd)
     dt, note = requested_dt, None
@@ -1628,13 +1805,15 @@ def mount_on_bus(robot: Robot, args: argparse.Namespace) -> Tuple[Robot, float, 
                 raise CliError(flag, "describes the bus given by --base-mass KG; add --base-mass")
         return robot, sketch_side(robot), com
     mass = args.base_mass
-    inertia = np.full(3, mass * BUS_SIDE**2 / 6) if args.base_inertia is None else np.asarray(args.base_inertia)
+    inertia = None if args.base_inertia is None else np.asarray(args.base_inertia)
     try:
-        robot = robot.with_base_inertia(mass, inertia, com)
+        robot = robot.with_base_inertia(mass, inertia, com)  # default: the solid cube of BUS_SIDE
     except ValueError as e:
         message = str(e)
         flag = "--base-com" if message.startswith("com") else "--base-inertia" if "inertia" in message else "--base-mass"
         raise CliError(flag, message) from None
+    if inertia is None:
+        return robot, BUS_SIDE, com
     # the solid cube with this mass and (mean) inertia: I = m s² / 6
     return robot, max(float(np.sqrt(6 * max(float(inertia.mean()), 0.0) / mass)), 1e-3), com
 
@@ -1696,8 +1875,22 @@ def common_options(p: argparse.ArgumentParser, duration: float) -> None:
     p.add_argument("--dt", metavar="S", type=positive, default=1e-3, help="RK4 step, s (default %(default)s)")
     p.add_argument("--slew-time", metavar="S", type=positive, default=5.0,
                    help="duration of the quintic slew, s (default %(default)s)")
-    p.add_argument("--bandwidth", metavar="HZ", type=positive, default=0.25,
-                   help="PD bandwidth per joint, Hz (default %(default)s)")
+    pd = p.add_argument_group("the motor PD (chosen from the physics, never from --dt)")
+    pd.add_argument("--bandwidth", metavar="HZ", type=positive, default=0.25,
+                    help="closed-loop bandwidth of each joint, Hz: the gains come from it, the damping "
+                         "ratio and each joint's motor inertia, link inertia at q = 0 and spring "
+                         "(FlexibleArm.motor_pd_gains; default %(default)s)")
+    pd.add_argument("--damping-ratio", metavar="ZETA", type=positive, default=1.0,
+                    help="closed-loop damping ratio of each joint (default %(default)s: critical)")
+    pd.add_argument("--kp", metavar="NM_PER_RAD", type=non_negative, nargs="+", default=None,
+                    help="motor PD stiffness, N·m/rad, one value or one per joint (replaces the "
+                         "bandwidth rule's)")
+    pd.add_argument("--kd", metavar="NMS_PER_RAD", type=non_negative, nargs="+", default=None,
+                    help="motor PD damping, N·m·s/rad, one value or one per joint (replaces the "
+                         "bandwidth rule's)")
+    pd.add_argument("--force", action="store_true",
+                    help="run even when --dt is past the RK4 stability limit of the closed loop "
+                         "(refused otherwise); the run then warns and most likely diverges")
     p.add_argument("--out", metavar="DIR", default="orbitflex_out",
                    help="output folder, created if missing (default %(default)s)")
     p.add_argument("--csv", action="store_true", help="also write trajectory.csv (t and x, named columns)")
@@ -1771,10 +1964,11 @@ def plan_options(p: argparse.ArgumentParser) -> None:
                       help="held: the bus's actuators hold it inertially still (and --base-force, "
                            "--base-torque bound them); free: free floating from rest (default %(default)s)")
     limits = p.add_argument_group("limits (link side; one value for every joint, or one per joint)")
-    limits.add_argument("--motor-torque", metavar="NM", type=positive, nargs="+", required=True,
-                        help="|u_i| bound, N·m (motor torque after the gearbox)")
-    limits.add_argument("--joint-speed", metavar="RAD_S", type=positive, nargs="+", required=True,
-                        help="|q̇_i| bound, rad/s")
+    limits.add_argument("--motor-torque", metavar="NM", type=positive, nargs="+", default=None,
+                        help="|u_i| bound, N·m (motor torque after the gearbox; default: the URDF's "
+                             "<limit effort>; more than it warns)")
+    limits.add_argument("--joint-speed", metavar="RAD_S", type=positive, nargs="+", default=None,
+                        help="|q̇_i| bound, rad/s (default: the URDF's <limit velocity>; more than it warns)")
     limits.add_argument("--base-force", metavar="N", type=positive, default=None,
                         help="bound on the norm of the force holding the bus, N (--base held; default none)")
     limits.add_argument("--base-torque", metavar="NM", type=positive, default=None,
@@ -1913,19 +2107,49 @@ def campaign_command(args: argparse.Namespace) -> int:
     return 1 if failed else 0
 
 
-def reject_extra(args: argparse.Namespace, extra: List[str]) -> NoReturn:
-    """Arguments argparse did not place: most likely a list given to --locked-joints with spaces."""
-    if getattr(args, "locked_joints", None):
+def reject_extra(args: argparse.Namespace, extra: List[str], parser: Optional[argparse.ArgumentParser] = None) -> NoReturn:
+    """Arguments argparse did not place: most likely a list given to --locked-joints with spaces,
+    or a flag misspelt (``--base_mass``: did you mean ``--base-mass``?)."""
+    if getattr(args, "locked_joints", None) and not any(word.startswith("-") for word in extra):
         fail(f"--locked-joints: takes one name or a comma-separated list per occurrence "
              f"(--locked-joints a,b); unexpected: {' '.join(extra)}")
-    fail(f"unrecognized arguments: {' '.join(extra)} (see 'orbitflex --help')")
+    known = command_flags(parser, args.command) if parser is not None else []
+    hints = [(flag.split("=", 1)[0], match) for flag in extra if flag.startswith("--")
+             for match in [closest_flag(flag, known)] if match]
+    where = f"(see 'orbitflex {args.command} --help')" if args.command else "(see 'orbitflex --help')"
+    if hints:
+        flag, match = hints[0]
+        fail(f"{flag}: no such flag; did you mean {match}? {where}")
+    fail(f"unrecognized arguments: {' '.join(extra)} {where}")
+
+
+def command_flags(parser: argparse.ArgumentParser, command: Optional[str]) -> List[str]:
+    """The long flags of ``orbitflex COMMAND`` (or of ``orbitflex`` itself)."""
+    target = parser
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction) and command in action.choices:
+            target = action.choices[command]
+    return [flag for flag in target._option_string_actions if flag.startswith("--")]
+
+
+def closest_flag(flag: str, known: Sequence[str]) -> Optional[str]:
+    """The known flag ``flag`` most likely meant: the same with ``_`` for ``-`` or in another
+    case, else the closest spelling (difflib, at least 80 % alike)."""
+    import difflib
+
+    name = flag.split("=", 1)[0]
+    normal = name.replace("_", "-").lower()
+    if normal in known:
+        return normal
+    close = difflib.get_close_matches(normal, known, n=1, cutoff=0.8)
+    return close[0] if close else None
 
 
 def main(argv: Optional[List[str]] = None) -> int:
     parser = build_parser()
     args, extra = parser.parse_known_args(argv)
     if extra:
-        reject_extra(args, extra)
+        reject_extra(args, extra, parser)
     if args.command is None:
         parser.print_help()
         return 0

@@ -4,6 +4,9 @@
 carbon-fibre booms of 2.0 m and 1.8 m, a 3-joint wrist, a 3 kg end-effector), EE link ``ee``.
 The URDF text is embedded in the compiled module (``space_arm_urdf()``).
 
+``DEFAULT_BUS_SIDE`` (1.5 m): the edge of the solid cube that stands for a bus given by its mass
+alone, in ``Robot.with_base_inertia(mass)`` and ``orbitflex simulate --base-mass``.
+
 ``dual_arm()``: the same bus carrying two of those arms, mounted 0.9 m apart on the same face
 (the right arm is the mirror image of the left): 14 joints, ``left_*`` first, end-effectors
 ``left_ee`` and ``right_ee``, 672 kg in all (``dual_arm_urdf()``).
@@ -11,9 +14,10 @@ The URDF text is embedded in the compiled module (``space_arm_urdf()``).
 
 from __future__ import annotations
 
-from ._core import DUAL_ARM_URDF, SPACE_ARM_URDF, FlexibleJoints, Robot
+from ._core import DEFAULT_BUS_SIDE, DUAL_ARM_URDF, SPACE_ARM_URDF, FlexibleJoints, Robot
 
 __all__ = [
+    "DEFAULT_BUS_SIDE",
     "space_arm",
     "space_arm_urdf",
     "space_arm_joints",

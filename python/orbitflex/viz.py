@@ -1,3 +1,5 @@
+# mypy: disable-error-code="import-not-found,import-untyped,unused-ignore", no-implicit-reexport
+# (meshcat and umsgpack come with orbitflex[viz], without stubs: a base install type-checks clean)
 """3-D views of a model and its runs: a self-contained HTML animation and a live viewer.
 
 Everything here draws with `meshcat <https://github.com/meshcat-dev/meshcat-python>`_, the
@@ -37,8 +39,12 @@ from pathlib import Path
 from typing import Any, Dict, List, Mapping, Optional, Sequence, Tuple, Union
 
 import numpy as np
+import numpy.typing as npt
 
 from . import _core
+
+# any ndarray (numpy 1.x's stubs need the type arguments that 2.x defaults)
+_Array = npt.NDArray[Any]
 
 __all__ = [
     "VisualWarning",
@@ -82,7 +88,7 @@ def _meshcat() -> Any:
 # shapes
 
 
-def _matrix(pose: Sequence[float]) -> np.ndarray:
+def _matrix(pose: Sequence[float]) -> _Array:
     """4×4 homogeneous matrix of ``[position; quat (x, y, z, w)]`` (shape axes to parent)."""
     x, y, z, w = (float(v) for v in pose[3:7])
     n = math.sqrt(x * x + y * y + z * z + w * w)
@@ -228,7 +234,7 @@ class _Budget:
 def _objects(
     shape: Mapping[str, Any], rgba: Optional[Sequence[float]], meshes: Dict[Path, _MeshData],
     budget: Optional[_Budget] = None,
-) -> List[Tuple[Any, np.ndarray]]:
+) -> List[Tuple[Any, _Array]]:
     """The meshcat objects of one shape of :meth:`Robot.scene`, each with its matrix in the
     frame. Mesh files are read once into ``meshes``; each copy of a mesh drawn is counted in
     ``budget``."""
@@ -406,7 +412,7 @@ def _checked_shape(shape: Mapping[str, Any], k: int, frames: int) -> Dict[str, A
     return out
 
 
-def _line(points: np.ndarray, color: int, path: Tuple[str, ...], segments: bool = False) -> Dict[str, Any]:
+def _line(points: _Array, color: int, path: Tuple[str, ...], segments: bool = False) -> Dict[str, Any]:
     mc = _meshcat()
     g = mc.geometry
     geometry = g.PointsGeometry(np.ascontiguousarray(points.T, dtype=np.float32))
@@ -446,7 +452,7 @@ def ghost_scale(traj: "_core.Trajectory", visible: float = 0.15) -> float:
     return float(10**k)  # pragma: no cover
 
 
-def frame_rows(t: np.ndarray, fps: float) -> np.ndarray:
+def frame_rows(t: _Array, fps: float) -> _Array:
     """The rows of a record to show at ``fps`` frames per second of simulated time: the first
     row at or after each frame time, and always the first and the last row."""
     t = np.asarray(t, dtype=float)
@@ -461,14 +467,15 @@ def frame_rows(t: np.ndarray, fps: float) -> np.ndarray:
     frames = frames[frames < t[-1]]
     rows = np.searchsorted(t, frames - 1e-9 * max(1.0, abs(t[-1])))
     rows = np.unique(np.concatenate([[0], rows, [t.size - 1]]))
-    return rows[rows < t.size]
+    kept: _Array = rows[rows < t.size]
+    return kept
 
 
 def _packed(command: Dict[str, Any]) -> str:
     return base64.b64encode(gzip.compress(_umsgpack(command), mtime=0)).decode("ascii")
 
 
-def _f32(a: np.ndarray) -> str:
+def _f32(a: _Array) -> str:
     return base64.b64encode(np.ascontiguousarray(a, dtype="<f4").tobytes()).decode("ascii")
 
 
@@ -669,7 +676,7 @@ class Viewer:
         """The page to open: ``http://127.0.0.1:PORT/static/``."""
         return str(self._vis.url())
 
-    def _send(self, root: str, poses: np.ndarray) -> None:
+    def _send(self, root: str, poses: _Array) -> None:
         for name, pose in zip(self._names, poses):
             self._vis[root][name].set_transform(_matrix(pose))
 

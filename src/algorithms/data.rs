@@ -65,6 +65,9 @@ pub struct Data {
 impl Data {
     /// Allocates every per-body buffer for `robot` (O(n) memory).
     pub fn new(robot: &Robot) -> Self {
+        // Choose between the AVX2 and portable copies here, where allocating is fine: reading
+        // ORBITFLEX_PORTABLE allocates when it is set, and the hot paths must not.
+        crate::simd::avx2();
         let bodies = robot.dof() + 1;
         Self {
             x: vec![Transform::identity(); bodies],

@@ -13,15 +13,18 @@
 //! - [`state`]: the state vector's layout ([`StateLayout`]) and quaternion helpers;
 //! - [`arm`]: [`FlexibleArm`], its derivative, energy, momentum and EE pose;
 //! - [`jacobians`]: the Jacobians of the derivative and of one RK4 step, in tangent coordinates;
+//! - [`gains`]: motor PD gains from a bandwidth and a damping ratio;
 //! - [`stability`]: the closed-loop RK4 step limit.
 
 pub mod arm;
+pub mod gains;
 pub mod jacobians;
 pub mod joints;
 pub mod stability;
 pub mod state;
 
 pub use arm::{ArmWorkspace, FlexibleArm, Inputs, StateSpec};
+pub use gains::MotorGains;
 pub use jacobians::Jacobians;
 pub use joints::{reflected_inertia, FlexibleJoints};
 pub use stability::StabilityLimit;

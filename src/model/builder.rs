@@ -1,6 +1,6 @@
 //! Building and validating a [`Robot`] in code.
 
-use super::{JointModel, Robot};
+use super::{JointLimits, JointModel, Robot};
 use crate::error::{Error, Result};
 use crate::spatial::{congruence, Inertia, Mat3, Transform, Vec3, Vec6};
 
@@ -90,9 +90,19 @@ impl RobotBuilder {
             name: name.to_string(),
             axis,
             origin,
+            limits: JointLimits::NONE,
         });
         self.robot.link_names.push(link_name.to_string());
         self.robot.inertias.push(inertia);
+        self
+    }
+
+    /// Sets the limits of the last joint added (position, speed, effort; link side), checked by
+    /// [`build`](Self::build).
+    pub fn limits(mut self, limits: JointLimits) -> Self {
+        if let Some(joint) = self.robot.joints.last_mut() {
+            joint.limits = limits;
+        }
         self
     }
 
@@ -165,7 +175,7 @@ impl RobotBuilder {
     }
 
     /// Validates and returns the model: finite numbers, orthonormal rotations, non-zero axes
-    /// (then normalised), physical inertias, and a positive-definite mass matrix at `q = 0`.
+    /// (then normalised), consistent joint limits, physical inertias, and a positive-definite mass matrix at `q = 0`.
     pub fn build(mut self) -> Result<Robot> {
         let source = self.robot.source.clone();
         let invalid = |message: String| Error::InvalidModel {
@@ -182,6 +192,10 @@ impl RobotBuilder {
             })?;
             check_transform(&joint.origin)
                 .map_err(|m| invalid(format!("joint '{}': origin {m}", joint.name)))?;
+            joint
+                .limits
+                .check()
+                .map_err(|m| invalid(format!("joint '{}': {m}", joint.name)))?;
         }
         check_tree(&self.robot).map_err(invalid)?;
         if self.robot.ees.is_empty() {
@@ -483,6 +497,10 @@ fn subtree(robot: &Robot, i: usize) -> Vec<&str> {
         .map(|b| robot.link_names[b].as_str())
         .collect()
 }
+
+/// Edge (m) of the solid cube that stands for a spacecraft bus given by its mass alone
+/// ([`crate::spatial::Inertia::solid_cube`]): the built-in bus's size.
+pub const DEFAULT_BUS_SIDE: f64 = 1.5;
 
 impl Robot {
     /// This robot with its base body's inertia replaced, validated like any new model: for

@@ -11,9 +11,11 @@ mod robot;
 mod urdf;
 mod visual;
 
-pub use builder::{check_inertia, RobotBuilder, MAX_INERTIA, MAX_LENGTH, MAX_MASS, MIN_MASS};
+pub use builder::{
+    check_inertia, RobotBuilder, DEFAULT_BUS_SIDE, MAX_INERTIA, MAX_LENGTH, MAX_MASS, MIN_MASS,
+};
 pub(crate) use frames::JointFrames;
-pub use robot::{EndEffector, JointModel, Robot};
+pub use robot::{EndEffector, JointLimits, JointModel, Robot};
 pub use urdf::UrdfOptions;
 pub use visual::{
     check_mesh_bytes, check_mesh_file, Geometry, LinkFrame, MeshFormat, MeshSearch, Scene, Shape,

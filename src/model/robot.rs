@@ -11,6 +11,56 @@ pub struct JointModel {
     pub axis: Vec3,
     /// `Φ_{i,i-1}` at `q_i = 0`: the child frame's pose in the parent body's frame.
     pub origin: Transform,
+    /// The joint's rated limits (a URDF's `<limit>`), where the model states them.
+    pub limits: JointLimits,
+}
+
+/// A joint's limits as its model states them (a URDF's `<limit lower upper effort velocity>`),
+/// link side; `None` where the model says nothing. They describe the hardware; the planner
+/// takes its bounds from [`crate::Limits`], which can be made from them
+/// ([`crate::Limits::from_robot`]).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct JointLimits {
+    /// `(lower, upper)` of `q` (rad), `lower ≤ upper`. `None` for a continuous joint (or a
+    /// revolute joint whose `<limit>` gives neither bound).
+    pub position: Option<(f64, f64)>,
+    /// `|q̇| ≤` this (rad/s), ≥ 0.
+    pub velocity: Option<f64>,
+    /// `|τ| ≤` this (N·m), ≥ 0: the torque the joint's actuator may apply to the link (for a
+    /// flexible joint, the motor torque `u` after the gearbox).
+    pub effort: Option<f64>,
+}
+
+impl JointLimits {
+    /// No limits stated.
+    pub const NONE: JointLimits = JointLimits {
+        position: None,
+        velocity: None,
+        effort: None,
+    };
+
+    /// Checks the values: finite, `lower ≤ upper`, velocity and effort ≥ 0.
+    pub fn check(&self) -> std::result::Result<(), String> {
+        if let Some((lower, upper)) = self.position {
+            if !(lower.is_finite() && upper.is_finite() && lower <= upper) {
+                return Err(format!(
+                    "position limits: expected finite lower <= upper (rad), given lower = {}, \
+                     upper = {}",
+                    crate::args::number(lower),
+                    crate::args::number(upper)
+                ));
+            }
+        }
+        for (what, value) in [("velocity", self.velocity), ("effort", self.effort)] {
+            if let Some(v) = value.filter(|v| !(v.is_finite() && *v >= 0.0)) {
+                return Err(format!(
+                    "{what} limit: expected a finite number >= 0, given {}",
+                    crate::args::number(v)
+                ));
+            }
+        }
+        Ok(())
+    }
 }
 
 impl JointModel {
@@ -222,6 +272,35 @@ impl Robot {
             children[self.parents[i]].push(i);
         }
         children
+    }
+
+    /// Each joint's `(lower, upper)` position limits (rad), `(−∞, ∞)` where the model states
+    /// none (continuous joints).
+    pub fn position_limits(&self) -> Vec<(f64, f64)> {
+        self.joints
+            .iter()
+            .map(|j| {
+                j.limits
+                    .position
+                    .unwrap_or((f64::NEG_INFINITY, f64::INFINITY))
+            })
+            .collect()
+    }
+
+    /// Each joint's speed limit `|q̇_i|` (rad/s), `∞` where the model states none.
+    pub fn velocity_limits(&self) -> Vec<f64> {
+        self.joints
+            .iter()
+            .map(|j| j.limits.velocity.unwrap_or(f64::INFINITY))
+            .collect()
+    }
+
+    /// Each joint's effort limit `|τ_i|` (N·m, link side), `∞` where the model states none.
+    pub fn effort_limits(&self) -> Vec<f64> {
+        self.joints
+            .iter()
+            .map(|j| j.limits.effort.unwrap_or(f64::INFINITY))
+            .collect()
     }
 
     /// Total mass of base and links (kg).

@@ -8,6 +8,7 @@ use super::errors::ModelError;
 use super::joints::PyFlexibleJoints;
 use super::robot::PyRobot;
 use super::run::{deliver, record_releasing_gil, record_with_gil, Progress, Stream};
+use super::stability::PyStabilityLimit;
 use super::trajectory::PyTrajectory;
 use super::workspaces::{Lent, Pool};
 use crate::args::Loads;
@@ -20,6 +21,9 @@ use pyo3::exceptions::PyRuntimeWarning;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyTuple};
 use std::ffi::CString;
+
+/// Two arrays returned together (``kp, kd``).
+type ArrayPair<'py> = (Bound<'py, PyArray1<f64>>, Bound<'py, PyArray1<f64>>);
 
 /// Rows per chunk given to ``on_rows`` by default.
 const CHUNK_ROWS: usize = 1024;
@@ -318,25 +322,54 @@ impl PyFlexibleArm {
         Ok(array1(py, &x))
     }
 
-    /// The largest stable RK4 step (s) at state ``x`` (default: at rest) for the closed loop of
-    /// the arm, its joints and the controller ``u`` (a ``MotorPD``, whose gains close the loop;
-    /// None or an array, open loop; a callable, whose feedback is unknown, open loop). From the
-    /// eigenvalues of the linearised loop against RK4's stability region.
+    /// The RK4 stability limit at state ``x`` (default: at rest) of the closed loop of the arm,
+    /// its joints and the controller ``u`` (a ``MotorPD``, whose gains close the loop, its
+    /// torque held over each step; None or an array, open loop; a callable, whose feedback is
+    /// unknown, open loop), from the eigenvalues of the linearised loop's RK4 step matrix.
+    /// Returns a ``StabilityLimit``: ``.dt``, the largest stable step (s), and
+    /// ``.fastest_mode``, the fastest eigenvalue of the continuous closed loop (1/s).
     #[pyo3(signature = (x=None, u=None))]
     fn rk4_stability_limit(
         &self,
         x: Option<&Bound<'_, PyAny>>,
         u: Option<&Bound<'_, PyAny>>,
-    ) -> PyResult<f64> {
+    ) -> PyResult<PyStabilityLimit> {
         let x = match x.filter(|o| !o.is_none()) {
             Some(x) => self.state_arg(x, "x")?,
             None => self.arm.rest_state(),
         };
         let controller = RunController::parse(u, self.n())?;
-        Ok(self
-            .arm
-            .rk4_stability_limit(&x, controller.controller())?
-            .dt)
+        let limit = self.arm.rk4_stability_limit(&x, controller.controller())?;
+        Ok(PyStabilityLimit { limit })
+    }
+
+    /// Motor PD gains ``(kp, kd)``, (n,) each (N·m/rad, N·m·s/rad), that give every joint a
+    /// closed loop of ``bandwidth`` (Hz) and ``damping_ratio`` (ζ > 0), chosen from its motor
+    /// inertia ``j``, the link-side inertia ``m`` it drives at the configuration ``q`` (rad,
+    /// default zeros; ``m`` is the diagonal of the free-floating joint-space inertia
+    /// ``M_r − M_br M_b⁻¹ M_rb``: base free, the other joints held by their servos), its spring
+    /// ``k``, ``d`` and motor friction ``β``. Two roots of each joint's closed loop are put at
+    /// ``s² + 2ζω s + ω² = 0``, ``ω = 2π·bandwidth``, exactly; for a stiff joint this is
+    /// ``kp = (j + m) ω²``, ``kd = 2ζω (j + m) − β`` (docs/model.md §5.3). No step size enters:
+    /// choose ``dt`` within ``rk4_stability_limit`` of the resulting loop. ``kd`` is 0 where the
+    /// motor friction alone damps more than asked. Raises ``ModelError`` naming the joint whose
+    /// link resonates at or below the bandwidth.
+    #[pyo3(signature = (bandwidth, damping_ratio=None, q=None))]
+    fn motor_pd_gains<'py>(
+        &self,
+        py: Python<'py>,
+        bandwidth: &Bound<'py, PyAny>,
+        damping_ratio: Option<&Bound<'py, PyAny>>,
+        q: Option<&Bound<'py, PyAny>>,
+    ) -> PyResult<ArrayPair<'py>> {
+        let bandwidth = real(bandwidth, "bandwidth")?;
+        let damping_ratio = match damping_ratio {
+            Some(z) => real(z, "damping_ratio")?,
+            None => 1.0,
+        };
+        let q = vector_or(q, "q", self.n(), 0.0)?;
+        let gains = self.arm.motor_pd_gains(&q, bandwidth, damping_ratio)?;
+        Ok((array1(py, &gains.kp), array1(py, &gains.kd)))
     }
 
     /// ``x ⊕ dx``: the state ``x`` moved along the tangent ``dx`` (12+4n): ``r_B + δr_B``

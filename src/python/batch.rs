@@ -190,24 +190,43 @@ fn count_runs(candidates: &[(&str, Option<usize>)]) -> PyResult<usize> {
     Ok(runs.map_or(1, |(_, b)| b))
 }
 
-/// The warning for runs whose `dt` is past their stability limit.
+/// The warning for runs whose `dt` is past their stability limit: `unstable` holds (run, limit)
+/// pairs, `runs` the batch's size. One run is named with its limit; several are listed (the
+/// first ten) with the smallest limit.
 fn stability_warning(dt: f64, runs: usize, unstable: &[(usize, f64)]) -> String {
-    let shown: Vec<String> = unstable
-        .iter()
-        .take(10)
-        .map(|(r, _)| r.to_string())
-        .collect();
-    let more = if unstable.len() > 10 { ", …" } else { "" };
-    let smallest = unstable
-        .iter()
-        .map(|(_, l)| *l)
-        .fold(f64::INFINITY, f64::min);
-    format!(
-        "dt = {dt:e} s exceeds the RK4 stability limit of {} of {runs} runs (runs {}{more}; \
-         smallest limit {smallest:.4e} s, linearised at each run's x0); they will likely diverge",
-        unstable.len(),
-        shown.join(", ")
-    )
+    let which = match unstable {
+        [(_, limit)] if runs == 1 => format!(
+            "the RK4 stability limit {limit:.4e} s of the run (linearised at its x0); it will \
+             likely diverge"
+        ),
+        [(run, limit)] => format!(
+            "the RK4 stability limit {limit:.4e} s of run {run} of {runs} (linearised at its \
+             x0); it will likely diverge"
+        ),
+        _ => {
+            let shown: Vec<String> = unstable
+                .iter()
+                .take(10)
+                .map(|(r, _)| r.to_string())
+                .collect();
+            let more = if unstable.len() > 10 { ", …" } else { "" };
+            let smallest = unstable
+                .iter()
+                .map(|(_, l)| *l)
+                .fold(f64::INFINITY, f64::min);
+            let count = if unstable.len() == runs {
+                format!("all {runs}")
+            } else {
+                format!("{} of {runs}", unstable.len())
+            };
+            format!(
+                "the RK4 stability limit of {count} runs (runs {}{more}; smallest limit \
+                 {smallest:.4e} s, linearised at each run's x0); they will likely diverge",
+                shown.join(", ")
+            )
+        }
+    };
+    format!("dt = {dt:e} s exceeds {which}")
 }
 
 /// Simulates many runs of the flexible arm at once, over a pool of threads, without the GIL.

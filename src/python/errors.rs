@@ -29,6 +29,14 @@ create_exception!(
      exception."
 );
 
+create_exception!(
+    orbitflex,
+    LimitWarning,
+    pyo3::exceptions::PyUserWarning,
+    "Limits given to the planner that allow more than the robot's model states (a URDF's \
+     ``<limit effort velocity>``): the plan uses them as given."
+);
+
 impl From<Error> for PyErr {
     fn from(e: Error) -> PyErr {
         match e {

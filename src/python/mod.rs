@@ -17,7 +17,7 @@
 //!
 //! One file per class: `robot` (`Robot`), `joints` (`FlexibleJoints`), `control` (`MotorPD`,
 //! input schedules, Python controllers), `arm` (`FlexibleArm`), `trajectory` (`Trajectory`),
-//! `plan` (`Limits`, `Plan`, `plan_slew`), `batch` (`simulate_batch`, `BatchTrajectory`); `simulator` (`Simulator`); `analysis` (the linear analysis's private
+//! `plan` (`Limits`, `Plan`, `plan_slew`), `stability` (`StabilityLimit`), `batch` (`simulate_batch`, `BatchTrajectory`); `simulator` (`Simulator`); `analysis` (the linear analysis's private
 //! functions, wrapped by `orbitflex.analysis`);
 //! `batched` gives the per-call dynamics their leading batch axis and `out=`; `run` drives a
 //! simulation with or without the GIL; `errors` maps [`crate::Error`] onto the Python
@@ -37,6 +37,7 @@ mod plan;
 mod robot;
 mod run;
 mod simulator;
+mod stability;
 mod trajectory;
 mod workspaces;
 
@@ -47,14 +48,17 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     let py = m.py();
     m.add("ModelError", py.get_type::<errors::ModelError>())?;
     m.add("SimulationError", py.get_type::<errors::SimulationError>())?;
+    m.add("LimitWarning", py.get_type::<errors::LimitWarning>())?;
     m.add("SPACE_ARM_URDF", crate::SPACE_ARM_URDF)?;
     m.add("DUAL_ARM_URDF", crate::DUAL_ARM_URDF)?;
+    m.add("DEFAULT_BUS_SIDE", crate::model::DEFAULT_BUS_SIDE)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     m.add_class::<robot::PyRobot>()?;
     m.add_class::<joints::PyFlexibleJoints>()?;
     m.add_class::<control::PyMotorPD>()?;
     m.add_class::<arm::PyFlexibleArm>()?;
     m.add_class::<trajectory::PyTrajectory>()?;
+    m.add_class::<stability::PyStabilityLimit>()?;
     m.add_class::<plan::PyLimits>()?;
     m.add_class::<plan::PyPlan>()?;
     m.add_class::<batch::PyBatchTrajectory>()?;

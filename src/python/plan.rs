@@ -3,8 +3,9 @@
 
 use super::arm::PyFlexibleArm;
 use super::convert::{array1, as_float_array, count, matrix, real, row_major, vector};
-use super::errors::{simulation_error, ModelError};
+use super::errors::{simulation_error, LimitWarning, ModelError};
 use super::joints::Param;
+use super::robot::PyRobot;
 use super::run::{run_releasing_gil, watched, Progress};
 use super::trajectory::{freeze, PyTrajectory};
 use crate::args::number;
@@ -110,6 +111,26 @@ impl PyLimits {
             limits,
             scalar: [torque_scalar, speed_scalar],
         })
+    }
+
+    /// The limits ``robot``'s model states (its URDF's ``<limit effort velocity>``, per joint):
+    /// the effort becomes the motor torque at the link (``motor_torque``, N·m, after the
+    /// gearbox), the velocity the joint speed (``joint_speed``, rad/s). ``base_force`` and
+    /// ``base_torque`` as in the constructor. Raises ``ModelError`` naming every joint whose
+    /// model states no such limit (or a zero one).
+    #[staticmethod]
+    #[pyo3(signature = (robot, base_force=None, base_torque=None))]
+    fn from_urdf(
+        robot: &Bound<'_, PyRobot>,
+        base_force: Option<&Bound<'_, PyAny>>,
+        base_torque: Option<&Bound<'_, PyAny>>,
+    ) -> PyResult<Self> {
+        let limits = Limits::from_robot(
+            &robot.get().robot,
+            optional_bound(base_force, "base_force")?,
+            optional_bound(base_torque, "base_torque")?,
+        )?;
+        Ok(Self::from_rust(limits))
     }
 
     /// ``|u_i|`` bound (N·m, link side): a float (every joint) or an array (one per joint).
@@ -816,7 +837,10 @@ impl PyPlan {
 
 /// Plans the shortest rest-to-rest slew of ``arm`` from ``q_start`` (default: zeros) to
 /// ``q_goal`` (rad, n each) through ``waypoints`` (a list of m stops, (m, n); the arm stops at
-/// each) under ``limits`` (an ``orbitflex.Limits``; required).
+/// each) under ``limits`` (an ``orbitflex.Limits``; default ``Limits.from_urdf(arm.robot)``, the
+/// limits the robot's URDF states). Limits that allow more torque or speed than the URDF's give
+/// a ``LimitWarning`` (the plan uses them as given); a start, waypoint or goal outside a joint's
+/// position limits (``robot.position_limits``) is refused.
 ///
 /// The path between stops is fixed: ``q(t) = q_a + (q_b − q_a) σ(t/T)`` with the degree-9
 /// polynomial ``σ`` whose derivatives 1–4 vanish at both ends; the planner finds per segment the
@@ -864,13 +888,27 @@ pub fn py_plan_slew(
             .get()
             .limits
             .clone(),
-        None => {
-            return Err(PyTypeError::new_err(
-                "plan_slew: limits is required: limits=orbitflex.Limits(motor_torque, \
-                 joint_speed, base_force=None, base_torque=None)",
+        None => Limits::from_robot(arm.get().arm.robot(), None, None).map_err(|e| {
+            ModelError::new_err(format!(
+                "{e}, or pass limits=orbitflex.Limits(motor_torque, joint_speed, base_force=None, \
+                 base_torque=None)"
             ))
-        }
+        })?,
     };
+    let over = limits.exceeding(arm.get().arm.robot())?;
+    if !over.is_empty() {
+        let message = format!(
+            "limits allow more than the robot's model states (its URDF's <limit effort \
+             velocity>): {}; the plan uses them as given",
+            over.join("; ")
+        );
+        PyErr::warn(
+            py,
+            &py.get_type::<LimitWarning>(),
+            &std::ffi::CString::new(message).unwrap_or_default(),
+            1,
+        )?;
+    }
     let q_goal = vector(q_goal, "q_goal", Some(n))?;
     let q_start = q_start
         .filter(|o| !o.is_none())

@@ -299,6 +299,35 @@ impl PyRobot {
         self.robot.body_names().to_vec()
     }
 
+    /// Each joint's position limits ``[lower, upper]`` (rad), shape (n, 2), from the URDF's
+    /// ``<limit lower upper>``; ``[-inf, inf]`` for a continuous joint (or one whose limits the
+    /// model does not state).
+    #[getter]
+    fn position_limits<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
+        let values = self
+            .robot
+            .position_limits()
+            .iter()
+            .flat_map(|&(lower, upper)| [lower, upper])
+            .collect();
+        super::convert::row_major(py, self.robot.dof(), 2, values)
+    }
+
+    /// Each joint's speed limit ``|q̇|`` (rad/s), shape (n,), from the URDF's ``<limit
+    /// velocity>``; ``inf`` where the model states none.
+    #[getter]
+    fn velocity_limits<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        array1(py, &self.robot.velocity_limits())
+    }
+
+    /// Each joint's effort limit ``|τ|`` (N·m, link side: for a flexible joint, the motor torque
+    /// after the gearbox), shape (n,), from the URDF's ``<limit effort>``; ``inf`` where the
+    /// model states none.
+    #[getter]
+    fn effort_limits<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        array1(py, &self.robot.effort_limits())
+    }
+
     /// The URDF robot name.
     #[getter]
     fn name(&self) -> String {
@@ -349,20 +378,26 @@ impl PyRobot {
     }
 
     /// This robot with its base body replaced: ``mass`` (kg), ``inertia`` about the base's
-    /// centre of mass in base axes (kg·m²; three principal moments, or a 3×3 matrix), and the
-    /// centre of mass ``com`` in the base frame (m, default the base origin). For example, to
-    /// mount an arm whose root link weighs a few kilograms on a spacecraft bus.
-    #[pyo3(signature = (mass, inertia, com=None))]
+    /// centre of mass in base axes (kg·m²; three principal moments, or a 3×3 matrix; default
+    /// ``None``: a solid cube of ``DEFAULT_BUS_SIDE`` = 1.5 m, ``mass·side²/6`` about every
+    /// axis, the default ``orbitflex simulate --base-mass`` uses too), and the centre of mass
+    /// ``com`` in the base frame (m, default the base origin). For example, to mount an arm whose
+    /// root link weighs a few kilograms on a spacecraft bus.
+    #[pyo3(signature = (mass, inertia=None, com=None))]
     fn with_base_inertia(
         &self,
         mass: &Bound<'_, PyAny>,
-        inertia: &Bound<'_, PyAny>,
+        inertia: Option<&Bound<'_, PyAny>>,
         com: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Self> {
         use crate::spatial::{Inertia, Vec3};
         let mass = super::convert::real(mass, "mass")?;
         let com = vector_or(com, "com", 3, 0.0)?;
-        let about_com = inertia_matrix(inertia)?;
+        let about_com = match inertia.filter(|o| !o.is_none()) {
+            Some(inertia) => inertia_matrix(inertia)?,
+            None => Inertia::solid_cube(mass, crate::model::DEFAULT_BUS_SIDE, Vec3::zeros())
+                .inertia_about_com(),
+        };
         crate::model::check_inertia(mass, &Vec3::from_column_slice(&com), &about_com).map_err(
             |message| {
                 ModelError::new_err(format!("base '{}': {message}", self.robot.body_names()[0]))

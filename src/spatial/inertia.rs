@@ -47,6 +47,13 @@ impl Inertia {
         }
     }
 
+    /// A solid cube of uniform density, `mass` (kg) and edge `side` (m), centred at `com`: its
+    /// inertia about the centre is `m s²/6` about every axis. The default spacecraft bus
+    /// ([`crate::model::DEFAULT_BUS_SIDE`]) when only its mass is known.
+    pub fn solid_cube(mass: f64, side: f64, com: Vec3) -> Self {
+        Self::from_com(mass, com, Mat3::identity() * (mass * side * side / 6.0))
+    }
+
     /// The rotational inertia about the centre of mass (axes of this frame).
     pub fn inertia_about_com(&self) -> Mat3 {
         let c = skew(&self.com);

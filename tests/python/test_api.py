@@ -660,7 +660,7 @@ def test_space_arm():
     assert orbitflex.SPACE_ARM_URDF == orbitflex.models.space_arm_urdf()
     arm = FlexibleArm(robot, orbitflex.models.space_arm_joints())
     assert arm.state_size == 13 + 28
-    limit = arm.rk4_stability_limit()
+    limit = arm.rk4_stability_limit().dt
     assert 1e-3 < limit < 0.1  # the CLI's default dt of 1 ms is stable
 
 

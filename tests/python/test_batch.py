@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import os
 import signal
+import re
 import threading
 import time
 import warnings
@@ -212,6 +213,18 @@ def test_one_warning_names_the_unstable_runs(arm, x0s):
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         orbitflex.simulate_batch(arm, x0s, 5e-3, 20, u=0.1)
+    # one run, or all: said so ("of 1 of 1 runs (runs 0; …)" read badly)
+    limit = stiff.rk4_stability_limit(x0s[1], np.full(stiff.dof, 0.1)).dt
+    limit = re.sub(r"e(-?)0*(\d)", r"e\1\2", f"{limit:.4e}")  # as Rust writes it: 8.7955e-6
+    for arms, x0, words in (
+            (stiff, x0s[1], f"exceeds the RK4 stability limit {limit} s of the run (linearised at its x0); it "
+                            f"will likely diverge"),
+            ([arm, stiff, arm], x0s[:3], f"exceeds the RK4 stability limit {limit} s of run 1 of 3 (linearised "
+                                         f"at its x0); it will likely diverge"),
+            ([stiff, stiff], x0s[:2], "exceeds the RK4 stability limit of all 2 runs (runs 0, 1; smallest limit ")):
+        with pytest.warns(RuntimeWarning) as caught:
+            orbitflex.simulate_batch(arms, x0, 5e-3, 20, u=0.1)
+        assert len(caught) == 1 and words in str(caught[0].message), str(caught[0].message)
 
 
 def test_progress_and_gil_release(arm, x0s):

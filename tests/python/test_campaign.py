@@ -102,13 +102,16 @@ def test_columns_and_a_row_made_by_hand(reference):
 def test_a_failing_run_is_a_row_not_a_crash():
     # some runs of this seed draw a stiffness high enough to diverge at this dt
     c = small(dt=4e-3, dispersions=[Dispersion("stiffness", "lognormal", sigma=4.0)], runs=6)
-    with pytest.warns(RuntimeWarning, match="exceeds the RK4 stability limit of") as caught:
+    with pytest.warns(RuntimeWarning, match="exceeds the RK4 stability limit") as caught:
         table = c.run(chunk_runs=3)
     # the warnings name the campaign's runs, not the chunk's
     named = set()
     for w in caught:
-        listed = str(w.message).split("(runs ")[1].split(";")[0]
+        message = str(w.message)
+        listed = message.split("(runs ")[1].split(";")[0] if "(runs " in message else \
+            message.split(" of run ")[1].split(" ")[0]  # one run: "… of run 4 (linearised …"
         named |= {int(i) for i in listed.split(", ")}
+        assert " of 1 of " not in message and "this chunk" in message or " of run " in message
     assert named == set(table.loc[~table["ok"], "run"]), (named, table[["run", "ok"]])
     assert not table["ok"].all() and table["ok"].any()
     failed = table[~table["ok"]]
@@ -161,6 +164,11 @@ def test_a_draw_out_of_the_domain_names_the_run():
 def test_toml_file_and_its_errors(tmp_path):
     c = Campaign.from_toml(EXAMPLE)
     assert c.name == "space-arm-slew" and c.runs == 200 and len(c.dispersions) == 5
+    # the example a user runs first settles, every run, and stays settled (at 10 s some runs had
+    # settled only at the last row)
+    table = c.run(runs=16)
+    assert table["ok"].all() and table["settling_time"].notna().all()
+    assert (table["settling_time"] < c.duration - 1.0).all() and (table["final_error"] < c.settle_tolerance).all()
     bad = tmp_path / "bad.toml"
     bad.write_text(EXAMPLE.read_text().replace('parameter = "kp"', 'parameter = "kp"\nscale = 2'))
     with pytest.raises(CampaignError, match=r"dispersion\[3\]: 'scale' is not a known key"):
@@ -299,7 +307,7 @@ def test_killing_a_worker_mid_campaign_still_completes_every_run(cluster, refere
 
 def test_cli_writes_the_table_summary_and_plots(tmp_path):
     spec = tmp_path / "c.toml"
-    spec.write_text(EXAMPLE.read_text().replace("duration = 10.0", "duration = 0.4")
+    spec.write_text(EXAMPLE.read_text().replace("duration = 12.0", "duration = 0.4")
                     .replace("slew_time = 5.0", "slew_time = 0.3"))
     out = tmp_path / "out"
     done = subprocess.run([sys.executable, "-m", "orbitflex", "campaign", str(spec), "--runs", "12",
@@ -351,3 +359,113 @@ def test_campaign_on_the_dual_arm_with_a_payload_on_one_arm():
                    payload_mass=20.0)
     with pytest.raises(orbitflex.ModelError, match="2 end-effectors"):
         bad.run()
+
+
+# -- a run again, and a planned slew as the nominal ---------------------------------------------
+
+
+def row_from(trajectory, campaign, goal, nominal_ee):
+    """The table's metrics, recomputed from a run's full trajectory (every step kept)."""
+    q = trajectory.q
+    kept = q[:: campaign.record_every]
+    if (len(q) - 1) % campaign.record_every:
+        kept = np.vstack([kept, q[-1]])  # simulate keeps the final row too
+    error = np.abs(kept - goal).max(axis=1)
+    outside = np.nonzero(error > campaign.settle_tolerance)[0]
+    times = np.r_[trajectory.t[:: campaign.record_every], trajectory.t[-1]][: len(kept)]
+    settled = times[outside[-1] + 1 if outside.size else 0] if error[-1] <= campaign.settle_tolerance else np.nan
+    quat0, quat1 = trajectory.base_pose[0, 3:], trajectory.base_pose[-1, 3:]
+    ee = np.stack([np.asarray(trajectory.arm.ee_pose(trajectory.x[-1], ee=e)[:3])
+                   for e in range(len(trajectory.arm.robot.ee_links))])
+    return {"peak_deflection": np.abs(trajectory.deflection).max(), "peak_torque": np.abs(trajectory.u).max(),
+            "final_error": np.abs(q[-1] - goal).max(), "settling_time": settled,
+            "base_attitude_change": 2.0 * np.arccos(np.clip(abs(quat0 @ quat1), 0.0, 1.0)),
+            "ee_error": np.linalg.norm(ee - nominal_ee, axis=1).max()}
+
+
+def test_a_run_comes_back_as_its_trajectory_bit_for_bit(reference):
+    # Campaign could not give run i back: the worst run could not be animated
+    c = small()
+    for run in (int(reference["peak_deflection"].idxmax()), 0, 23):
+        traj = c.trajectory(run)
+        assert isinstance(traj, orbitflex.Trajectory) and len(traj) == c.steps + 1
+        row = reference.iloc[run]
+        recomputed = row_from(traj, c, c.parameters(run)["goal"], c.nominal_ee())
+        for metric, value in recomputed.items():
+            assert row[metric] == value or (np.isnan(row[metric]) and np.isnan(value)), (run, metric)
+        # kept rows as the campaign keeps them: the same states, bit for bit
+        thin = c.trajectory(run, record_every=c.record_every)
+        np.testing.assert_array_equal(thin.x[:-1], traj.x[:: c.record_every][: len(thin.x) - 1])
+        np.testing.assert_array_equal(thin.x[-1], traj.x[-1])
+    with pytest.raises(CampaignError, match=r"^run: expected an integer >= 0 \(a run's index\), given -1$"):
+        c.trajectory(-1)
+
+
+@pytest.fixture(scope="module")
+def planned():
+    """The demo's slew planned under the URDF's limits, held base (with its wrench table) and free."""
+    arm = FlexibleArm(orbitflex.models.space_arm(), orbitflex.models.space_arm_joints())
+    return {base: orbitflex.plan_slew(arm, np.asarray(GOAL) * 0.3, base=base) for base in ("held", "free")}
+
+
+def plan_campaign(plan, **changes):
+    spec = dict(kp=1000.0, kd=100.0, dt=2e-3, runs=10, seed=4, record_every=5,
+                dispersions=[Dispersion("stiffness", "lognormal", sigma=0.2),
+                             Dispersion("payload_mass", "uniform", low=0.0, high=10.0),
+                             Dispersion("kd", "normal", relative=0.05),
+                             Dispersion("q0", "normal", std=1e-3)])
+    spec.update(changes)
+    return Campaign.from_plan(plan, **spec)
+
+
+@pytest.mark.parametrize("base", ["held", "free"])
+def test_a_planned_slew_is_a_nominal(planned, base):
+    # Campaign knew only a quintic reference under a PD, with no feedforward: the paper's planned
+    # slew could not be dispersed without hand work. Each run now follows the plan's per-step
+    # reference and feedforward (and, held, its base wrench), as plan.track does.
+    plan = planned[base]
+    c = plan_campaign(plan)
+    assert c.duration == pytest.approx(plan.duration + 2.0) and c.slew_time == plan.duration
+    assert c.goal.tolist() == np.asarray(plan.stops)[-1].tolist()
+    table = c.run(threads=1)
+    pd.testing.assert_frame_equal(c.run(chunk_runs=3, threads=2), table, check_exact=True)
+    assert table["ok"].all()
+    if base == "free":  # held, the plan's open-loop base wrench no longer holds a heavier arm
+        assert (table["final_error"] < c.settle_tolerance).all() and table["settling_time"].notna().all()
+    # the nominal run is plan.track's run, bit for bit
+    nominal = plan_campaign(plan, dispersions=[]).trajectory(0)
+    ref = plan.reference(c.dt, c.steps)
+    by_hand = plan.arm.simulate(plan.initial_state(), c.dt, c.steps,
+                                u=MotorPD(1000.0, 100.0, ref["theta_ref"], ref["theta_dot_ref"], ref["u"]),
+                                base_wrench=ref["base_wrench"] if base == "held" else None)
+    np.testing.assert_array_equal(nominal.x, by_hand.x)
+    # and each row is its trajectory's, bit for bit
+    for run in (0, int(table["peak_torque"].idxmax())):
+        traj = c.trajectory(run)
+        recomputed = row_from(traj, c, c.goal, c.nominal_ee())
+        for metric, value in recomputed.items():
+            row = table.iloc[run][metric]
+            assert row == value or (np.isnan(row) and np.isnan(value)), (run, metric)
+
+
+def test_a_campaign_on_a_plan_refuses_what_the_plan_fixes(planned):
+    plan = planned["free"]
+    with pytest.raises(CampaignError, match=r"^dispersion: the goal of a campaign on a plan is the plan's"):
+        plan_campaign(plan, dispersions=[Dispersion("goal", "normal", std=0.01)]).check()
+    with pytest.raises(CampaignError, match=r"^duration: 1 s ends before the plan does \(\d"):
+        plan_campaign(plan, duration=1.0).check()
+    with pytest.raises(CampaignError, match=r"^robot: a campaign on a plan takes it from the plan; leave it out$"):
+        plan_campaign(plan, robot=orbitflex.models.space_arm())
+    with pytest.raises(CampaignError, match=r"^goal: a campaign on a plan ends at the plan's goal"):
+        Campaign(goal=0.1, kp=1.0, kd=1.0, dt=1e-3, duration=10.0, slew_time=1.0, plan=plan).check()
+    with pytest.raises(CampaignError, match=r"^plan: expected an orbitflex.Plan, given str$"):
+        Campaign(goal=0.1, kp=1.0, kd=1.0, dt=1e-3, duration=10.0, slew_time=1.0, plan="plan").check()
+
+
+def test_a_campaign_on_a_plan_runs_on_dask_with_the_same_table(cluster, planned):
+    from dask.distributed import Client
+
+    c = plan_campaign(planned["held"], runs=6)
+    local = c.run(threads=1)
+    with Client(cluster) as client:
+        pd.testing.assert_frame_equal(c.run(client=client, chunk_runs=2), local, check_exact=True)

@@ -94,7 +94,7 @@ def test_stability_warning_accounts_for_a_stiff_motor_pd():
     robot = orbitflex.models.space_arm()
     arm = FlexibleArm(robot, orbitflex.models.space_arm_joints())
     dt = 1e-3
-    assert dt < arm.rk4_stability_limit()  # the joint modes alone are fine at this dt
+    assert dt < arm.rk4_stability_limit().dt  # the joint modes alone are fine at this dt
     j = arm.parameters[1]
     hot = MotorPD(kp=10.0, kd=5.0 * j / dt, theta_ref=np.full(7, 0.1))  # pole at -5/dt: unstable
     with pytest.warns(RuntimeWarning, match="closed loop"):

@@ -24,7 +24,7 @@ def test_regression_stability_check_missed_the_held_pd_divergence(arm):
     # The README's MotorPD(kp=2000, kd=800) on the built-in joints diverges at dt = 1 ms (at step
     # 195); the old per-joint estimate said 1.34 ms and gave no warning.
     pd = MotorPD(kp=2000.0, kd=800.0, theta_ref=np.full(7, 0.2))
-    limit = arm.rk4_stability_limit(u=pd)
+    limit = arm.rk4_stability_limit(u=pd).dt
     assert limit < 1e-3
     with pytest.warns(RuntimeWarning, match="closed loop") as record:
         with pytest.raises(SimulationError) as e:
@@ -44,11 +44,29 @@ def test_regression_stability_check_missed_the_held_pd_divergence(arm):
 def test_stability_limit_depends_on_the_controller_and_state(arm):
     x = arm.state(q=np.full(7, 0.3), qd=np.full(7, 0.1))
     open_loop = arm.rk4_stability_limit(x)
-    assert arm.rk4_stability_limit(x, u=np.zeros(7)) == open_loop  # a table has no feedback
-    assert arm.rk4_stability_limit(x, u=lambda t, x: np.zeros(7)) == open_loop  # unknown
+    assert not open_loop.open_loop and not open_loop.estimated  # no controller: nothing unknown
+    table = arm.rk4_stability_limit(x, u=np.zeros(7))
+    assert table.dt == open_loop.dt and not table.open_loop  # a table has no feedback
+    unknown = arm.rk4_stability_limit(x, u=lambda t, x: np.zeros(7))
+    assert unknown.dt == open_loop.dt and unknown.open_loop  # unknown feedback: the open loop, flagged
     soft = arm.rk4_stability_limit(x, u=MotorPD(kp=10.0, kd=1.0, theta_ref=np.zeros(7)))
     stiff = arm.rk4_stability_limit(x, u=MotorPD(kp=2000.0, kd=800.0, theta_ref=np.zeros(7)))
-    assert stiff < soft <= open_loop * (1 + 1e-3)
+    assert stiff.dt < soft.dt <= open_loop.dt * (1 + 1e-3)
+    assert float(stiff) == stiff.dt
+
+
+def test_stability_limit_names_the_fastest_mode(arm):
+    # Rust gave the fastest mode and Python only dt: now both, as a small named result. Under a
+    # stiff held PD the fastest mode is the wrist's motor pole, near −(kd + β)/j (real, 1/s),
+    # and the step limit is near the held-derivative bound 2j/kd (docs/model.md §5.2).
+    j = arm.joints.motor_inertia[-1]
+    limit = arm.rk4_stability_limit(u=MotorPD(kp=2000.0, kd=800.0, theta_ref=np.zeros(7)))
+    assert isinstance(limit, orbitflex.StabilityLimit) and isinstance(limit.fastest_mode, complex)
+    assert limit.fastest_mode.real == pytest.approx(-801.0 / j, rel=0.01) and limit.fastest_mode.imag == 0
+    assert limit.fastest_mode_hz == pytest.approx(abs(limit.fastest_mode) / (2 * np.pi), rel=1e-12)
+    assert limit.dt == pytest.approx(2 * j / 800.0, rel=0.01)
+    assert re.fullmatch(r"StabilityLimit\(dt=9\.59\d+e-4, fastest_mode=\(-2\.08\d+e3[+-]0e0j\), "
+                        r"open_loop=False, estimated=False\)", repr(limit)), repr(limit)
 
 
 def test_progress_reports_every_thousand_steps_and_the_end(arm):
@@ -143,3 +161,26 @@ def test_dt_must_be_a_real_number(arm, bad):
 def test_steps_must_be_a_count(arm, bad):
     with pytest.raises(orbitflex.ModelError, match="steps"):
         arm.simulate(arm.state(), 1e-3, bad)
+
+
+def test_motor_pd_gains_come_from_the_joints_physics_and_say_what_they_cannot_do(arm):
+    # docs/model.md §5.3: two roots of each joint's closed loop at s² + 2ζωs + ω² = 0; the Rust
+    # tests check the placement, this the Python surface.
+    kp, kd = arm.motor_pd_gains(0.25)
+    np.testing.assert_array_equal(np.c_[kp, kd], np.c_[arm.motor_pd_gains(0.25, damping_ratio=1.0)])
+    assert kp.shape == kd.shape == (7,) and (kp > 0).all() and (kd >= 0).all()
+    # the rigid rule kp = (j + m) ω² with m the free-floating joint-space inertia, within the
+    # spring's correction (at most 8 % here, at 0.25 Hz against resonances of 1.5 Hz and up)
+    M = arm.robot.mass_matrix(np.zeros(7))
+    m = np.diag(M[6:, 6:] - M[6:, :6] @ np.linalg.solve(M[:6, :6], M[:6, 6:]))
+    rigid = (arm.joints.motor_inertia + m) * (2 * np.pi * 0.25) ** 2
+    assert np.all(np.abs(kp / rigid - 1) < 0.08), kp / rigid
+    # the configuration matters: a folded elbow changes what the shoulder drives
+    folded = np.r_[0, 0, 0, 2.0, 0, 0, 0]
+    assert not np.allclose(arm.motor_pd_gains(0.25, q=folded)[0][:3], kp[:3], rtol=1e-3)
+    with pytest.raises(orbitflex.ModelError, match=r"^bandwidth: 2 Hz is more than the joints' springs can carry"):
+        arm.motor_pd_gains(2.0)
+    with pytest.raises(orbitflex.ModelError, match=r"^damping_ratio: expected a finite number > 0, given 0"):
+        arm.motor_pd_gains(0.25, 0.0)
+    with pytest.raises(orbitflex.ModelError, match=r"^q: "):
+        arm.motor_pd_gains(0.25, q=np.zeros(3))

@@ -67,16 +67,24 @@ pub(super) fn ee_links<'a>(
     Ok(if ees.is_empty() { all_leaves } else { ees })
 }
 
-/// Every joint that is neither fixed nor locked must be revolute or continuous.
-pub(super) fn check_joint_kinds(tree: &Tree<'_>, source: &str) -> Result<()> {
-    for joint in tree.urdf.joints.iter().filter(|j| !tree.is_fixed(j)) {
-        if !matches!(joint.kind, JointKind::Revolute | JointKind::Continuous) {
-            return Err(Error::UnsupportedJoint {
-                source_name: source.to_string(),
-                joint: joint.name.clone(),
-                kind: joint.kind.name().to_string(),
-            });
-        }
+/// Every joint that is neither fixed nor locked must be revolute or continuous; the error names
+/// every one that is not, and the one `locked_joints` list (`locked`, as given, then those) that
+/// fixes them all.
+pub(super) fn check_joint_kinds(tree: &Tree<'_>, locked: &[String], source: &str) -> Result<()> {
+    let joints: Vec<(String, String)> = tree
+        .urdf
+        .joints
+        .iter()
+        .filter(|j| !tree.is_fixed(j))
+        .filter(|j| !matches!(j.kind, JointKind::Revolute | JointKind::Continuous))
+        .map(|j| (j.name.clone(), j.kind.name().to_string()))
+        .collect();
+    if joints.is_empty() {
+        return Ok(());
     }
-    Ok(())
+    Err(Error::UnsupportedJoint {
+        source_name: source.to_string(),
+        joints,
+        locked: locked.to_vec(),
+    })
 }

@@ -100,7 +100,7 @@ fn load(xml: &str, source: &str, options: &UrdfOptions) -> Result<Robot> {
         "link (ee_links)"
     };
     let ee_links = ees::ee_links(&tree, &asked, option, source)?;
-    ees::check_joint_kinds(&tree, source)?;
+    ees::check_joint_kinds(&tree, &options.locked_joints, source)?;
     let bodies = merge::merge(&tree, source)?;
 
     let base = &bodies.bodies[0];
@@ -109,7 +109,9 @@ fn load(xml: &str, source: &str, options: &UrdfOptions) -> Result<Robot> {
         let (joint, origin) = body.joint.expect("every body after the base has a joint");
         let axis = Vec3::from(joint.axis);
         let parent = bodies.placement[joint.parent.as_str()].0;
-        builder = builder.joint_at(parent, &joint.name, origin, axis, body.link, body.inertia);
+        builder = builder
+            .joint_at(parent, &joint.name, origin, axis, body.link, body.inertia)
+            .limits(joint_limits(joint));
     }
     for link in ee_links {
         let (body, in_body) = bodies.placement[link];
@@ -117,4 +119,24 @@ fn load(xml: &str, source: &str, options: &UrdfOptions) -> Result<Robot> {
     }
     let (frames, visuals) = frames::frames(&tree, &bodies);
     builder.frames(frames).visuals(visuals).build()
+}
+
+/// A joint's limits from its `<limit>`: URDF's `lower` and `upper` (rad; a missing one is 0, as
+/// URDF specifies, but a `<limit>` with neither states no position range) bound a revolute joint
+/// only, a continuous joint turning freely; `effort` (N·m) and `velocity` (rad/s) bound both.
+fn joint_limits(joint: &parse::Joint) -> crate::model::JointLimits {
+    let Some(limit) = joint.limit else {
+        return crate::model::JointLimits::NONE;
+    };
+    let position = match (joint.kind, limit.lower, limit.upper) {
+        (parse::JointKind::Revolute, lower, upper) if lower.is_some() || upper.is_some() => {
+            Some((lower.unwrap_or(0.0), upper.unwrap_or(0.0)))
+        }
+        _ => None,
+    };
+    crate::model::JointLimits {
+        position,
+        velocity: limit.velocity,
+        effort: limit.effort,
+    }
 }

@@ -2,11 +2,12 @@
 //! inertias.
 //!
 //! The reader keeps what the dynamics need: the robot's name, each `<link>` with its
-//! `<inertial>` (origin, mass, inertia), and each `<joint>` with its type, parent, child, origin
-//! and axis. It also keeps each link's `<visual>`s (origin, shape, material colour) and the
-//! top-level `<material>` colours, for viewers; a visual it cannot read is kept as
-//! [`Geometry::Malformed`] with the reason, never an error, since the dynamics do not need it.
-//! Everything else (collisions, limits, transmissions, simulator extensions) is skipped. It reads the text once, in time linear in its size, and refuses what no URDF
+//! `<inertial>` (origin, mass, inertia), and each `<joint>` with its type, parent, child, origin,
+//! axis and `<limit>` (lower, upper, effort, velocity, as written). It also keeps each link's
+//! `<visual>`s (origin, shape, material colour) and the top-level `<material>` colours, for
+//! viewers; a visual it cannot read is kept as [`Geometry::Malformed`] with the reason, never an
+//! error, since the dynamics do not need it. Everything else (collisions, safety controllers,
+//! transmissions, simulator extensions) is skipped. It reads the text once, in time linear in its size, and refuses what no URDF
 //! needs: nesting deeper than [`MAX_DEPTH`], more than [`MAX_ELEMENTS`] elements, more than
 //! [`crate::io::MAX_FILE_BYTES`] of text. Errors say what is wrong and on which line. Entities
 //! other than XML's five are not expanded (no "billion laughs").
@@ -122,6 +123,17 @@ pub(super) struct Joint {
     pub origin: Pose,
     /// The `<axis xyz>`, default `1 0 0` (as URDF specifies).
     pub axis: [f64; 3],
+    /// The `<limit>`, if the joint has one.
+    pub limit: Option<RawLimit>,
+}
+
+/// A joint's `<limit lower upper effort velocity>` as written: each attribute if present.
+#[derive(Debug, Clone, Copy, Default)]
+pub(super) struct RawLimit {
+    pub lower: Option<f64>,
+    pub upper: Option<f64>,
+    pub effort: Option<f64>,
+    pub velocity: Option<f64>,
 }
 
 /// Parses the XML text of a URDF; `source` names it in messages.
@@ -184,6 +196,7 @@ struct PartialJoint {
     child: Option<String>,
     origin: Pose,
     axis: [f64; 3],
+    limit: Option<RawLimit>,
     line: usize,
 }
 
@@ -397,6 +410,7 @@ impl<'a> Reader<'a> {
                     child: None,
                     origin: Pose::default(),
                     axis: [1.0, 0.0, 0.0],
+                    limit: None,
                     line,
                 });
                 Scope::Joint
@@ -420,6 +434,16 @@ impl<'a> Reader<'a> {
             (Some(Scope::Joint), b"axis") => {
                 let axis = self.triple(e, "axis", "xyz")?.unwrap_or([1.0, 0.0, 0.0]);
                 self.joint.as_mut().expect("inside a joint").axis = axis;
+                Scope::Other
+            }
+            (Some(Scope::Joint), b"limit") => {
+                let limit = RawLimit {
+                    lower: self.optional_number(e, "limit", "lower")?,
+                    upper: self.optional_number(e, "limit", "upper")?,
+                    effort: self.optional_number(e, "limit", "effort")?,
+                    velocity: self.optional_number(e, "limit", "velocity")?,
+                };
+                self.joint.as_mut().expect("inside a joint").limit = Some(limit);
                 Scope::Other
             }
             _ => Scope::Other,
@@ -474,6 +498,7 @@ impl<'a> Reader<'a> {
                     kind: j.kind,
                     origin: j.origin,
                     axis: j.axis,
+                    limit: j.limit,
                 };
                 self.robot
                     .as_mut()
@@ -608,6 +633,19 @@ impl<'a> Reader<'a> {
                 self.line()
             )
         })
+    }
+
+    /// A number attribute, if it is there.
+    fn optional_number(
+        &self,
+        e: &BytesStart,
+        element: &str,
+        key: &str,
+    ) -> std::result::Result<Option<f64>, Message> {
+        match self.attribute(e, key)? {
+            None => Ok(None),
+            Some(_) => self.number(e, element, key).map(Some),
+        }
     }
 
     /// An attribute of three numbers, if it is there.
