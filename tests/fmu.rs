@@ -106,7 +106,7 @@ fn the_description_is_well_formed_and_declares_every_variable() {
 #[test]
 fn resources_read_back_to_the_same_model() {
     let mut joints = FlexibleJoints::space_arm();
-    joints.damping[2] = 0.123456789012345678;
+    joints.damping[2] = 0.123_456_789_012_345_68;
     let options = UrdfOptions {
         locked_joints: vec!["wrist_roll".into()],
         ..UrdfOptions::default()

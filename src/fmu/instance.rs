@@ -17,7 +17,7 @@ use crate::flex::{FlexibleArm, FlexibleJoints, StateSpec};
 use crate::integrate::{Outputs, Simulator};
 
 /// The first bytes of a saved FMU state.
-const MAGIC: &[u8; 8] = b"OFXFMU\0\0";
+pub const STATE_MAGIC: &[u8; 8] = b"OFXFMU\0\0";
 /// The layout of a saved FMU state (the simulator's blob carries its own version).
 const FORMAT_VERSION: u32 = 1;
 
@@ -338,7 +338,7 @@ impl FmuInstance {
             return Err("the FMU state can be saved once initialized".into());
         };
         let mut blob = Vec::with_capacity(8 + 4 + 1 + 8 + sim.saved_len());
-        blob.extend_from_slice(MAGIC);
+        blob.extend_from_slice(STATE_MAGIC);
         blob.extend_from_slice(&FORMAT_VERSION.to_le_bytes());
         blob.push(self.mode as u8);
         blob.extend_from_slice(&self.start.to_bits().to_le_bytes());
@@ -349,7 +349,7 @@ impl FmuInstance {
     /// Puts back a state from [`save`](Self::save) of an instance of the same FMU with the
     /// same parameters; a foreign or damaged blob is refused and changes nothing.
     pub fn restore(&mut self, blob: &[u8]) -> Result<(), String> {
-        if blob.len() < 21 || &blob[..8] != MAGIC {
+        if blob.len() < 21 || &blob[..8] != STATE_MAGIC {
             return Err("not a saved orbitflex FMU state".into());
         }
         let version = u32::from_le_bytes(blob[8..12].try_into().expect("4 bytes"));
