@@ -1994,7 +1994,7 @@ def build_parser() -> Parser:
     parser = Parser(prog="orbitflex", description="Flexible-joint space manipulator simulation: a "
                     "free-floating slew of an arm on a spacecraft bus.")
     parser.add_argument("--version", action="version", version=f"orbitflex {__version__}")
-    sub = parser.add_subparsers(dest="command", metavar="{demo,simulate,plan,campaign,modes}")
+    sub = parser.add_subparsers(dest="command", metavar="{demo,simulate,plan,campaign,modes,fmu}")
     demo = sub.add_parser("demo", help="simulate the built-in space arm (bus + 7-joint arm), free floating",
                           description="Simulates the built-in space arm (a 500 kg bus with a 7-joint arm) "
                                       "slewing free-floating, and writes the trajectory, a summary and plots.")
@@ -2039,6 +2039,9 @@ def build_parser() -> Parser:
     from . import _cli_modes  # `orbitflex modes` lives in its own module
 
     _cli_modes.add_parser(sub)
+    from . import _cli_fmu  # `orbitflex fmu` too
+
+    _cli_fmu.add_parser(sub)
     return parser
 
 
@@ -2162,6 +2165,10 @@ def main(argv: Optional[List[str]] = None) -> int:
             from . import _cli_modes
 
             return _cli_modes.command(args)
+        if args.command == "fmu":
+            from . import _cli_fmu
+
+            return _cli_fmu.command(args)
         if args.dt > args.duration:
             raise CliError("--dt", f"expected at most --duration ({args.duration:g} s), given {args.dt:g}")
         job = demo_job(args) if args.command == "demo" else simulate_job(args)

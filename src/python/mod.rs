@@ -17,7 +17,7 @@
 //!
 //! One file per class: `robot` (`Robot`), `joints` (`FlexibleJoints`), `control` (`MotorPD`,
 //! input schedules, Python controllers), `arm` (`FlexibleArm`), `trajectory` (`Trajectory`),
-//! `plan` (`Limits`, `Plan`, `plan_slew`), `stability` (`StabilityLimit`), `batch` (`simulate_batch`, `BatchTrajectory`); `simulator` (`Simulator`); `analysis` (the linear analysis's private
+//! `plan` (`Limits`, `Plan`, `plan_slew`), `stability` (`StabilityLimit`), `batch` (`simulate_batch`, `BatchTrajectory`); `simulator` (`Simulator`); `fmu` (the FMU's files); `analysis` (the linear analysis's private
 //! functions, wrapped by `orbitflex.analysis`);
 //! `batched` gives the per-call dynamics their leading batch axis and `out=`; `run` drives a
 //! simulation with or without the GIL; `errors` maps [`crate::Error`] onto the Python
@@ -31,6 +31,7 @@ mod batched;
 mod control;
 mod convert;
 mod errors;
+mod fmu;
 mod joints;
 mod parallel;
 mod plan;
@@ -69,5 +70,6 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(analysis::py_modes, m)?)?;
     m.add_function(wrap_pyfunction!(analysis::py_frequency_response, m)?)?;
     m.add_function(wrap_pyfunction!(analysis::py_sweep, m)?)?;
+    m.add_function(wrap_pyfunction!(fmu::py_fmu_files, m)?)?;
     Ok(())
 }
