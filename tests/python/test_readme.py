@@ -26,7 +26,8 @@ BLOCKS = python_blocks()
 
 
 def test_the_documents_have_python_examples():
-    assert {document for document, _, _ in BLOCKS} == {"README.md", "docs/visualisation.md", "docs/modes.md"}
+    assert {document for document, _, _ in BLOCKS} == {"README.md", "docs/visualisation.md", "docs/modes.md",
+                                                    "docs/cosimulation.md"}
     assert len(BLOCKS) >= 12
 
 
