@@ -200,19 +200,32 @@ impl FmuInstance {
                 Slot::MotorTorque(i) => self.u[i],
                 Slot::BaseWrench(i) => self.base_wrench[i],
                 Slot::Output(quantity, i) => {
-                    if !self.fresh {
-                        if self.mode == Mode::Instantiated {
-                            return Err(format!(
-                                "output {} cannot be read before initialization mode",
-                                self.model.table.variables[vr as usize].name
-                            ));
+                    // parts of the state are read from it: a master reading q or theta every
+                    // step does not pay for the momentum and energy
+                    let direct = match self.mode {
+                        Mode::Instantiated => None,
+                        _ => {
+                            let sim = self.simulator()?;
+                            quantity.from_state(&sim.arm().layout(), sim.state(), i)
                         }
-                        let mut outputs = std::mem::take(&mut self.outputs);
-                        self.simulator()?.outputs_into(&mut outputs);
-                        self.outputs = outputs;
-                        self.fresh = true;
+                    };
+                    if let Some(v) = direct {
+                        v
+                    } else {
+                        if !self.fresh {
+                            if self.mode == Mode::Instantiated {
+                                return Err(format!(
+                                    "output {} cannot be read before initialization mode",
+                                    self.model.table.variables[vr as usize].name
+                                ));
+                            }
+                            let mut outputs = std::mem::take(&mut self.outputs);
+                            self.simulator()?.outputs_into(&mut outputs);
+                            self.outputs = outputs;
+                            self.fresh = true;
+                        }
+                        quantity.read(&self.outputs, i)
                     }
-                    quantity.read(&self.outputs, i)
                 }
             };
         }

@@ -5,7 +5,7 @@
 //! variable; FMI 2.0 has none), then the parameters, the inputs and the outputs, each group in
 //! joint order. The same names have the same references in FMI 2.0 and 3.0.
 
-use crate::flex::FlexibleArm;
+use crate::flex::{FlexibleArm, StateLayout};
 use crate::integrate::Outputs;
 
 /// What a variable is to the master (FMI `causality`).
@@ -75,6 +75,25 @@ pub enum Quantity {
 }
 
 impl Quantity {
+    /// Element `i` of this quantity read straight from the state `x` (laid out by `layout`),
+    /// for the quantities that are parts of it (or, for the deflection, a difference of two);
+    /// `None` for those computed from the whole state (spring torques, poses, momentum,
+    /// energy). Bit for bit what [`Simulator::outputs_into`](crate::Simulator::outputs_into)
+    /// gives.
+    pub fn from_state(self, layout: &StateLayout, x: &[f64], i: usize) -> Option<f64> {
+        let part = |range: std::ops::Range<usize>| x[range.start + i];
+        Some(match self {
+            Quantity::Q => part(layout.q()),
+            Quantity::Qd => part(layout.qd()),
+            Quantity::Theta => part(layout.theta()),
+            Quantity::ThetaDot => part(layout.theta_dot()),
+            Quantity::Deflection => part(layout.theta()) - part(layout.q()),
+            Quantity::BasePose => part(layout.base_pose()),
+            Quantity::BaseTwist => part(layout.base_twist()),
+            _ => return None,
+        })
+    }
+
     /// Element `i` of this quantity in `out`.
     pub fn read(self, out: &Outputs, i: usize) -> f64 {
         match self {
