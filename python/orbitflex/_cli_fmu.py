@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
-from typing import Any
+from typing import Any, List
 
 from . import SPACE_ARM_URDF, FlexibleArm, FlexibleJoints, models
 from .fmu import write_fmu
@@ -71,8 +71,8 @@ def command(args: argparse.Namespace) -> int:
                 raise CliError(flag, "applies to a URDF; give the URDF file (the built-in arm has one end-effector, ee)")
         urdf = SPACE_ARM_URDF
         robot = models.space_arm()
-        ee_links: list = []
-        locked: list = []
+        ee_links: List[str] = []
+        locked: List[str] = []
     else:
         try:
             urdf = Path(args.urdf).read_text(encoding="utf-8")

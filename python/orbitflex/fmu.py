@@ -45,9 +45,9 @@ def _identifier(name: str) -> str:
     return ident if not ident[0].isdigit() else f"_{ident[:63]}"
 
 
-def write_fmu(out: Union[str, os.PathLike], urdf: str, arm: FlexibleArm, dt: float, *, fmi: int = 3,
+def write_fmu(out: Union[str, "os.PathLike[str]"], urdf: str, arm: FlexibleArm, dt: float, *, fmi: int = 3,
               ee_links: Sequence[str] = (), locked_joints: Sequence[str] = (),
-              model_identifier: Optional[str] = None, runtime: Optional[Union[str, os.PathLike]] = None) -> Path:
+              model_identifier: Optional[str] = None, runtime: Optional[Union[str, "os.PathLike[str]"]] = None) -> Path:
     """Writes the co-simulation FMU of ``arm`` to ``out`` and returns its path.
 
     ``urdf``: the robot's URDF *text* (``orbitflex.SPACE_ARM_URDF`` for the built-in arm), loaded
