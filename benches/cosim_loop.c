@@ -1,18 +1,22 @@
 /* The C example's loop (examples/c/slew.c without the printing), timed: per RK4 step, read
  * theta and theta_dot, compute a motor PD, set the torques, step once. Prints seconds per step
- * (median of ROUNDS runs of STEPS steps). Built and run by benches/cosim.py. */
+ * (median of ROUNDS runs of STEPS steps; wall time, or the process's CPU time with "cpu").
+ * Usage: cosim_loop [STEPS [ROUNDS [wall|cpu]]]. Built and run by benches/cosim.py. */
 #define _POSIX_C_SOURCE 199309L
 #include <stdio.h>
 #include <stdlib.h>
+#include <string.h>
 #include <time.h>
 
 #include "orbitflex.h"
 
 #define N 7
 
+static clockid_t which_clock = CLOCK_MONOTONIC;
+
 static double now(void) {
     struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
+    clock_gettime(which_clock, &ts);
     return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
 }
 
@@ -23,6 +27,7 @@ static int cmp(const void *a, const void *b) {
 
 int main(int argc, char **argv) {
     int steps = argc > 1 ? atoi(argv[1]) : 10000, rounds = argc > 2 ? atoi(argv[2]) : 5;
+    if (argc > 3 && strcmp(argv[3], "cpu") == 0) which_clock = CLOCK_PROCESS_CPUTIME_ID;
     const double kp[N] = {300.0, 1250.0, 1250.0, 650.0, 85.0, 42.0, 16.0};
     const double kd[N] = {100.0, 670.0, 670.0, 300.0, 27.0, 13.0, 4.2};
     OfxArm *arm;
