@@ -405,3 +405,73 @@ fn every_output_equals_the_simulators_outputs() {
         }
     }
 }
+
+#[test]
+fn parameters_read_back_and_the_start_time_is_kept() {
+    let m = model();
+    let mut fmu = FmuInstance::new(m.clone());
+    let names = m.arm.robot().joint_names();
+    let joints = FlexibleJoints::space_arm();
+    for (i, j) in names.iter().enumerate() {
+        let vrs = [
+            vr(&m, &format!("stiffness.{j}")),
+            vr(&m, &format!("motor_inertia.{j}")),
+            vr(&m, &format!("damping.{j}")),
+            vr(&m, &format!("motor_damping.{j}")),
+            vr(&m, &format!("q0.{j}")),
+        ];
+        let mut v = [f64::NAN; 5];
+        fmu.get(&vrs, &mut v).unwrap();
+        let exported = [
+            joints.stiffness[i],
+            joints.motor_inertia[i],
+            joints.damping[i],
+            joints.motor_damping[i],
+            0.0,
+        ];
+        assert_eq!(v, exported, "{j}");
+    }
+    let k = vr(&m, "stiffness.wrist_yaw");
+    fmu.set(&[k], &[1234.5]).unwrap();
+    let mut v = [0.0];
+    fmu.get(&[k], &mut v).unwrap();
+    assert_eq!(v[0], 1234.5);
+    // FMI 2.0: fmi2SetupExperiment gives the start time, fmi2EnterInitializationMode keeps it
+    fmu.setup(1.5).unwrap();
+    assert_eq!(fmu.time(), 1.5);
+    fmu.enter_initialization(fmu.time()).unwrap();
+    fmu.exit_initialization().unwrap();
+    fmu.do_step(1.5, 1e-3).unwrap();
+    assert_eq!(fmu.time(), 1.5 + 1e-3);
+    assert!(fmu.setup(0.0).is_err(), "setup only before initialization");
+    // a communication step of more than 1e15 steps is refused before it starts
+    let err = fmu.do_step(fmu.time(), 1e13).unwrap_err();
+    assert!(err.contains("too long"), "{err}");
+}
+
+#[test]
+fn a_master_accumulating_its_time_is_followed_and_short_states_are_refused() {
+    let m = model();
+    let mut fmu = started(&m);
+    // a master that adds h to its time (t += h) drifts from k h by float noise: still the
+    // FMU's time, not a fraction of a step
+    let (mut t, h) = (0.0_f64, 0.003);
+    for _ in 0..1000 {
+        fmu.do_step(t, h).unwrap();
+        t += h;
+    }
+    assert_ne!(t, fmu.time(), "the test needs a drifted time");
+    assert_eq!(fmu.time(), 3000.0 * 1e-3);
+    // a stiffness must be > 0, a damping >= 0: zero is refused for the one, taken by the other
+    let mut fresh = FmuInstance::new(m.clone());
+    let err = fresh
+        .set(&[vr(&m, "stiffness.elbow_pitch")], &[0.0])
+        .unwrap_err();
+    assert!(err.contains("expected > 0"), "{err}");
+    fresh.set(&[vr(&m, "damping.elbow_pitch")], &[0.0]).unwrap();
+    // saved states shorter than their header: refused, never read past the end
+    for short in [&b"OFXFMU\0\0"[..], b"OFXFMU\0\0\x01\0\0\0\x02", b"OFX"] {
+        assert!(fmu.restore(short).is_err());
+    }
+    assert_eq!(fmu.time(), 3000.0 * 1e-3);
+}
