@@ -1,5 +1,5 @@
 //! `modelDescription.xml` for FMI 3.0 and FMI 2.0 co-simulation, written from the
-//! [`VariableTable`] the runtime uses.
+//! [`VariableTable`](super::VariableTable) the runtime uses.
 //!
 //! Choices the standards leave to the exporter:
 //! - parameters are `causality="parameter" variability="fixed"`: set before initialisation
