@@ -475,3 +475,91 @@ fn a_master_accumulating_its_time_is_followed_and_short_states_are_refused() {
     }
     assert_eq!(fmu.time(), 3000.0 * 1e-3);
 }
+
+#[test]
+fn the_description_escapes_names_and_declares_starts_and_units() {
+    // a joint name with XML's special characters comes back from the parsed description as is
+    let urdf = SPACE_ARM_URDF.replace(
+        "name=\"elbow_pitch\"",
+        "name=\"elbow&amp;pitch&lt;1&gt;&quot;\"",
+    );
+    let m = FmuModel::new(
+        &urdf,
+        &UrdfOptions::default(),
+        &FlexibleJoints::space_arm(),
+        1e-3,
+        "odd",
+    )
+    .unwrap();
+    assert!(m.table.value_reference("q.elbow&pitch<1>\"").is_some());
+    for version in [FmiVersion::V3, FmiVersion::V2] {
+        let xml = orbitflex::fmu::model_description(&m, version);
+        let mut reader = quick_xml::Reader::from_str(&xml);
+        let (mut names, mut starts, mut units) = (Vec::new(), Vec::new(), Vec::new());
+        let mut current = String::new();
+        loop {
+            let event = reader.read_event().expect("well-formed XML");
+            let e = match &event {
+                quick_xml::events::Event::Eof => break,
+                quick_xml::events::Event::Start(e) | quick_xml::events::Event::Empty(e) => e,
+                _ => continue,
+            };
+            let attr = |key: &str| {
+                e.attributes()
+                    .map(|a| a.unwrap())
+                    .find(|a| a.key.as_ref() == key.as_bytes())
+                    .map(|a| a.unescape_value().unwrap().into_owned())
+            };
+            match e.name().as_ref() {
+                b"Float64" | b"ScalarVariable" => {
+                    current = attr("name").unwrap();
+                    names.push(current.clone());
+                    if let Some(s) = attr("start") {
+                        starts.push((current.clone(), s.parse::<f64>().unwrap()));
+                    }
+                }
+                b"Real" => {
+                    if let Some(s) = attr("start") {
+                        starts.push((current.clone(), s.parse::<f64>().unwrap()));
+                    }
+                }
+                b"Unit" => current = attr("name").unwrap(),
+                b"BaseUnit" => {
+                    let exponents: Vec<Option<String>> =
+                        ["kg", "m", "s", "rad"].iter().map(|k| attr(k)).collect();
+                    units.push((current.clone(), exponents));
+                }
+                _ => {}
+            }
+        }
+        let expected: Vec<String> = m
+            .table
+            .variables
+            .iter()
+            .filter(|v| version == FmiVersion::V3 || v.causality != Causality::Independent)
+            .map(|v| v.name.clone())
+            .collect();
+        assert_eq!(names, expected);
+        // every input starts at 0, every parameter at its exported value, no output has a start
+        let start = |name: &str| starts.iter().find(|(n, _)| n == name).map(|(_, s)| *s);
+        assert_eq!(start("motor_torque.shoulder_roll"), Some(0.0));
+        assert_eq!(start("base_force.z"), Some(0.0));
+        assert_eq!(start("stiffness.elbow&pitch<1>\""), Some(5e3));
+        let j = FlexibleJoints::space_arm();
+        assert_eq!(start("motor_inertia.wrist_roll"), Some(j.motor_inertia[6]));
+        assert_eq!(start("q0.wrist_roll"), Some(0.0));
+        assert_eq!(start("q.wrist_roll"), None);
+        let n = starts.len();
+        assert_eq!(n, 5 * 7 + 7 + 6, "parameters and inputs only");
+        // base-unit exponents: N.m = kg m2 s-2, N.m.s/rad = kg m2 s-1 rad-1, rad = rad
+        let unit = |name: &str| units.iter().find(|(n, _)| n == name).unwrap().1.clone();
+        let some = |v: &[&str]| -> Vec<Option<String>> {
+            v.iter()
+                .map(|s| (!s.is_empty()).then(|| s.to_string()))
+                .collect()
+        };
+        assert_eq!(unit("N.m"), some(&["1", "2", "-2", ""]));
+        assert_eq!(unit("N.m.s/rad"), some(&["1", "2", "-1", "-1"]));
+        assert_eq!(unit("rad"), some(&["", "", "", "1"]));
+    }
+}

@@ -33,16 +33,6 @@ pub enum FmiVersion {
     V3,
 }
 
-impl FmiVersion {
-    /// The platform folder of the x86-64 Linux binary.
-    pub fn linux_platform(self) -> &'static str {
-        match self {
-            FmiVersion::V2 => "linux64",
-            FmiVersion::V3 => "x86_64-linux",
-        }
-    }
-}
-
 /// The export settings kept in `resources/fmu.toml`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
