@@ -10,6 +10,7 @@
 pub mod algorithms;
 pub mod analysis;
 pub mod args;
+pub mod capture;
 pub mod dynamics;
 pub mod error;
 pub mod flex;
@@ -28,6 +29,7 @@ pub mod testing;
 
 pub use algorithms::Data;
 pub use args::{Loads, RigidState};
+pub use capture::{capture, Capture, Target};
 pub use dynamics::Method;
 pub use error::{Error, Result};
 pub use flex::{
