@@ -6,9 +6,9 @@
 
 use super::{LaneGroup, LaneInputs, Sv, L, V3};
 use crate::flex::{FlexibleArm, FlexibleJoints, StateSpec};
-use crate::integrate::{simulate, Schedule, Unobserved, Wrenches};
 use crate::testing::{random_chain, random_state, random_tree, TREE_THREE_ARMS};
 use crate::{MotorPD, Robot};
+use crate::{Schedule, Wrenches};
 
 /// One run: its initial state, its controller and its wrench tables.
 struct Run {
@@ -105,7 +105,7 @@ fn scalar(arm: &FlexibleArm, run: &Run, dt: f64, steps: usize) -> (Vec<f64>, Opt
             width: run.ee.len() / steps,
         },
     };
-    match simulate(arm, &run.x0, dt, steps, &mut pd, &wrenches, &mut Unobserved) {
+    match arm.simulate(&run.x0, dt, steps, &mut pd, &wrenches) {
         Ok(traj) => (traj.x, None),
         Err(failure) => match failure.error {
             crate::Error::Simulation { step, .. } => (failure.trajectory.x, Some(step)),
