@@ -47,12 +47,18 @@ from ._core import (
     Trajectory,
     __version__,
     capture,
+    euler_zyx,
     plan_slew,
+    rotation_angle,
+    rotation_matrix,
     simulate_batch,
 )
 from . import analysis, models
 
 __all__ = [
+    "rotation_matrix",
+    "euler_zyx",
+    "rotation_angle",
     "Robot",
     "FlexibleJoints",
     "FlexibleArm",

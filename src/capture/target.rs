@@ -11,8 +11,8 @@
 use crate::args::{check_finite, check_vector};
 use crate::dynamics::momentum_in_inertial_frame;
 use crate::error::{Error, Result};
-use crate::flex::state::{normalise_quaternion, quaternion_rate};
 use crate::model::{check_inertia, MAX_LENGTH};
+use crate::spatial::{normalise_quaternion, quaternion_rate};
 use crate::spatial::{quaternion_to_rotation, Inertia, Mat3, Motion, Transform, Vec3};
 
 /// Length of a target's state `[r_t (3); quat_t (4); ω (3); v (3)]`.
