@@ -262,6 +262,27 @@ fn momentum_across_the_event_and_the_target_welded_after() {
             e.momentum_after[i]
         );
     }
+    // the total momentum along the run (arm and free target, then the combined arm): the row
+    // at the event is the state before it, so it is the event's momentum before
+    let h = record.momentum(&arm, &traj.t, &traj.x);
+    let at = &h[e.step * 6..e.step * 6 + 6];
+    for i in 0..6 {
+        assert!(
+            (at[i] - e.momentum_before[i]).abs() <= 1e-14 * scale,
+            "row momentum[{i}]"
+        );
+    }
+    // the energy: the row at the event (arm and free target) less the event's loss is the
+    // combined arm's energy just after (spring and motor energies are untouched by the impulse)
+    let energy = record.energy(&arm, &traj.t, &traj.x);
+    let combined = record.arm_after.as_ref().unwrap();
+    let after = combined.energy(&mut ModelWorkspace::new(combined), &e.x_after);
+    assert!(
+        (energy[e.step] - e.energy_loss - after).abs() <= 1e-12 * energy[e.step],
+        "{} - {} vs {after}",
+        energy[e.step],
+        e.energy_loss
+    );
     // the motors keep their rates; the links jump
     let layout = arm.layout();
     assert_eq!(

@@ -87,7 +87,7 @@ pub struct CaptureEvent {
 }
 
 /// What a run with a target records beside the arm's rows.
-#[derive(Debug, Clone, Default)]
+#[derive(Debug, Clone)]
 pub struct CaptureRecord {
     /// The captures, in order (at most one: a captured target is gone).
     pub events: Vec<CaptureEvent>,
@@ -96,12 +96,97 @@ pub struct CaptureRecord {
     pub target: Vec<f64>,
     /// The combined arm after the capture, if one happened.
     pub arm_after: Option<FlexibleArm>,
+    /// The target's spatial inertia about its frame origin (its own frame).
+    pub inertia: Inertia,
 }
 
 impl CaptureRecord {
+    /// An empty record for a target of spatial inertia `inertia`.
+    pub fn new(inertia: Inertia) -> Self {
+        Self {
+            events: Vec::new(),
+            target: Vec::new(),
+            arm_after: None,
+            inertia,
+        }
+    }
+
     /// The number of target rows kept.
     pub fn rows(&self) -> usize {
         self.target.len() / TARGET_STATE_LEN
+    }
+
+    /// Which arm a kept row at time `t` belongs to: `arm` up to the capture (the row at the
+    /// capture's time holds the state before the impulse), the combined arm after it.
+    fn arm_at<'a>(&'a self, arm: &'a FlexibleArm, t: f64) -> (&'a FlexibleArm, bool) {
+        match (self.events.first(), &self.arm_after) {
+            (Some(event), Some(after)) if t > event.time => (after, false),
+            _ => (arm, true),
+        }
+    }
+
+    /// The total momentum `[K; L]` (inertial, about the inertial origin; 6 per row) of the kept
+    /// rows `(t, x)` of a run of `arm` with this record: arm and free target before the capture,
+    /// the combined arm after it.
+    pub fn momentum(&self, arm: &FlexibleArm, t: &[f64], x: &[f64]) -> Vec<f64> {
+        self.per_row(arm, t, x, 6, |arm, ws, x, target, out| {
+            let mut h = arm.momentum(ws, x);
+            if let Some(s) = target {
+                let twist = Motion::from_slice(&s[7..]);
+                let ht = super::target::rigid_body_momentum(&self.inertia, &s[..7], &twist);
+                for (a, b) in h.iter_mut().zip(ht) {
+                    *a += b;
+                }
+            }
+            out.copy_from_slice(&h);
+        })
+    }
+
+    /// The total energy (J, one per row) of the kept rows: the arm's (rigid kinetic, motor
+    /// kinetic, spring) plus the free target's kinetic energy before the capture; the combined
+    /// arm's after it.
+    pub fn energy(&self, arm: &FlexibleArm, t: &[f64], x: &[f64]) -> Vec<f64> {
+        self.per_row(arm, t, x, 1, |arm, ws, x, target, out| {
+            out[0] = arm.energy(ws, x);
+            if let Some(s) = target {
+                let twist = Motion::from_slice(&s[7..]);
+                out[0] += 0.5 * twist.dot(&self.inertia.apply(&twist));
+            }
+        })
+    }
+
+    fn per_row(
+        &self,
+        arm: &FlexibleArm,
+        t: &[f64],
+        x: &[f64],
+        width: usize,
+        f: impl Fn(&FlexibleArm, &mut crate::flex::ModelWorkspace, &[f64], Option<&[f64]>, &mut [f64]),
+    ) -> Vec<f64> {
+        let len = arm.layout().len();
+        let mut out = vec![0.0; t.len() * width];
+        let mut ws = crate::flex::ModelWorkspace::new(arm);
+        let mut ws_after = self
+            .arm_after
+            .as_ref()
+            .map(crate::flex::ModelWorkspace::new);
+        for (k, &time) in t.iter().enumerate() {
+            let (which, free) = self.arm_at(arm, time);
+            let target =
+                free.then(|| &self.target[k * TARGET_STATE_LEN..(k + 1) * TARGET_STATE_LEN]);
+            let ws = match (free, ws_after.as_mut()) {
+                (false, Some(w)) => w,
+                _ => &mut ws,
+            };
+            f(
+                which,
+                ws,
+                &x[k * len..(k + 1) * len],
+                target,
+                &mut out[k * width..(k + 1) * width],
+            );
+        }
+        out
     }
 }
 
@@ -280,7 +365,8 @@ pub fn simulate_capture_into(
         .check(arm, drive)
         .and_then(|_| when.check())
         .and_then(|_| arm.robot().ee_choice(ee));
-    let ee = checked.map_err(|e| fail(e, CaptureRecord::default()))?;
+    let empty = || CaptureRecord::new(*target.spatial_inertia());
+    let ee = checked.map_err(|e| fail(e, empty()))?;
     let mut rows = Vec::new();
     rows.try_reserve_exact(
         recorded_rows(run.steps, run.record_every).saturating_mul(TARGET_STATE_LEN),
@@ -295,7 +381,7 @@ pub fn simulate_capture_into(
                     recorded_rows(run.steps, run.record_every)
                 ),
             },
-            CaptureRecord::default(),
+            empty(),
         )
     })?;
     let mut body = CaptureSteps {
@@ -310,7 +396,7 @@ pub fn simulate_capture_into(
         data: Data::new(arm.robot()),
         record: CaptureRecord {
             target: rows,
-            ..CaptureRecord::default()
+            ..empty()
         },
     };
     match run_steps(&mut body, arm.layout(), run, drive, observer, recorder) {
