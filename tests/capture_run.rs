@@ -266,11 +266,8 @@ fn momentum_across_the_event_and_the_target_welded_after() {
     // at the event is the state before it, so it is the event's momentum before
     let h = record.momentum(&arm, &traj.t, &traj.x);
     let at = &h[e.step * 6..e.step * 6 + 6];
-    for i in 0..6 {
-        assert!(
-            (at[i] - e.momentum_before[i]).abs() <= 1e-14 * scale,
-            "row momentum[{i}]"
-        );
+    for (i, (a, b)) in at.iter().zip(e.momentum_before).enumerate() {
+        assert!((a - b).abs() <= 1e-14 * scale, "row momentum[{i}]");
     }
     // the energy: the row at the event (arm and free target) less the event's loss is the
     // combined arm's energy just after (spring and motor energies are untouched by the impulse)
