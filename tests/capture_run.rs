@@ -347,3 +347,111 @@ fn tolerances_must_be_finite_and_positive() {
     assert!(failure.error.to_string().contains("CaptureWhen.speed"));
     assert!(traj.is_empty());
 }
+
+/// The built-in scenario: the handle would reach the EE at 5 s drifting at 2 cm/s, so the 1 cm
+/// tolerance is met 0.5 s before (the EE held by the PD barely moves), at a spin angle of about
+/// 2 deg/s × 0.5 s = 1 deg; the capture happens once.
+#[test]
+fn the_built_in_scenario_captures_once_half_a_second_early() {
+    let mut s = orbitflex::capture::capture_scenario().unwrap();
+    let steps = (6.0 / s.dt) as usize;
+    let mut wrenches = Wrenches::ZERO;
+    let mut drive = Drive::new(&mut s.controller, &mut wrenches);
+    let run = Run::new(&s.x0, s.dt, steps).recording_every(10);
+    let mut traj = Trajectory::reserved(s.arm.layout(), steps, 10).unwrap();
+    let capturing = CaptureRun {
+        target: &s.target,
+        when: s.when,
+        ee: None,
+    };
+    let record = simulate_capture_into(
+        &s.arm,
+        &run,
+        &mut drive,
+        &capturing,
+        &mut Unobserved,
+        &mut traj,
+    )
+    .unwrap();
+    assert_eq!(record.events.len(), 1);
+    let e = &record.events[0];
+    assert!((e.time - 4.5).abs() < 0.02, "{}", e.time);
+    assert!(
+        (e.approach.angle.to_degrees() - 1.0).abs() < 0.05,
+        "{}",
+        e.approach.angle
+    );
+    assert!(
+        (e.approach.speed - 0.02).abs() < 0.002,
+        "{}",
+        e.approach.speed
+    );
+    assert!(e.energy_loss > 0.0);
+}
+
+/// Runs with targets in a batch (dispersed tumble rates, on 2 threads) are the single runs, bit
+/// for bit: rows, target rows and events.
+#[test]
+fn a_batch_with_targets_equals_the_single_runs() {
+    use orbitflex::capture::{
+        capture_scenario_with, simulate_capture_batch, CaptureBatchSettings, CaptureCase,
+    };
+    use std::sync::atomic::{AtomicBool, AtomicUsize};
+    let scenarios: Vec<_> = [1.0, 2.0, 3.5]
+        .iter()
+        .map(|&rate| capture_scenario_with(rate, 0.02, 0.6).unwrap())
+        .collect();
+    let (dt, steps) = (scenarios[0].dt, 1000);
+    let cases: Vec<CaptureCase<'_>> = scenarios
+        .iter()
+        .map(|s| CaptureCase {
+            arm: &s.arm,
+            x0: &s.x0,
+            controller: &s.controller,
+            target: &s.target,
+        })
+        .collect();
+    let settings = CaptureBatchSettings {
+        dt,
+        steps,
+        record_every: 3,
+        when: scenarios[0].when,
+        ee: None,
+        threads: Some(2),
+    };
+    let outcomes = simulate_capture_batch(
+        &cases,
+        &settings,
+        &AtomicBool::new(false),
+        &AtomicUsize::new(0),
+    )
+    .unwrap();
+    for (s, outcome) in scenarios.iter().zip(&outcomes) {
+        assert!(outcome.error.is_none());
+        let mut pd = s.controller.clone();
+        let mut wrenches = Wrenches::ZERO;
+        let mut drive = Drive::new(&mut pd, &mut wrenches);
+        let mut traj = Trajectory::reserved(s.arm.layout(), steps, 3).unwrap();
+        let capturing = CaptureRun {
+            target: &s.target,
+            when: s.when,
+            ee: None,
+        };
+        let run = Run::new(&s.x0, dt, steps).recording_every(3);
+        let record = simulate_capture_into(
+            &s.arm,
+            &run,
+            &mut drive,
+            &capturing,
+            &mut Unobserved,
+            &mut traj,
+        )
+        .unwrap();
+        assert_eq!(record.events.len(), 1);
+        assert_eq!(outcome.trajectory.x, traj.x);
+        assert_eq!(outcome.trajectory.u, traj.u);
+        assert_eq!(outcome.record.target, record.target);
+        assert_eq!(outcome.record.events[0].step, record.events[0].step);
+        assert_eq!(outcome.record.events[0].x_after, record.events[0].x_after);
+    }
+}

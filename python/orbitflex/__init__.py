@@ -33,6 +33,8 @@ from ._core import (
     SPACE_ARM_URDF,
     BatchTrajectory,
     Capture,
+    CaptureEvent,
+    CaptureWhen,
     FlexibleArm,
     FlexibleJoints,
     LimitWarning,
@@ -52,6 +54,7 @@ from ._core import (
     rotation_angle,
     rotation_matrix,
     simulate_batch,
+    simulate_capture_batch,
 )
 from . import analysis, models
 
@@ -66,6 +69,7 @@ __all__ = [
     "Trajectory",
     "StabilityLimit",
     "simulate_batch",
+    "simulate_capture_batch",
     "BatchTrajectory",
     "Limits",
     "LimitWarning",
@@ -74,6 +78,8 @@ __all__ = [
     "Target",
     "capture",
     "Capture",
+    "CaptureWhen",
+    "CaptureEvent",
     "ModelError",
     "SimulationError",
     "models",

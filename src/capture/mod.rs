@@ -4,15 +4,19 @@
 //! its handle ([`simulate_capture_into`], [`CaptureWhen`]). The balance and why the motor rates do
 //! not jump are derived in [`capture`]'s module docs and in model §9.
 
+mod batch;
 mod impulse;
 mod run;
+pub mod scenario;
 mod target;
 mod when;
 
+pub use batch::{simulate_capture_batch, CaptureBatchSettings, CaptureCase, CaptureOutcome};
 pub use impulse::{capture, Capture};
 pub use run::{
     simulate_capture_into, CaptureEvent, CaptureFailure, CaptureRecord, CaptureRun, TargetMotion,
 };
+pub use scenario::{capture_scenario, capture_scenario_with, CaptureScenario};
 pub use target::{
     grasp_transform, rigid_body_derivative, rigid_body_momentum, Target,
     GRASP_QUATERNION_TOLERANCE, TARGET_STATE_LEN,

@@ -9,10 +9,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 pub const MAX_THREADS: usize = 1024;
 
 /// Runs `work` on a pool of `threads` threads (`None`: every core; at most [`MAX_THREADS`]).
-pub(super) fn in_pool<R: Send>(
-    threads: Option<usize>,
-    work: impl FnOnce() -> R + Send,
-) -> Result<R> {
+pub fn in_pool<R: Send>(threads: Option<usize>, work: impl FnOnce() -> R + Send) -> Result<R> {
     let threads = threads.unwrap_or_else(|| {
         std::thread::available_parallelism()
             .map(|n| n.get())
