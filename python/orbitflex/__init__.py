@@ -57,6 +57,7 @@ from ._core import (
     simulate_capture_batch,
 )
 from . import analysis, models
+from .detumble import detumble_metrics
 
 __all__ = [
     "rotation_matrix",
@@ -70,6 +71,7 @@ __all__ = [
     "StabilityLimit",
     "simulate_batch",
     "simulate_capture_batch",
+    "detumble_metrics",
     "BatchTrajectory",
     "Limits",
     "LimitWarning",
