@@ -842,8 +842,12 @@ def test_attitude_plot_states_the_sequence_and_the_total_rotation(figures):
     assert "z-y′-x″" in ax.get_title() and "Rz(yaw) · Ry(pitch) · Rx(roll)" in ax.get_title()
     total = [line for line in ax.get_lines() if line.get_label().startswith("total rotation")]
     assert len(total) == 1
-    q = traj.base_pose[:, 3:]
-    expected = np.degrees(2 * np.arccos(min(1.0, abs(q[0] @ q[-1]))))
+    q0, q1 = traj.base_pose[0, 3:], traj.base_pose[-1, 3:]
+    # the angle of q0* ⊗ q1 by atan2 (arccos(|q0 · q1|) is no reference here: at this 1e-4 rad
+    # its rounding, about eps / (θ/2)² relative, is near 1e-8, ten times the bound)
+    w = q0[3] * q1[3] + q0[:3] @ q1[:3]
+    v = q0[3] * q1[:3] - q1[3] * q0[:3] - np.cross(q0[:3], q1[:3])
+    expected = np.degrees(2 * np.arctan2(np.linalg.norm(v), abs(w)))
     assert total[0].get_ydata()[-1] == pytest.approx(expected, rel=1e-9, abs=1e-12)
 
 
