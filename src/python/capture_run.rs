@@ -15,7 +15,7 @@ use numpy::PyArray1;
 use pyo3::prelude::*;
 use pyo3::types::PyList;
 
-/// When a run captures its target (model §9.5): the end-effector within ``distance`` (m) of the
+/// When a run captures its target (model §9.6): the end-effector within ``distance`` (m) of the
 /// handle's origin, the EE origin moving relative to the target at at most ``speed`` (m/s), and
 /// the EE's axes within ``angle`` (rad) of the handle's. Each tolerance finite and > 0.
 ///
