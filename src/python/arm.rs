@@ -704,9 +704,11 @@ impl PyFlexibleArm {
         }
         let record = |traj| -> PyResult<PyTrajectory> {
             let traj = PyTrajectory::from_run(py, slf.clone().unbind(), traj)?;
-            Ok(match record {
-                Some(record) => traj.with_capture(CaptureInfo::new(py, slf, record)?),
-                None => traj,
+            Ok(match (record, &capturing) {
+                (Some(record), Some(c)) => {
+                    traj.with_capture(CaptureInfo::new(py, slf, record, &c.target)?)
+                }
+                _ => traj,
             })
         };
         match result {

@@ -263,6 +263,8 @@ pub(crate) struct CaptureInfo {
     pub events: Py<PyList>,
     pub target: Py<numpy::PyArray2<f64>>,
     pub arm_after: Option<Py<PyFlexibleArm>>,
+    /// The run's target at `t = 0`.
+    pub body: Py<PyTarget>,
 }
 
 impl CaptureInfo {
@@ -270,6 +272,7 @@ impl CaptureInfo {
         py: Python<'_>,
         arm: &Bound<'_, PyFlexibleArm>,
         record: CaptureRecord,
+        body: &Target,
     ) -> PyResult<Self> {
         let events = PyList::empty(py);
         for event in &record.events {
@@ -303,6 +306,12 @@ impl CaptureInfo {
             events: events.unbind(),
             target,
             arm_after,
+            body: Py::new(
+                py,
+                PyTarget {
+                    target: body.clone(),
+                },
+            )?,
         })
     }
 }
@@ -487,7 +496,12 @@ pub fn py_simulate_capture_batch<'py>(
             arms[k].clone().unbind(),
             outcome.trajectory,
         )?
-        .with_capture(CaptureInfo::new(py, &arms[k], outcome.record)?);
+        .with_capture(CaptureInfo::new(
+            py,
+            &arms[k],
+            outcome.record,
+            &targets[k].get().target,
+        )?);
         let traj = Py::new(py, traj)?;
         if let (None, Some(error)) = (&failure, outcome.error) {
             failure = Some((k, error, traj.clone_ref(py)));

@@ -232,6 +232,12 @@ impl PyTrajectory {
             None => pyo3::types::PyList::empty(py),
         }
     }
+    /// The run's :class:`Target` at ``t = 0`` (mass, inertia, handle) in a run with a target,
+    /// ``None`` otherwise.
+    #[getter]
+    fn target_body(&self, py: Python<'_>) -> Option<Py<super::capture::PyTarget>> {
+        self.capture.as_ref().map(|c| c.body.clone_ref(py))
+    }
     /// The combined arm (the target a payload of the EE) after a capture; ``None`` before or
     /// without one. The rows after the capture are states of this arm.
     #[getter]
