@@ -348,17 +348,17 @@ fn tolerances_must_be_finite_and_positive() {
     assert!(traj.is_empty());
 }
 
-/// The built-in scenario: the handle would reach the EE at 5 s drifting at 2 cm/s, so the 1 cm
-/// tolerance is met 0.5 s before (the EE held by the PD barely moves), at a spin angle of about
-/// 2 deg/s × 0.5 s = 1 deg; the capture happens once.
-#[test]
-fn the_built_in_scenario_captures_once_half_a_second_early() {
-    let mut s = orbitflex::capture::capture_scenario().unwrap();
-    let steps = (6.0 / s.dt) as usize;
+/// The scenario `s` run alone for `steps` steps, every `every`-th row kept.
+fn scenario_run(
+    s: &orbitflex::capture::CaptureScenario,
+    steps: usize,
+    every: usize,
+) -> (Trajectory, CaptureRecord) {
+    let mut pd = s.controller.clone();
     let mut wrenches = Wrenches::ZERO;
-    let mut drive = Drive::new(&mut s.controller, &mut wrenches);
-    let run = Run::new(&s.x0, s.dt, steps).recording_every(10);
-    let mut traj = Trajectory::reserved(s.arm.layout(), steps, 10).unwrap();
+    let mut drive = Drive::new(&mut pd, &mut wrenches);
+    let run = Run::new(&s.x0, s.dt, steps).recording_every(every);
+    let mut traj = Trajectory::reserved(s.arm.layout(), steps, every).unwrap();
     let capturing = CaptureRun {
         target: &s.target,
         when: s.when,
@@ -373,6 +373,16 @@ fn the_built_in_scenario_captures_once_half_a_second_early() {
         &mut traj,
     )
     .unwrap();
+    (traj, record)
+}
+
+/// The built-in scenario: the handle would reach the EE at 5 s drifting at 2 cm/s, so the 1 cm
+/// tolerance is met 0.5 s before (the EE held by the PD barely moves), at a spin angle of about
+/// 2 deg/s × 0.5 s = 1 deg; the capture happens once.
+#[test]
+fn the_built_in_scenario_captures_once_half_a_second_early() {
+    let s = orbitflex::capture::capture_scenario().unwrap();
+    let (_, record) = scenario_run(&s, (6.0 / s.dt) as usize, 10);
     assert_eq!(record.events.len(), 1);
     let e = &record.events[0];
     assert!((e.time - 4.5).abs() < 0.02, "{}", e.time);
@@ -428,25 +438,7 @@ fn a_batch_with_targets_equals_the_single_runs() {
     .unwrap();
     for (s, outcome) in scenarios.iter().zip(&outcomes) {
         assert!(outcome.error.is_none());
-        let mut pd = s.controller.clone();
-        let mut wrenches = Wrenches::ZERO;
-        let mut drive = Drive::new(&mut pd, &mut wrenches);
-        let mut traj = Trajectory::reserved(s.arm.layout(), steps, 3).unwrap();
-        let capturing = CaptureRun {
-            target: &s.target,
-            when: s.when,
-            ee: None,
-        };
-        let run = Run::new(&s.x0, dt, steps).recording_every(3);
-        let record = simulate_capture_into(
-            &s.arm,
-            &run,
-            &mut drive,
-            &capturing,
-            &mut Unobserved,
-            &mut traj,
-        )
-        .unwrap();
+        let (traj, record) = scenario_run(s, steps, 3);
         assert_eq!(record.events.len(), 1);
         assert_eq!(outcome.trajectory.x, traj.x);
         assert_eq!(outcome.trajectory.u, traj.u);

@@ -7,8 +7,8 @@ use super::when::CaptureWhen;
 use crate::control::{MotorPD, Wrenches};
 use crate::error::{Error, Result};
 use crate::flex::FlexibleArm;
-use crate::integrate::batch::in_pool;
-use crate::integrate::{Drive, Observer, Run, Trajectory};
+use crate::integrate::batch::{in_pool, Cancel};
+use crate::integrate::{Drive, Run, Trajectory};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 
@@ -53,18 +53,6 @@ pub struct CaptureBatchSettings {
     pub ee: Option<usize>,
     /// Worker threads.
     pub threads: Option<usize>,
-}
-
-/// Stops the runs still going once `cancel` is set (checked every 16 steps).
-struct Cancel<'a>(&'a AtomicBool);
-
-impl Observer for Cancel<'_> {
-    fn every(&self) -> usize {
-        16
-    }
-    fn observe(&mut self, _: usize, _: usize) -> bool {
-        !self.0.load(Ordering::Relaxed)
-    }
 }
 
 /// Runs every case over a pool of `settings.threads` threads, each as the single run

@@ -224,6 +224,14 @@ struct CaptureSteps<'a> {
 impl CaptureSteps<'_> {
     /// Captures at state `x` if the approach is within the tolerances; `x` jumps in place.
     fn trigger(&mut self, x: &mut [f64], k: usize, dt: f64) -> Result<()> {
+        // the distance first, from the states alone (no allocation): most steps stop here
+        let ee = self.arm.ee_pose(x, self.ee);
+        let g = self.target.grasp();
+        let handle = Vec3::new(self.state[0], self.state[1], self.state[2])
+            + quaternion_to_rotation(&self.state[3..7]) * Vec3::new(g[0], g[1], g[2]);
+        if (handle - Vec3::new(ee[0], ee[1], ee[2])).norm() > self.when.distance {
+            return Ok(());
+        }
         let target = self.target.at_state(&self.state)?;
         let approach = Approach::measure(self.arm, &mut self.data, x, &target, self.ee);
         if !self.when.is_met(&approach) {

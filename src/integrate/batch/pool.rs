@@ -46,7 +46,8 @@ pub(super) fn interrupted(cancel: &AtomicBool, what: &str) -> Result<()> {
 }
 
 /// Stops a run when the batch is cancelled.
-pub(super) struct Cancel<'a>(pub(super) &'a AtomicBool);
+/// An observer that stops a run once its flag is set (checked every 16 steps).
+pub struct Cancel<'a>(pub &'a AtomicBool);
 
 impl Observer for Cancel<'_> {
     /// An atomic load every few steps, so that a run of a large model (a millisecond a step)
