@@ -33,6 +33,8 @@ from ._core import (
     SPACE_ARM_URDF,
     BatchTrajectory,
     Capture,
+    CaptureEvent,
+    CaptureWhen,
     FlexibleArm,
     FlexibleJoints,
     LimitWarning,
@@ -53,8 +55,10 @@ from ._core import (
     rotation_angle,
     rotation_matrix,
     simulate_batch,
+    simulate_capture_batch,
 )
 from . import analysis, models
+from .detumble import detumble_metrics
 
 __all__ = [
     "rotation_matrix",
@@ -68,6 +72,8 @@ __all__ = [
     "Simulator",
     "StabilityLimit",
     "simulate_batch",
+    "simulate_capture_batch",
+    "detumble_metrics",
     "BatchTrajectory",
     "Limits",
     "LimitWarning",
@@ -76,6 +82,8 @@ __all__ = [
     "Target",
     "capture",
     "Capture",
+    "CaptureWhen",
+    "CaptureEvent",
     "ModelError",
     "SimulationError",
     "models",
