@@ -30,7 +30,8 @@ pub use args::{Loads, RigidState};
 pub use dynamics::Method;
 pub use error::{Error, Result};
 pub use flex::{
-    ArmWorkspace, FlexibleArm, FlexibleJoints, Inputs, MotorGains, StateLayout, StateSpec,
+    ArmWorkspace, FlexibleArm, FlexibleJoints, Inputs, MotorGains, ReactionWheels, StateLayout,
+    StateSpec, Wheel,
 };
 pub use integrate::{Controller, MotorPD, Schedule, SimulationFailure, Trajectory, Wrenches};
 pub use model::{

@@ -14,7 +14,8 @@
 //! - [`arm`]: [`FlexibleArm`], its derivative, energy, momentum and EE pose;
 //! - [`jacobians`]: the Jacobians of the derivative and of one RK4 step, in tangent coordinates;
 //! - [`gains`]: motor PD gains from a bandwidth and a damping ratio;
-//! - [`stability`]: the closed-loop RK4 step limit.
+//! - [`stability`]: the closed-loop RK4 step limit;
+//! - [`wheels`]: reaction wheels on the bus ([`ReactionWheels`]), their equations and limits.
 
 pub mod arm;
 pub mod gains;
@@ -22,6 +23,7 @@ pub mod jacobians;
 pub mod joints;
 pub mod stability;
 pub mod state;
+pub mod wheels;
 
 pub use arm::{ArmWorkspace, FlexibleArm, Inputs, StateSpec};
 pub use gains::MotorGains;
@@ -32,3 +34,4 @@ pub use state::{
     normalise_quaternion, quaternion_exp, quaternion_log, quaternion_product, quaternion_rate,
     StateLayout, StateParts,
 };
+pub use wheels::{saturated_torque, ReactionWheels, Wheel};

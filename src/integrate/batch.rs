@@ -43,6 +43,7 @@
 //!     u: BatchControl::Open(BatchInput::new("u", &u, &[3, 7], 3, Some(100), 7)?),
 //!     base_wrench: BatchInput::zero(6),
 //!     ee_wrench: BatchInput::zero(6),
+//!     wheel_torque: BatchInput::zero(0),
 //! };
 //! let settings = BatchSettings { dt: 1e-3, steps: 100, record_every: 10, keep_rows: true, threads: Some(2) };
 //! let record = simulate_batch(&batch, &settings, &BatchWatch::default())?;
@@ -261,6 +262,9 @@ pub struct Batch<'a> {
     pub base_wrench: BatchInput<'a>,
     /// `f` (EE frame, exerted by the EE on its environment), width 6.
     pub ee_wrench: BatchInput<'a>,
+    /// Reaction-wheel torque commands (N·m), width `k` (every arm must have `k` wheels); zero
+    /// for arms without wheels.
+    pub wheel_torque: BatchInput<'a>,
 }
 
 /// How a batch runs.
@@ -356,7 +360,7 @@ impl BatchRecord {
         if self.rows == 0 || run >= self.runs {
             return None;
         }
-        let (len, n) = (self.layout.len(), self.layout.n);
+        let (len, n) = (self.layout.len(), self.layout.inputs_len());
         let record = RunRecord {
             layout: self.layout,
             record_every: self.record_every,
@@ -381,7 +385,7 @@ pub struct RunRecord<'a> {
     pub t: &'a [f64],
     /// The run's rows, `(rows, 13 + 4n)`.
     pub x: &'a [f64],
-    /// The run's inputs, `(rows − 1, n)`.
+    /// The run's inputs, `(rows − 1, n + k)`: motor torques, then applied wheel torques.
     pub u: &'a [f64],
     /// Its final state.
     pub final_state: &'a [f64],
@@ -395,7 +399,11 @@ impl RunRecord<'_> {
     /// [`SimulationFailure`](super::SimulationFailure): the rows kept up to the failing step,
     /// ending on the last good state.
     pub fn to_trajectory(&self) -> Trajectory {
-        let (len, n, every) = (self.layout.len(), self.layout.n, self.record_every);
+        let (len, n, every) = (
+            self.layout.len(),
+            self.layout.inputs_len(),
+            self.record_every,
+        );
         let mut traj = Trajectory::empty(self.layout);
         match self.status {
             RunStatus::Finished => {
@@ -457,6 +465,7 @@ impl<'a> Batch<'a> {
             wrenches: Wrenches {
                 base: self.base_wrench.schedule(run, steps),
                 ee: self.ee_wrench.schedule(run, steps),
+                wheel_torque: self.wheel_torque.schedule(run, steps),
             },
         }
     }
@@ -535,6 +544,20 @@ impl<'a> Batch<'a> {
             }
         }
         let width = self.arms.get(0).layout().len();
+        let wheels = self.arms.get(0).layout().wheels;
+        if let PerRun::Each(arms) = &self.arms {
+            if let Some((run, arm)) = arms
+                .iter()
+                .enumerate()
+                .find(|(_, a)| a.layout().wheels != wheels)
+            {
+                return Err(Error::Dimension {
+                    what: format!("arms[{run}]"),
+                    expected: format!("an arm with {wheels} reaction wheels (as run 0's)"),
+                    given: format!("one with {}", arm.layout().wheels),
+                });
+            }
+        }
         for (what, input, w) in [
             ("x0s", &self.x0, width),
             ("base_wrench", &self.base_wrench, 6),
@@ -543,6 +566,7 @@ impl<'a> Batch<'a> {
                 &self.ee_wrench,
                 6 * self.arms.get(0).robot().end_effectors().len(),
             ),
+            ("wheel_torque", &self.wheel_torque, wheels),
         ] {
             input.check(what, w, self.runs, settings.steps)?;
         }
@@ -764,10 +788,10 @@ pub fn simulate_batch(
     } else {
         0
     };
-    let (len, n) = (layout.len(), layout.n);
+    let (len, n, inputs) = (layout.len(), layout.n, layout.inputs_len());
     let numbers = rows
         .checked_mul(len)
-        .and_then(|x| x.checked_add(rows.saturating_sub(1).checked_mul(n)?))
+        .and_then(|x| x.checked_add(rows.saturating_sub(1).checked_mul(inputs)?))
         .and_then(|per_run| per_run.checked_add(len + 2 * n))
         .and_then(|per_run| per_run.checked_mul(runs));
     let bytes = numbers.and_then(|v| v.checked_mul(8));
@@ -786,13 +810,13 @@ pub fn simulate_batch(
         _ => {}
     }
     let mut x = buffer(runs * rows * len, f64::NAN, &too_big)?;
-    let mut u = buffer(runs * rows.saturating_sub(1) * n, f64::NAN, &too_big)?;
+    let mut u = buffer(runs * rows.saturating_sub(1) * inputs, f64::NAN, &too_big)?;
     let mut final_state = buffer(runs * len, f64::NAN, &too_big)?;
     let mut peak_deflection = buffer(runs * n, 0.0, &too_big)?;
     let mut peak_torque = buffer(runs * n, 0.0, &too_big)?;
     let slots: Vec<Slot<'_>> = per_run(&mut x, runs, rows * len)
         .into_iter()
-        .zip(per_run(&mut u, runs, rows.saturating_sub(1) * n))
+        .zip(per_run(&mut u, runs, rows.saturating_sub(1) * inputs))
         .zip(per_run(&mut final_state, runs, len))
         .zip(per_run(&mut peak_deflection, runs, n))
         .zip(per_run(&mut peak_torque, runs, n))
@@ -980,6 +1004,7 @@ mod tests {
             u: BatchControl::Open(BatchInput::zero(7)),
             base_wrench: BatchInput::zero(6),
             ee_wrench: BatchInput::zero(6),
+            wheel_torque: BatchInput::zero(0),
         };
         let settings = BatchSettings {
             dt: 1e-3,

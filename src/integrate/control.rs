@@ -218,7 +218,7 @@ impl Controller for MotorPD {
     fn torque(&mut self, step: usize, _t: f64, x: &[f64], u: &mut [f64]) -> Result<()> {
         self.check_run(u.len(), step + 1)?;
         let n = self.n;
-        let layout = StateLayout { n };
+        let layout = StateLayout::new(n);
         crate::args::check_length("x (state)", x.len(), layout.len())?;
         let s = layout.split(x);
         let (reference, rest) = self.scratch.split_at_mut(n);

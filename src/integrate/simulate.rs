@@ -16,13 +16,17 @@ use crate::spatial::Force;
 /// `f_B` (width 6, base frame, applied to the base by its actuators) and `ee` is
 /// `[f_1; …; f_k]` (width 6k, one wrench per end-effector in
 /// [`crate::Robot::ee_links`] order, each in its EE frame, exerted by the end-effector on its
-/// environment; width 6 on a chain).
+/// environment; width 6 on a chain); and the torques commanded to the bus's reaction wheels
+/// (width k, [`crate::flex::ReactionWheels`]; zero on an arm without wheels), saturated once
+/// per step.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Wrenches {
     /// `f_B` per step.
     pub base: Schedule,
     /// `[f_1; …; f_k]` per step.
     pub ee: Schedule,
+    /// Reaction-wheel torque commands per step (N·m).
+    pub wheel_torque: Schedule,
 }
 
 impl Default for Wrenches {
@@ -36,6 +40,7 @@ impl Wrenches {
     pub const ZERO: Wrenches = Wrenches {
         base: Schedule::Zero,
         ee: Schedule::Zero,
+        wheel_torque: Schedule::Zero,
     };
 
     /// Checks both schedules for `robot`: widths 6 and 6k, a table of exactly `steps` rows,
@@ -141,8 +146,17 @@ pub fn step(
     check_dt(dt)?;
     crate::algorithms::check_data(arm.robot(), &ws.data)?;
     arm.check_state(x)?;
-    inputs.check(arm.robot())?;
-    step_unchecked(arm, ws, x, dt, inputs)?;
+    arm.check_inputs(inputs)?;
+    // the wheel torques are saturated once, at the start of the step, and held over it
+    let mut applied = std::mem::take(&mut ws.wheel_torque);
+    arm.saturate_wheels(x, inputs, &mut applied);
+    let held = Inputs {
+        wheel_torque: &applied,
+        ..*inputs
+    };
+    let outcome = step_unchecked(arm, ws, x, dt, &held);
+    ws.wheel_torque = applied;
+    outcome?;
     match state_defect(&arm.layout(), x) {
         Some(defect) => Err(Error::Simulation {
             step: 0,
@@ -195,7 +209,26 @@ pub fn check_run(
         other => other,
     })?;
     wrenches.check(arm.robot(), steps)?;
+    check_wheel_torque(arm, &wrenches.wheel_torque, steps)?;
     u.check_run(arm.dof(), steps)
+}
+
+/// Checks a run's wheel-torque schedule: width `k` and `steps` rows on an arm with `k` wheels,
+/// zero on an arm without.
+pub(crate) fn check_wheel_torque(
+    arm: &FlexibleArm,
+    schedule: &Schedule,
+    steps: usize,
+) -> Result<()> {
+    match (arm.wheels(), schedule) {
+        (Some(wheels), _) => schedule.check("wheel_torque", wheels.len(), Some(steps)),
+        (None, Schedule::Zero) => Ok(()),
+        (None, _) => Err(Error::InvalidArgument {
+            what: "wheel_torque".into(),
+            message: "the arm has no reaction wheels; give none (or build the arm with wheels)"
+                .into(),
+        }),
+    }
 }
 
 /// The warning [`simulate`] gives before it starts when `dt` is past the closed-loop RK4
@@ -333,7 +366,9 @@ fn run_checked(
     } else {
         Vec::new()
     };
-    let mut torque = vec![0.0; layout.n];
+    // the held inputs of a step: the motor torques (n), then the wheel torques applied (k)
+    let mut torque = vec![0.0; layout.inputs_len()];
+    let mut wheel_command = vec![0.0; layout.wheels];
     let mut ee_row = vec![0.0; 6 * arm.robot().end_effectors().len()];
     let every = observer.every();
     for k in 0..steps {
@@ -361,6 +396,7 @@ fn run_checked(
                 wrenches,
                 &mut torque,
                 &mut ee_row,
+                &mut wheel_command,
             )
             .map_err(stop)
         };
@@ -383,8 +419,9 @@ fn run_checked(
     recorder.finish().map_err(|e| recording(steps, e))
 }
 
-/// Step `k` of a run: the controller's torque into `torque`, checked, then the RK4 step of `x`,
-/// checked; the message of what went wrong otherwise.
+/// Step `k` of a run: the controller's torque into `torque[..n]`, checked, the wheel torques
+/// applied into `torque[n..]` (saturated at `x`), then the RK4 step of `x`, checked; the message
+/// of what went wrong otherwise.
 #[allow(clippy::too_many_arguments)]
 #[inline]
 fn run_step(
@@ -398,13 +435,24 @@ fn run_step(
     wrenches: &Wrenches,
     torque: &mut [f64],
     ee_row: &mut [f64],
+    wheel_command: &mut [f64],
 ) -> std::result::Result<(), String> {
+    let (torque, applied) = torque.split_at_mut(arm.dof());
     u.torque(k, t, x, torque)
         .map_err(|e| format!("the controller failed: {e}"))?;
     check_finite("u", torque).map_err(|e| format!("the controller returned {e}"))?;
+    if !wheel_command.is_empty() {
+        wrenches.wheel_torque.write(k, wheel_command);
+        let commands = Inputs {
+            wheel_torque: wheel_command,
+            ..Inputs::torques(torque)
+        };
+        arm.saturate_wheels(x, &commands, applied);
+    }
     let inputs = Inputs {
         u: torque,
         loads: wrenches.loads(k, ee_row),
+        wheel_torque: applied,
     };
     step_unchecked(arm, ws, x, dt, &inputs).map_err(|e| {
         format!(

@@ -38,6 +38,7 @@ mod robot;
 mod run;
 mod stability;
 mod trajectory;
+mod wheels;
 mod workspaces;
 
 use pyo3::prelude::*;
@@ -56,6 +57,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<joints::PyFlexibleJoints>()?;
     m.add_class::<control::PyMotorPD>()?;
     m.add_class::<arm::PyFlexibleArm>()?;
+    m.add_class::<wheels::PyReactionWheels>()?;
     m.add_class::<trajectory::PyTrajectory>()?;
     m.add_class::<stability::PyStabilityLimit>()?;
     m.add_class::<plan::PyLimits>()?;

@@ -241,7 +241,7 @@ pub(crate) fn deliver(
         let layout = chunk.layout;
         let t = PyArray1::from_slice(py, chunk.t);
         let x = row_major(py, chunk.len(), layout.len(), chunk.x.to_vec());
-        let u = row_major(py, chunk.inputs, layout.n, chunk.u.to_vec());
+        let u = row_major(py, chunk.inputs, layout.inputs_len(), chunk.u.to_vec());
         callback.call1(py, (t, x, u)).map(drop)
     })
     .map_err(|e| {
