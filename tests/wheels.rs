@@ -820,3 +820,28 @@ fn robot_urdf_round_trips() {
         }
     }
 }
+
+/// Planning with wheels comes with phase 2: until then a clear error, not a plan that ignores
+/// them.
+#[test]
+fn planning_refuses_an_arm_with_wheels_for_now() {
+    let arm = FlexibleArm::new(Robot::space_arm(), FlexibleJoints::space_arm())
+        .unwrap()
+        .with_wheels(pyramid())
+        .unwrap();
+    let limits = orbitflex::Limits::from_robot(arm.robot(), None, None).unwrap();
+    let e = orbitflex::plan_slew(
+        &arm,
+        &[0.1; 7],
+        None,
+        &limits,
+        orbitflex::BaseMode::Held,
+        &[],
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(
+        e.starts_with("plan_slew: not available yet for an arm with reaction wheels"),
+        "{e}"
+    );
+}

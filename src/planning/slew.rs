@@ -489,6 +489,14 @@ pub fn plan_slew_watched(
     waypoints: &[Vec<f64>],
     cancel: &AtomicBool,
 ) -> Result<Plan> {
+    if arm.wheels().is_some() {
+        return Err(Error::InvalidArgument {
+            what: "plan_slew".into(),
+            message: "not available yet for an arm with reaction wheels; plan with the arm \
+                      without them (the plan's held-base wrench is what the wheels must deliver)"
+                .into(),
+        });
+    }
     let n = arm.dof();
     let limits = limits.for_joints(n)?;
     if base == BaseMode::Free && (limits.base_force.is_some() || limits.base_torque.is_some()) {
