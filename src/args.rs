@@ -213,7 +213,11 @@ pub fn check_finite(what: &str, values: &[f64]) -> Result<()> {
 /// of non-zero norm (it is normalised where it is used).
 pub fn check_base_pose(base_pose: &[f64]) -> Result<()> {
     check_vector("base_pose", base_pose, 7)?;
-    let norm = base_pose[3..7].iter().map(|v| v * v).sum::<f64>().sqrt();
+    let norm = base_pose[crate::spatial::POSE_QUATERNION]
+        .iter()
+        .map(|v| v * v)
+        .sum::<f64>()
+        .sqrt();
     if !norm.is_finite() {
         return Err(Error::InvalidArgument {
             what: "base_pose".into(),
@@ -313,4 +317,40 @@ pub fn check_dt(dt: f64) -> Result<()> {
         });
     }
     Ok(())
+}
+
+/// The domain of a parameter.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Domain {
+    /// `> 0`
+    Positive,
+    /// `≥ 0`
+    NonNegative,
+}
+
+impl Domain {
+    pub(crate) fn contains(self, v: f64) -> bool {
+        match self {
+            Domain::Positive => v > 0.0,
+            Domain::NonNegative => v >= 0.0,
+        }
+    }
+    pub(crate) fn describe(self) -> &'static str {
+        match self {
+            Domain::Positive => "> 0",
+            Domain::NonNegative => ">= 0",
+        }
+    }
+}
+
+/// Checks `n` finite values in `domain`; errors name the element, e.g. `stiffness[2]`.
+pub(crate) fn check_parameter(what: &str, values: &[f64], n: usize, domain: Domain) -> Result<()> {
+    check_vector(what, values, n)?;
+    match values.iter().position(|&v| !domain.contains(v)) {
+        Some(i) => Err(Error::InvalidArgument {
+            what: format!("{what}[{i}]"),
+            message: format!("expected {}, given {}", domain.describe(), values[i]),
+        }),
+        None => Ok(()),
+    }
 }

@@ -217,7 +217,7 @@ pub(crate) fn inverse_inputs<'a>(
 /// inertial axes, given the base pose `[r_B; quat_B]` (model §1, §6.1): `L = R_B h_lin`,
 /// `K = R_B h_ang + r_B × L`. Returns `[K; L]`.
 pub fn momentum_in_inertial_frame(base_pose: &[f64], h_base: &Force) -> [f64; 6] {
-    let r = quaternion_to_rotation(&base_pose[3..7]);
+    let r = quaternion_to_rotation(&base_pose[crate::spatial::POSE_QUATERNION]);
     let position = Vec3::new(base_pose[0], base_pose[1], base_pose[2]);
     let linear = r * h_base.linear;
     let angular = r * h_base.angular + position.cross(&linear);

@@ -10,6 +10,7 @@
 pub mod algorithms;
 pub mod analysis;
 pub mod args;
+pub mod control;
 pub mod dynamics;
 pub mod error;
 pub mod flex;
@@ -22,18 +23,20 @@ pub(crate) mod overflow;
 pub mod planning;
 mod simd;
 pub mod spatial;
+pub mod state;
 #[doc(hidden)]
 pub mod testing;
 
 pub use algorithms::Data;
 pub use args::{Loads, RigidState};
+pub use control::{Controller, MotorPD, Schedule, Wrenches};
 pub use dynamics::Method;
 pub use error::{Error, Result};
 pub use flex::{
-    ArmWorkspace, FlexibleArm, FlexibleJoints, Inputs, MotorGains, ReactionWheels, StateLayout,
+    FlexibleArm, FlexibleJoints, Inputs, ModelWorkspace, MotorGains, ReactionWheels, StateLayout,
     StateSpec, Wheel,
 };
-pub use integrate::{Controller, MotorPD, Schedule, SimulationFailure, Trajectory, Wrenches};
+pub use integrate::{ArmWorkspace, SimulationFailure, Trajectory};
 pub use model::{
     check_mesh_bytes, check_mesh_file, EndEffector, Geometry, JointLimits, JointModel, LinkFrame,
     MeshFormat, MeshSearch, Robot, RobotBuilder, Scene, Shape, UrdfOptions, Visual, DUAL_ARM_URDF,
@@ -42,7 +45,11 @@ pub use model::{
 pub use operators::Operators;
 pub use planning::{plan_slew, BaseMode, FlexibleInverse, Limits, LinkMotion, Plan};
 
+// The bindings' functions take one parameter per Python keyword argument: their signatures are
+// the Python API's, fixed by it, so the lint on long parameter lists is off for them (and only
+// for them: everything they call takes its arguments as values, `Run`, `Drive`, `Batch`, …).
 #[cfg(feature = "python")]
+#[allow(clippy::too_many_arguments)]
 mod python;
 
 #[doc = include_str!("../docs/model.md")]

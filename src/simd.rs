@@ -17,6 +17,7 @@ macro_rules! dispatch {
         #[cfg(target_arch = "x86_64")]
         {
             #[target_feature(enable = "avx2")]
+            // the kernel's own parameters, whatever their number
             #[allow(clippy::too_many_arguments)]
             unsafe fn avx2($($arg: $ty),*) $(-> $ret)? {
                 $kernel($($arg),*)

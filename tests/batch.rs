@@ -5,7 +5,7 @@ use orbitflex::integrate::batch::{
     simulate_batch, Batch, BatchControl, BatchInput, BatchRecord, BatchSettings, BatchWatch,
     PerRun, RunStatus,
 };
-use orbitflex::integrate::{is_recorded, Controller, Schedule, Wrenches};
+use orbitflex::integrate::{is_recorded, Controller, Drive, Run, Schedule, Wrenches};
 use orbitflex::testing::random_chain;
 use orbitflex::{Error, FlexibleArm, FlexibleJoints, MotorPD, Trajectory};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -88,11 +88,8 @@ impl Observed for FlexibleArm {
     ) -> Result<Trajectory, Trajectory> {
         orbitflex::integrate::simulate(
             self,
-            x0,
-            dt,
-            steps,
-            u,
-            wrenches,
+            &Run::new(x0, dt, steps),
+            &mut Drive::new(u, &mut wrenches.clone()),
             &mut orbitflex::integrate::Unobserved,
         )
         .map_err(|f| f.trajectory)
@@ -164,12 +161,8 @@ fn assert_run_record(
     let mut traj = Trajectory::empty(arm.layout());
     let outcome = orbitflex::integrate::simulate_into(
         arm,
-        x0,
-        DT,
-        STEPS,
-        every,
-        u,
-        wrenches,
+        &Run::new(x0, DT, STEPS).recording_every(every),
+        &mut Drive::new(u, &mut wrenches.clone()),
         &mut orbitflex::integrate::Unobserved,
         &mut traj,
     );

@@ -142,7 +142,7 @@ fn ee_pose_by_hand() {
 fn times_and_controller_calls() {
     struct Recorder(Vec<(usize, f64, f64)>);
     impl Controller for Recorder {
-        fn torque(
+        fn output(
             &mut self,
             step: usize,
             t: f64,
@@ -263,7 +263,7 @@ fn stability_limits_pinned() {
     // a controller whose feedback is unknown is analysed open loop, and says so
     struct Opaque;
     impl Controller for Opaque {
-        fn torque(&mut self, _: usize, _: f64, _: &[f64], _: &mut [f64]) -> orbitflex::Result<()> {
+        fn output(&mut self, _: usize, _: f64, _: &[f64], _: &mut [f64]) -> orbitflex::Result<()> {
             Ok(())
         }
     }
@@ -396,7 +396,9 @@ fn input_checks_say_what_is_wrong() {
     let arm = one_link_arm();
     let x = moving(&arm);
     let run = |dt: f64, wrenches: &Wrenches| {
-        integrate::check_run(&arm, &x, dt, 5, &Schedule::Zero, wrenches)
+        let mut u = Schedule::Zero;
+        integrate::Run::new(&x, dt, 5)
+            .check(&arm, &integrate::Drive::new(&mut u, &mut wrenches.clone()))
     };
     check(
         run(0.0, &Wrenches::ZERO),
@@ -414,7 +416,10 @@ fn input_checks_say_what_is_wrong() {
         "base_wrench: expected length 6, given length 5",
     );
     check(
-        integrate::check_run(&arm, &x[..5], 1e-3, 5, &Schedule::Zero, &Wrenches::ZERO),
+        integrate::Run::new(&x[..5], 1e-3, 5).check(
+            &arm,
+            &integrate::Drive::new(&mut Schedule::Zero, &mut Wrenches::default()),
+        ),
         "x0: expected length 17, given length 5",
     );
 }

@@ -5,7 +5,9 @@
 
 use orbitflex::flex::{normalise_quaternion, quaternion_log, reflected_inertia, StateLayout};
 use orbitflex::integrate::simulate::record_bytes;
-use orbitflex::integrate::{simulate, stability_warning, Observer, StateRows, Unobserved};
+use orbitflex::integrate::{
+    simulate, stability_warning, Drive, Observer, Run, StateRows, Unobserved,
+};
 use orbitflex::testing::random_chain;
 use orbitflex::{
     Controller, Error, FlexibleArm, FlexibleJoints, Inputs, Method, MotorPD, Robot, Schedule,
@@ -263,9 +265,9 @@ fn schedule_torque_refuses_a_step_past_its_table() {
         width: 1,
     };
     let mut u = [0.0];
-    table.torque(1, 0.0, &[], &mut u).unwrap();
+    table.output(1, 0.0, &[], &mut u).unwrap();
     assert_eq!(u, [2.0]);
-    match table.torque(2, 0.0, &[], &mut u) {
+    match table.output(2, 0.0, &[], &mut u) {
         Err(Error::Dimension { what, given, .. }) => {
             assert_eq!(what, "u");
             assert_eq!(given, "2 rows");
@@ -276,16 +278,20 @@ fn schedule_torque_refuses_a_step_past_its_table() {
 
 #[test]
 fn schedule_check_run_checks_width_rows_and_values() {
-    assert!(Schedule::Constant(vec![1.0; 3]).check_run(2, 5).is_err());
-    assert!(Schedule::Constant(vec![1.0; 2]).check_run(2, 5).is_ok());
+    assert!(Schedule::Constant(vec![1.0; 3])
+        .check_run("u", 2, 5)
+        .is_err());
+    assert!(Schedule::Constant(vec![1.0; 2])
+        .check_run("u", 2, 5)
+        .is_ok());
     let table = |rows: usize, value: f64| Schedule::Table {
         values: vec![value; 2 * rows],
         width: 2,
     };
-    assert!(table(4, 1.0).check_run(2, 5).is_err());
-    assert!(table(6, 1.0).check_run(2, 5).is_err());
-    assert!(table(5, f64::NAN).check_run(2, 5).is_err());
-    assert!(table(5, 1.0).check_run(2, 5).is_ok());
+    assert!(table(4, 1.0).check_run("u", 2, 5).is_err());
+    assert!(table(6, 1.0).check_run("u", 2, 5).is_err());
+    assert!(table(5, f64::NAN).check_run("u", 2, 5).is_err());
+    assert!(table(5, 1.0).check_run("u", 2, 5).is_ok());
 }
 
 #[test]
@@ -306,10 +312,10 @@ fn motor_pd_reports_its_joints_and_refuses_a_step_past_its_table() {
     let x = vec![0.0; StateLayout::new(3).len()];
     let mut u = [0.0; 3];
     // θ = 0: u = 2 θ_ref of row 1
-    pd.torque(1, 0.0, &x, &mut u).unwrap();
+    pd.output(1, 0.0, &x, &mut u).unwrap();
     assert_eq!(u, [1.0, 1.0, 1.0]);
     assert!(matches!(
-        pd.torque(2, 0.0, &x, &mut u),
+        pd.output(2, 0.0, &x, &mut u),
         Err(Error::Dimension { .. })
     ));
 }
@@ -432,11 +438,8 @@ fn simulate_asks_the_observer_before_every_nth_step_but_the_first() {
     };
     let traj = simulate(
         &arm,
-        &x0,
-        1e-3,
-        10,
-        &mut Schedule::Zero,
-        &Wrenches::ZERO,
+        &Run::new(&x0, 1e-3, 10),
+        &mut Drive::new(&mut Schedule::Zero, &mut Wrenches::default()),
         &mut observer,
     )
     .unwrap();
@@ -450,11 +453,8 @@ fn simulate_asks_the_observer_before_every_nth_step_but_the_first() {
     };
     let traj = simulate(
         &arm,
-        &x0,
-        1e-3,
-        4,
-        &mut Schedule::Zero,
-        &Wrenches::ZERO,
+        &Run::new(&x0, 1e-3, 4),
+        &mut Drive::new(&mut Schedule::Zero, &mut Wrenches::default()),
         &mut never,
     )
     .unwrap();
@@ -472,11 +472,8 @@ fn simulate_stops_when_the_observer_says_so() {
     };
     let failure = simulate(
         &arm,
-        &arm.rest_state(),
-        1e-3,
-        10,
-        &mut Schedule::Zero,
-        &Wrenches::ZERO,
+        &Run::new(&arm.rest_state(), 1e-3, 10),
+        &mut Drive::new(&mut Schedule::Zero, &mut Wrenches::default()),
         &mut observer,
     )
     .unwrap_err();
@@ -510,11 +507,8 @@ fn simulate_allocates_the_record_once_and_exactly() {
     // doubling and go unnoticed)
     let traj = simulate(
         &arm,
-        &arm.rest_state(),
-        1e-3,
-        9,
-        &mut Schedule::Zero,
-        &Wrenches::ZERO,
+        &Run::new(&arm.rest_state(), 1e-3, 9),
+        &mut Drive::new(&mut Schedule::Zero, &mut Wrenches::default()),
         &mut Unobserved,
     )
     .unwrap();
@@ -530,11 +524,8 @@ fn simulate_refuses_a_record_that_overflows() {
     let arm = two_joint_arm();
     let failure = simulate(
         &arm,
-        &arm.rest_state(),
-        1e-3,
-        usize::MAX,
-        &mut Schedule::Zero,
-        &Wrenches::ZERO,
+        &Run::new(&arm.rest_state(), 1e-3, usize::MAX),
+        &mut Drive::new(&mut Schedule::Zero, &mut Wrenches::default()),
         &mut Unobserved,
     )
     .unwrap_err();
@@ -549,7 +540,7 @@ fn simulate_refuses_a_record_that_overflows() {
 struct Failing;
 
 impl Controller for Failing {
-    fn torque(&mut self, _: usize, _: f64, _: &[f64], _: &mut [f64]) -> orbitflex::Result<()> {
+    fn output(&mut self, _: usize, _: f64, _: &[f64], _: &mut [f64]) -> orbitflex::Result<()> {
         Err(Error::InvalidArgument {
             what: "u".into(),
             message: "failing on purpose".into(),
@@ -570,11 +561,8 @@ fn simulate_refuses_a_record_larger_than_the_available_memory() {
     assert!(record_bytes(arm.layout(), steps).unwrap() as u64 > available);
     let failure = simulate(
         &arm,
-        &arm.rest_state(),
-        1e-3,
-        steps,
-        &mut Failing,
-        &Wrenches::ZERO,
+        &Run::new(&arm.rest_state(), 1e-3, steps),
+        &mut Drive::new(&mut Failing, &mut Wrenches::default()),
         &mut Unobserved,
     )
     .unwrap_err();

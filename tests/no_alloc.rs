@@ -1,7 +1,7 @@
 //! The hot paths allocate nothing per call: counted with a global allocator.
 
 use orbitflex::algorithms::{self, Data};
-use orbitflex::integrate::{simulate_into, Chunks, Unobserved};
+use orbitflex::integrate::{simulate_into, Chunks, Drive, Run, Unobserved};
 use orbitflex::testing::{random_chain, random_state};
 use orbitflex::{
     ArmWorkspace, FlexibleArm, FlexibleJoints, Inputs, Loads, MotorPD, RigidState, Schedule,
@@ -196,7 +196,7 @@ fn hot_paths_do_not_allocate() {
     // Streaming into a reused chunk buffer: the run's own few allocations (workspace, state,
     // torque and last-good-state buffers), none per step or per chunk; the buffer, made once,
     // is not counted.
-    let wrenches = Wrenches {
+    let mut wrenches = Wrenches {
         base: Schedule::Zero,
         ee: Schedule::Constant(w.to_vec()),
         wheel_torque: orbitflex::Schedule::Zero,
@@ -212,12 +212,8 @@ fn hot_paths_do_not_allocate() {
         allocations(|| {
             simulate_into(
                 &arm,
-                &x,
-                1e-4,
-                steps,
-                every,
-                &mut pd,
-                &wrenches,
+                &Run::new(&x, 1e-4, steps).recording_every(every),
+                &mut Drive::new(&mut pd, &mut wrenches),
                 &mut Unobserved,
                 &mut sink,
             )

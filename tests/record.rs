@@ -2,7 +2,8 @@
 //! success and on failure, in memory and in chunks.
 
 use orbitflex::integrate::{
-    is_recorded, recorded_rows, simulate_into, Chunks, Controller, Observer, Recorder, Unobserved,
+    is_recorded, recorded_rows, simulate_into, Chunks, Controller, Drive, Observer, Recorder, Run,
+    Unobserved,
 };
 use orbitflex::testing::random_chain;
 use orbitflex::{
@@ -25,7 +26,7 @@ struct Sines {
 }
 
 impl Controller for Sines {
-    fn torque(&mut self, step: usize, t: f64, _: &[f64], u: &mut [f64]) -> orbitflex::Result<()> {
+    fn output(&mut self, step: usize, t: f64, _: &[f64], u: &mut [f64]) -> orbitflex::Result<()> {
         if Some(step) == self.fail_at {
             return Err(Error::InvalidArgument {
                 what: "test".into(),
@@ -58,12 +59,8 @@ fn run(
     let mut traj = Trajectory::reserved(arm.layout(), steps, every).unwrap();
     let result = simulate_into(
         arm,
-        &x0(arm),
-        DT,
-        steps,
-        every,
-        u,
-        &Wrenches::ZERO,
+        &Run::new(&x0(arm), DT, steps).recording_every(every),
+        &mut Drive::new(u, &mut Wrenches::default()),
         &mut Unobserved,
         &mut traj,
     );
@@ -203,12 +200,8 @@ fn a_diverged_run_ends_on_the_state_before_the_divergence() {
         let mut traj = Trajectory::reserved(arm.layout(), 1000, k).unwrap();
         let error = simulate_into(
             &arm,
-            &x0,
-            1e-3,
-            1000,
-            k,
-            &mut pd.clone(),
-            &Wrenches::ZERO,
+            &Run::new(&x0, 1e-3, 1000).recording_every(k),
+            &mut Drive::new(&mut pd.clone(), &mut Wrenches::default()),
             &mut Unobserved,
             &mut traj,
         )
@@ -252,12 +245,8 @@ fn stream(
         .unwrap();
         let r = simulate_into(
             arm,
-            &x0(arm),
-            DT,
-            steps,
-            every,
-            u,
-            &Wrenches::ZERO,
+            &Run::new(&x0(arm), DT, steps).recording_every(every),
+            &mut Drive::new(u, &mut Wrenches::default()),
             &mut Unobserved,
             &mut sink,
         );
@@ -326,12 +315,8 @@ fn an_interrupted_run_ends_on_the_state_it_stopped_at() {
     let mut traj = Trajectory::reserved(arm.layout(), 100, 8).unwrap();
     let error = simulate_into(
         &arm,
-        &x0(&arm),
-        DT,
-        100,
-        8,
-        &mut Sines { fail_at: None },
-        &Wrenches::ZERO,
+        &Run::new(&x0(&arm), DT, 100).recording_every(8),
+        &mut Drive::new(&mut Sines { fail_at: None }, &mut Wrenches::default()),
         &mut StopAt(21),
         &mut traj,
     )
@@ -365,12 +350,8 @@ fn a_failing_recorder_stops_the_run() {
     let arm = small_arm();
     let error = simulate_into(
         &arm,
-        &x0(&arm),
-        DT,
-        100,
-        5,
-        &mut Sines { fail_at: None },
-        &Wrenches::ZERO,
+        &Run::new(&x0(&arm), DT, 100).recording_every(5),
+        &mut Drive::new(&mut Sines { fail_at: None }, &mut Wrenches::default()),
         &mut Unobserved,
         &mut Full(3), // rows 0, 5, 10 fit; row 15 (after step 14) does not
     )
@@ -387,12 +368,8 @@ fn zero_record_every_and_zero_chunk_rows_are_errors() {
     let mut traj = Trajectory::empty(arm.layout());
     let error = simulate_into(
         &arm,
-        &x0(&arm),
-        DT,
-        10,
-        0,
-        &mut Sines { fail_at: None },
-        &Wrenches::ZERO,
+        &Run::new(&x0(&arm), DT, 10).recording_every(0),
+        &mut Drive::new(&mut Sines { fail_at: None }, &mut Wrenches::default()),
         &mut Unobserved,
         &mut traj,
     )

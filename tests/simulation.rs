@@ -43,7 +43,7 @@ fn moving_state(arm: &FlexibleArm, seed: u64) -> Vec<f64> {
 /// Time-varying torques, a different sine per joint.
 struct Sines;
 impl Controller for Sines {
-    fn torque(&mut self, _: usize, t: f64, _: &[f64], u: &mut [f64]) -> orbitflex::Result<()> {
+    fn output(&mut self, _: usize, t: f64, _: &[f64], u: &mut [f64]) -> orbitflex::Result<()> {
         for (i, ui) in u.iter_mut().enumerate() {
             *ui = 3.0 * (2.0 * t + i as f64).sin();
         }

@@ -45,12 +45,18 @@ from ._core import (
     StabilityLimit,
     Trajectory,
     __version__,
+    euler_zyx,
     plan_slew,
+    rotation_angle,
+    rotation_matrix,
     simulate_batch,
 )
 from . import analysis, models
 
 __all__ = [
+    "rotation_matrix",
+    "euler_zyx",
+    "rotation_angle",
     "Robot",
     "FlexibleJoints",
     "FlexibleArm",

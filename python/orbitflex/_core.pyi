@@ -29,6 +29,9 @@ __all__ = [
     "Trajectory",
     "__version__",
     "plan_slew",
+    "rotation_matrix",
+    "euler_zyx",
+    "rotation_angle",
     "simulate_batch",
     "_frequency_response",
     "_modes",
@@ -390,6 +393,15 @@ class Plan:
     def track(self, dt: float, kp: _Param, kd: _Param, settle: Optional[float] = 2.0) -> Dict[str, Any]: ...
     def __reduce__(self) -> Tuple[Any, ...]: ...
 
+def rotation_matrix(quat: _ArrayLike) -> npt.NDArray[np.float64]:
+    """The rotation matrix of a quaternion ``(x, y, z, w)`` (normalised first), body to parent
+    components: (4,) gives (3, 3), (k, 4) gives (k, 3, 3)."""
+def euler_zyx(quat: _ArrayLike) -> npt.NDArray[np.float64]:
+    """The z-y'-x'' Euler angles ``[yaw, pitch, roll]`` (rad) of unit quaternions: (4,) gives (3,),
+    (k, 4) gives (k, 3); not unwrapped."""
+def rotation_angle(q0: _ArrayLike, q1: _ArrayLike) -> Any:
+    """The angle (rad, in [0, π]) of the rotation from attitude ``q0`` to ``q1``, accurate for tiny
+    angles; a float for two (4,), else (k,)."""
 def plan_slew(arm: FlexibleArm, q_goal: _ArrayLike, q_start: Optional[_ArrayLike] = None, limits: Optional[Limits] = None, base: str = "held", waypoints: Optional[_ArrayLike] = None) -> Plan: ...
 def simulate_batch(arm_or_arms: Union[FlexibleArm, Sequence[FlexibleArm]], x0s: _ArrayLike, dt: float, steps: int, u: Union[None, _ArrayLike, MotorPD, Sequence[MotorPD]] = None, base_wrench: Optional[_ArrayLike] = None, ee_wrench: Optional[_Wrench] = None, threads: Optional[int] = None, record_every: Optional[int] = None, *, keep_rows: bool = True, progress: Optional[Callable[[int, int], Any]] = None, wheel_torque: Optional[_ArrayLike] = None) -> BatchTrajectory: ...
 # private: the linear analysis, wrapped by orbitflex.analysis

@@ -103,7 +103,9 @@ pub fn body_poses(robot: &Robot, base_pose: &[f64], q: &[f64]) -> Result<Vec<[f6
     let n = robot.dof();
     let mut rotations = Vec::with_capacity(n + 1);
     let mut origins = Vec::with_capacity(n + 1);
-    rotations.push(crate::spatial::quaternion_to_rotation(&base_pose[3..7]));
+    rotations.push(crate::spatial::quaternion_to_rotation(
+        &base_pose[crate::spatial::POSE_QUATERNION],
+    ));
     origins.push(Vec3::new(base_pose[0], base_pose[1], base_pose[2]));
     for i in 1..=n {
         let x = robot.joint_transform(i, q[i - 1]);
@@ -173,7 +175,7 @@ pub(crate) fn frame_poses_unchecked(
     out: &mut [f64],
 ) {
     data.placements[0] = (
-        crate::spatial::quaternion_to_rotation(&base_pose[3..7]),
+        crate::spatial::quaternion_to_rotation(&base_pose[crate::spatial::POSE_QUATERNION]),
         Vec3::new(base_pose[0], base_pose[1], base_pose[2]),
     );
     for i in 1..=robot.dof() {

@@ -5,7 +5,7 @@
 use crate::algorithms;
 use crate::args::RigidState;
 use crate::error::{Error, Result};
-use crate::flex::{ArmWorkspace, FlexibleArm, Inputs};
+use crate::flex::{FlexibleArm, Inputs, ModelWorkspace};
 use crate::integrate::Feedback;
 use crate::planning::BaseMode;
 use crate::spatial::{quaternion_to_rotation, skew, Mat3};
@@ -377,7 +377,7 @@ pub(crate) struct FullJacobians {
 /// held base (see the module documentation), with the PD's feedback closed into `F`.
 pub(crate) fn jacobians(
     arm: &FlexibleArm,
-    ws: &mut ArmWorkspace,
+    ws: &mut ModelWorkspace,
     x: &[f64],
     spec: &LinearSpec,
 ) -> Result<FullJacobians> {
@@ -420,7 +420,7 @@ pub(crate) fn jacobians(
 /// with `∂ID_r/∂(q, q̇)` from [`algorithms::rnea_derivatives`] at `(q, 0, q̇, α_B = 0, q̈_h)`.
 /// This is not a sub-block of the free base's Jacobian: holding the base changes the link
 /// accelerations (`M_r` against the free system's `𝓜`).
-fn held_jacobians(arm: &FlexibleArm, ws: &mut ArmWorkspace, x: &[f64]) -> Result<FullJacobians> {
+fn held_jacobians(arm: &FlexibleArm, ws: &mut ModelWorkspace, x: &[f64]) -> Result<FullJacobians> {
     let robot = arm.robot();
     let n = arm.dof();
     let k_ee = robot.end_effectors().len();
@@ -523,7 +523,7 @@ fn held_jacobians(arm: &FlexibleArm, ws: &mut ArmWorkspace, x: &[f64]) -> Result
 /// ```
 pub fn state_space(
     arm: &FlexibleArm,
-    ws: &mut ArmWorkspace,
+    ws: &mut ModelWorkspace,
     x: &[f64],
     spec: &LinearSpec,
 ) -> Result<StateSpace> {

@@ -9,7 +9,7 @@
 use super::linear::{check_spec, state_space, LinearSpec, Motors, Tangent};
 use crate::algorithms;
 use crate::error::{Error, Result};
-use crate::flex::{ArmWorkspace, FlexibleArm};
+use crate::flex::{FlexibleArm, ModelWorkspace};
 use crate::integrate::Feedback;
 use crate::planning::BaseMode;
 use crate::spatial::quaternion_to_rotation;
@@ -68,7 +68,7 @@ struct Mechanics {
 
 fn mechanics(
     arm: &FlexibleArm,
-    ws: &mut ArmWorkspace,
+    ws: &mut ModelWorkspace,
     x: &[f64],
     spec: &LinearSpec,
 ) -> Result<Mechanics> {
@@ -241,7 +241,7 @@ impl Mechanics {
 /// ```
 pub fn modes(
     arm: &FlexibleArm,
-    ws: &mut ArmWorkspace,
+    ws: &mut ModelWorkspace,
     x: &[f64],
     spec: &LinearSpec,
     damped: bool,
@@ -273,7 +273,7 @@ const TAU: f64 = std::f64::consts::TAU;
 
 fn state_matrix_modes(
     arm: &FlexibleArm,
-    ws: &mut ArmWorkspace,
+    ws: &mut ModelWorkspace,
     x: &[f64],
     spec: &LinearSpec,
     mech: &Mechanics,

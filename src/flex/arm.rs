@@ -4,16 +4,16 @@
 use super::jacobians::{self, Jacobians, StepScratch};
 use super::joints::FlexibleJoints;
 use super::stability::{self, StabilityLimit};
-use super::state::{normalise_quaternion, quaternion_rate, StateLayout};
 use super::wheels::ReactionWheels;
 use crate::algorithms::{self, Data};
 use crate::args::{check_base_pose, check_length, check_vector, Loads, RigidState};
+use crate::control::Controller;
 use crate::dynamics::{momentum_in_inertial_frame, Method};
 use crate::error::{Error, Result};
-use crate::integrate::{self, Controller, Rk4, SimulationFailure, Trajectory, Wrenches};
 use crate::model::Robot;
 use crate::overflow::{check_result_named, Input};
-use crate::spatial::{quaternion_to_rotation, Vec3};
+use crate::spatial::{base_pose_rate, normalise_quaternion, quaternion_to_rotation, Vec3};
+use crate::state::StateLayout;
 
 /// A floating-base arm with Spong flexible joints: the robot, its joint parameters and the
 /// rigid-body dynamics method used by [`FlexibleArm::derivative`].
@@ -25,7 +25,7 @@ use crate::spatial::{quaternion_to_rotation, Vec3};
 /// let arm = FlexibleArm::new(robot, FlexibleJoints::uniform(n, 2e4, 1.0, 2.0, 1.0)?)?;
 /// let q = vec![0.1; n];
 /// let x = arm.state(&StateSpec { q: Some(&q), ..StateSpec::default() })?;
-/// let mut ws = arm.workspace();
+/// let mut ws = arm.workspace(); // the integrator's workspace, which holds a `ModelWorkspace`
 /// let mut xdot = vec![0.0; x.len()];
 /// arm.derivative(&mut ws, &x, &Inputs::torques(&vec![1.0; n]), &mut xdot)?;
 /// // θ̈ = (u − τ − β θ̇) / j with relaxed springs and motors at rest: u / j = 1
@@ -99,33 +99,33 @@ pub struct StateSpec<'a> {
     pub base_twist: Option<&'a [f64]>,
 }
 
-/// Scratch memory for one [`FlexibleArm`]: the rigid-body [`Data`], the spring torques and the
-/// RK4 stages, and, from the first [`FlexibleArm::step_jacobians`] on, that call's O(n²)
-/// buffers (reused by the next calls). Made by [`FlexibleArm::workspace`]; one per thread.
+/// Scratch memory of the model's calls on one [`FlexibleArm`]: the rigid-body [`Data`], the
+/// spring torques and, from the first [`FlexibleArm::step_jacobians`] on, that call's O(n²)
+/// buffers (reused by the next calls). One per thread. The integrator's
+/// [`ArmWorkspace`](crate::integrate::ArmWorkspace) (made by `FlexibleArm::workspace`) holds one
+/// and the RK4 stages, and stands in for it wherever a `&mut ModelWorkspace` is asked for.
 #[derive(Debug, Clone)]
-pub struct ArmWorkspace {
+pub struct ModelWorkspace {
     pub(crate) data: Data,
     pub(crate) tau: Vec<f64>,
-    pub(crate) rk4: Rk4,
     /// The step Jacobians' buffers, sized by their first call.
     pub(crate) jacobians: StepScratch,
     /// The wheel torques applied over a step (k), after saturation.
     pub(crate) wheel_torque: Vec<f64>,
 }
 
-impl ArmWorkspace {
+impl ModelWorkspace {
     /// Buffers for `arm`.
     pub fn new(arm: &FlexibleArm) -> Self {
         Self {
             data: Data::new(&arm.robot),
             tau: vec![0.0; arm.robot.dof()],
-            rk4: Rk4::new(arm.layout().len()),
             jacobians: StepScratch::default(),
             wheel_torque: vec![0.0; arm.layout().wheels],
         }
     }
 
-    fn check(&self, arm: &FlexibleArm) -> Result<()> {
+    pub(crate) fn check(&self, arm: &FlexibleArm) -> Result<()> {
         algorithms::check_data(&arm.robot, &self.data)
     }
 }
@@ -241,11 +241,6 @@ impl FlexibleArm {
         )
     }
 
-    /// A workspace for this arm ([`ArmWorkspace::new`]).
-    pub fn workspace(&self) -> ArmWorkspace {
-        ArmWorkspace::new(self)
-    }
-
     /// Builds a state `x` (model §4) from the parts in `spec`. Defaults: zero angles and rates,
     /// base at the origin with identity attitude, at rest; `θ = q` (relaxed springs). The
     /// quaternion is normalised.
@@ -331,7 +326,7 @@ impl FlexibleArm {
     /// wheel torques saturated at `x` as a step from `x` would apply them.
     pub fn derivative(
         &self,
-        ws: &mut ArmWorkspace,
+        ws: &mut ModelWorkspace,
         x: &[f64],
         inputs: &Inputs,
         xdot: &mut [f64],
@@ -394,9 +389,7 @@ impl FlexibleArm {
         let layout = self.layout();
         let s = layout.split(x);
         let (omega, v) = (s.omega(), s.velocity());
-        let r_dot = quaternion_to_rotation(s.quaternion) * v;
-        xdot[layout.position()].copy_from_slice(r_dot.as_slice());
-        xdot[layout.quaternion()].copy_from_slice(&quaternion_rate(s.quaternion, &omega));
+        base_pose_rate(s.quaternion, &omega, &v, &mut xdot[layout.base_pose()]);
         xdot[layout.q()].copy_from_slice(s.qd);
         xdot[layout.theta()].copy_from_slice(s.theta_dot);
         let v_dot = Vec3::new(acc[3], acc[4], acc[5]) - omega.cross(&v);
@@ -411,36 +404,11 @@ impl FlexibleArm {
         }
     }
 
-    /// One classic RK4 step of length `dt` in place, inputs held over the step; the quaternion is
-    /// renormalised afterwards (model §5). Allocation-free. See [`integrate::step()`].
-    pub fn step(
-        &self,
-        ws: &mut ArmWorkspace,
-        x: &mut [f64],
-        dt: f64,
-        inputs: &Inputs,
-    ) -> Result<()> {
-        integrate::step(self, ws, x, dt, inputs)
-    }
-
-    /// Integrates `steps` RK4 steps of `dt` from `x0` under the controller `u` and the
-    /// `wrenches`. See [`integrate::simulate()`].
-    pub fn simulate(
-        &self,
-        x0: &[f64],
-        dt: f64,
-        steps: usize,
-        u: &mut dyn Controller,
-        wrenches: &Wrenches,
-    ) -> std::result::Result<Trajectory, Box<SimulationFailure>> {
-        integrate::simulate(self, x0, dt, steps, u, wrenches, &mut integrate::Unobserved)
-    }
-
     /// The Jacobians of [`derivative`](Self::derivative) at `x` with `inputs`, in tangent
     /// coordinates: `d(dx)/dt = F dx + G du + G_B df_B + G_E df` ([`super::jacobians`]).
     pub fn derivative_jacobians(
         &self,
-        ws: &mut ArmWorkspace,
+        ws: &mut ModelWorkspace,
         x: &[f64],
         inputs: &Inputs,
     ) -> Result<Jacobians> {
@@ -465,7 +433,7 @@ impl FlexibleArm {
     /// renormalisation ([`super::jacobians`]).
     pub fn step_jacobians(
         &self,
-        ws: &mut ArmWorkspace,
+        ws: &mut ModelWorkspace,
         x: &[f64],
         dt: f64,
         inputs: &Inputs,
@@ -517,7 +485,7 @@ impl FlexibleArm {
     /// `½ θ̇ᵀ diag(j) θ̇` and spring energy `½ (θ − q)ᵀ diag(k) (θ − q)` (J). With reaction
     /// wheels, `𝓜` includes their locked parts and the spin energy `Σ ½ J_s (a·ω_B + Ω)²` is
     /// added.
-    pub fn energy(&self, ws: &mut ArmWorkspace, x: &[f64]) -> f64 {
+    pub fn energy(&self, ws: &mut ModelWorkspace, x: &[f64]) -> f64 {
         let s = self.layout().split(x);
         let rigid = RigidState::new(s.q, s.base_twist, s.qd);
         let robot = self.rigid_model();
@@ -539,7 +507,7 @@ impl FlexibleArm {
     /// the inertial origin (model §6.1). The motors' spin is not included (model §3). With
     /// reaction wheels it includes them whole: their locked parts through the augmented base,
     /// and their spin momentum `R_B Σ J_s (a·ω_B + Ω) a` (a free vector) in the angular part.
-    pub fn momentum(&self, ws: &mut ArmWorkspace, x: &[f64]) -> [f64; 6] {
+    pub fn momentum(&self, ws: &mut ModelWorkspace, x: &[f64]) -> [f64; 6] {
         let layout = self.layout();
         let s = layout.split(x);
         let rigid = RigidState::new(s.q, s.base_twist, s.qd);

@@ -20,12 +20,13 @@
 //! (`δφ = 2 vec(quat⁺* ⊗ δquat)`, which also discards the radial part the renormalisation
 //! removes). The inputs are held over the step, so their Jacobians chain the same way.
 
-use super::arm::{ArmWorkspace, FlexibleArm, Inputs};
-use super::state::{normalise_quaternion, quaternion_product};
+use super::arm::{FlexibleArm, Inputs, ModelWorkspace};
 use crate::algorithms;
 use crate::args::RigidState;
 use crate::error::{Error, Result};
-use crate::spatial::{quaternion_to_rotation, skew, Mat3, Vec3};
+use crate::spatial::{
+    normalise_quaternion, quaternion_product, quaternion_to_rotation, skew, Mat3, Vec3,
+};
 use nalgebra::{DMatrix, DMatrixViewMut};
 
 /// Jacobians with respect to the state's tangent and to the inputs. Rows: the tangent of the
@@ -173,7 +174,7 @@ struct Blocks {
 /// checked.
 pub(crate) fn derivative_jacobians(
     arm: &FlexibleArm,
-    ws: &mut ArmWorkspace,
+    ws: &mut ModelWorkspace,
     x: &[f64],
     inputs: &Inputs,
 ) -> Result<Jacobians> {
@@ -201,7 +202,7 @@ pub(crate) fn derivative_jacobians(
 /// (O(n) per column: [`algorithms::fd_directional`]), so the step's Jacobians cost O(n²).
 pub(crate) fn step_jacobians(
     arm: &FlexibleArm,
-    ws: &mut ArmWorkspace,
+    ws: &mut ModelWorkspace,
     x: &[f64],
     dt: f64,
     inputs: &Inputs,
@@ -217,7 +218,7 @@ pub(crate) const DENSE_STAGES_UP_TO: usize = 40;
 /// [`step_jacobians`] with the stage products chosen: dense (`true`) or directional.
 pub(crate) fn step_jacobians_with(
     arm: &FlexibleArm,
-    ws: &mut ArmWorkspace,
+    ws: &mut ModelWorkspace,
     x: &[f64],
     dt: f64,
     inputs: &Inputs,
@@ -240,7 +241,7 @@ pub(crate) fn step_jacobians_with(
     result
 }
 
-/// The buffers of [`step_jacobians`], kept in the [`ArmWorkspace`] between calls.
+/// The buffers of [`step_jacobians`], kept in the [`ModelWorkspace`] between calls.
 #[derive(Debug, Clone)]
 pub(crate) struct StepScratch {
     stage: Jacobians,
@@ -271,7 +272,7 @@ impl Default for StepScratch {
 /// The four stages and the map to tangent coordinates of [`step_jacobians_with`].
 fn stage_chain(
     arm: &FlexibleArm,
-    ws: &mut ArmWorkspace,
+    ws: &mut ModelWorkspace,
     x: &[f64],
     dt: f64,
     inputs: &Inputs,
@@ -401,7 +402,7 @@ fn stage_chain(
 /// in `ws.data` (as [`jacobians_into`] leaves it).
 fn directional_rows(
     arm: &FlexibleArm,
-    ws: &mut ArmWorkspace,
+    ws: &mut ModelWorkspace,
     xs: &[f64],
     previous: &[f64],
     c: usize,
@@ -557,7 +558,7 @@ fn transpose_rows(rows: &[f64], width: usize, offset: usize, out: &mut DMatrix<f
 /// both in those coordinates).
 fn jacobians_into(
     arm: &FlexibleArm,
-    ws: &mut ArmWorkspace,
+    ws: &mut ModelWorkspace,
     x: &[f64],
     inputs: &Inputs,
     coordinates: Coordinates,
@@ -750,7 +751,7 @@ mod tests {
                 loads: Loads::from_slices(Some(&fb), Some(&f)).unwrap(),
                 wheel_torque: &[],
             };
-            let mut ws = arm.workspace();
+            let mut ws = ModelWorkspace::new(&arm);
             let (dense, _) = step_jacobians_with(&arm, &mut ws, &x, 2e-3, &inputs, true).unwrap();
             let (directional, _) =
                 step_jacobians_with(&arm, &mut ws, &x, 2e-3, &inputs, false).unwrap();

@@ -1,6 +1,7 @@
 //! [`FlexibleJoints`]: the per-joint Spong parameters, from arrays, gear data or a TOML file.
 
 use crate::args::check_vector;
+pub(crate) use crate::args::{check_parameter, Domain};
 use crate::error::{Error, Result};
 use serde::Deserialize;
 use std::collections::BTreeMap;
@@ -25,42 +26,6 @@ pub struct FlexibleJoints {
     pub damping: Vec<f64>,
     /// `β_i` ≥ 0, motor viscous friction (N·m·s/rad).
     pub motor_damping: Vec<f64>,
-}
-
-/// The domain of a parameter.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(crate) enum Domain {
-    /// `> 0`
-    Positive,
-    /// `≥ 0`
-    NonNegative,
-}
-
-impl Domain {
-    fn contains(self, v: f64) -> bool {
-        match self {
-            Domain::Positive => v > 0.0,
-            Domain::NonNegative => v >= 0.0,
-        }
-    }
-    fn describe(self) -> &'static str {
-        match self {
-            Domain::Positive => "> 0",
-            Domain::NonNegative => ">= 0",
-        }
-    }
-}
-
-/// Checks `n` finite values in `domain`; errors name the element, e.g. `stiffness[2]`.
-pub(crate) fn check_parameter(what: &str, values: &[f64], n: usize, domain: Domain) -> Result<()> {
-    check_vector(what, values, n)?;
-    match values.iter().position(|&v| !domain.contains(v)) {
-        Some(i) => Err(Error::InvalidArgument {
-            what: format!("{what}[{i}]"),
-            message: format!("expected {}, given {}", domain.describe(), values[i]),
-        }),
-        None => Ok(()),
-    }
 }
 
 /// The motor inertia reflected to the link side, `j = N² J_rotor` (kg·m²), from the gear ratio

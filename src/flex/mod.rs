@@ -10,7 +10,9 @@
 //! with `u_i` the motor torque reflected to the link side (N·m).
 //!
 //! - [`joints`]: the parameters `k, d, j, β` ([`FlexibleJoints`]), from arrays, gear data or TOML;
-//! - [`state`]: the state vector's layout ([`StateLayout`]) and quaternion helpers;
+//! - [`StateLayout`]: the state vector's layout (defined in [`crate::state`]);
+//! - [`inverse`]: the flexible-joint inverse dynamics (differential flatness), on the time jets of
+//!   [`jets`];
 //! - [`arm`]: [`FlexibleArm`], its derivative, energy, momentum and EE pose;
 //! - [`jacobians`]: the Jacobians of the derivative and of one RK4 step, in tangent coordinates;
 //! - [`gains`]: motor PD gains from a bandwidth and a damping ratio;
@@ -19,19 +21,23 @@
 
 pub mod arm;
 pub mod gains;
+pub mod inverse;
 pub mod jacobians;
+pub mod jets;
 pub mod joints;
 pub mod stability;
-pub mod state;
 pub mod wheels;
 
-pub use arm::{ArmWorkspace, FlexibleArm, Inputs, StateSpec};
+pub use arm::{FlexibleArm, Inputs, ModelWorkspace, StateSpec};
 pub use gains::MotorGains;
+pub use inverse::{BaseMode, FlexibleInverse, LinkMotion};
 pub use jacobians::Jacobians;
 pub use joints::{reflected_inertia, FlexibleJoints};
 pub use stability::StabilityLimit;
-pub use state::{
+// the layout is defined below the model (`crate::state`), the quaternions in `crate::spatial`;
+// re-exported here where they have always been found
+pub use crate::spatial::{
     normalise_quaternion, quaternion_exp, quaternion_log, quaternion_product, quaternion_rate,
-    StateLayout, StateParts,
 };
+pub use crate::state::{StateLayout, StateParts};
 pub use wheels::{saturated_torque, ReactionWheels, Wheel};

@@ -37,11 +37,11 @@
 //! # Ok::<(), orbitflex::Error>(())
 //! ```
 
-use super::arm::{FlexibleArm, Inputs};
+use super::arm::{FlexibleArm, Inputs, ModelWorkspace};
 use crate::algorithms;
 use crate::args::{Loads, RigidState};
+use crate::control::Feedback;
 use crate::error::{Error, Result};
-use crate::integrate::Feedback;
 use crate::linalg::eigenvalues;
 use nalgebra::{Complex, DMatrix};
 
@@ -239,7 +239,7 @@ pub fn rk4_stability_limit(
 fn linearise(arm: &FlexibleArm, x: &[f64], feedback: &Feedback) -> Result<Linear> {
     let layout = arm.layout();
     let size = layout.dynamic().len();
-    let mut ws = arm.workspace();
+    let mut ws = ModelWorkspace::new(arm);
     let u = vec![0.0; arm.dof()];
     let full = super::jacobians::derivative_jacobians(arm, &mut ws, x, &Inputs::torques(&u))?;
     arm.check_overflow(

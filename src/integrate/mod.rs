@@ -2,7 +2,6 @@
 //! the run itself.
 //!
 //! - [`rk4`]: classic RK4, generic over an [`OdeSystem`], owning its stage buffers;
-//! - [`control`]: input [`Schedule`]s, the [`Controller`] trait and the built-in [`MotorPD`];
 //! - [`simulate`](mod@simulate): one [`step`], a whole run ([`simulate()`]) with its checks,
 //!   stability warning and [`Observer`] hook;
 //! - [`batch`]: many runs at once over a pool of threads ([`simulate_batch`]), inputs broadcast
@@ -28,19 +27,24 @@
 //! # Ok::<(), orbitflex::Error>(())
 //! ```
 
+pub mod arm;
 pub mod batch;
-pub mod control;
 pub mod record;
 pub mod rk4;
+pub mod run;
 pub mod simulate;
+pub mod stepper;
 pub mod trajectory;
 
 pub use batch::{simulate_batch, Batch, BatchRecord, BatchSettings, RunRecord, RunStatus};
-pub use control::{Controller, Feedback, MotorPD, Schedule};
+// the controllers live below the model (`crate::control`); re-exported where runs are made
+pub use crate::control::{Controller, Feedback, MotorPD, Schedule, Wrenches};
+pub use arm::ArmWorkspace;
 pub use record::{is_recorded, recorded_rows, Chunk, Chunks, Recorder};
 pub use rk4::{OdeSystem, Rk4};
+pub use run::{Drive, Run};
 pub use simulate::{
-    check_run, simulate, simulate_into, stability_warning, step, Observer, SimulationFailure,
-    Unobserved, Wrenches,
+    simulate, simulate_into, stability_warning, step, Observer, SimulationFailure, Unobserved,
 };
+pub use stepper::Stepper;
 pub use trajectory::{StateRows, Trajectory};

@@ -131,7 +131,7 @@ impl Chunk<'_> {
 /// [`new`](Self::new), and reused: nothing is allocated per step or per chunk.
 ///
 /// ```
-/// use orbitflex::integrate::{record::Chunks, simulate_into, Schedule, Unobserved, Wrenches};
+/// use orbitflex::integrate::{record::Chunks, simulate_into, Drive, Run, Schedule, Unobserved, Wrenches};
 /// use orbitflex::{FlexibleArm, FlexibleJoints, Robot};
 /// let arm = FlexibleArm::new(Robot::space_arm(), FlexibleJoints::space_arm())?;
 /// let (mut rows, mut peak) = (0, 0.0f64);
@@ -141,8 +141,10 @@ impl Chunk<'_> {
 ///     peak = chunk.x.chunks(arm.layout().len()).fold(peak, |p, x| p.max(x[q0].abs()));
 ///     Ok(())
 /// })?;
-/// simulate_into(&arm, &arm.rest_state(), 1e-3, 1000, 10, &mut Schedule::Constant(vec![1.0; 7]),
-///               &Wrenches::ZERO, &mut Unobserved, &mut sink)?;
+/// let x0 = arm.rest_state();
+/// let run = Run::new(&x0, 1e-3, 1000).recording_every(10);
+/// let (mut u, mut wrenches) = (Schedule::Constant(vec![1.0; 7]), Wrenches::ZERO);
+/// simulate_into(&arm, &run, &mut Drive::new(&mut u, &mut wrenches), &mut Unobserved, &mut sink)?;
 /// drop(sink);
 /// assert_eq!(rows, 101); // rows 0, 10, …, 1000
 /// assert!(peak > 0.0);

@@ -5,10 +5,12 @@
 //! describes it.
 
 pub(crate) mod deflection;
-pub mod flatness;
-pub mod taylor;
+// the flexible-joint inverse dynamics and the time jets it runs on are the model's (`crate::flex`);
+// re-exported where they have always been found
+pub use crate::flex::inverse as flatness;
+pub use crate::flex::jets as taylor;
 
-pub use flatness::{BaseMode, FlexibleInverse, LinkMotion};
+pub use crate::flex::{BaseMode, FlexibleInverse, LinkMotion};
 pub mod slew;
 pub use slew::{
     plan_slew, plan_slew_watched, sigma, Binding, Constraint, Limits, Plan, PlanPoint, Reference,

@@ -18,12 +18,14 @@
 //! that sample onto it), up to six rounds, so a peak between samples is not missed.
 
 use super::deflection;
-use super::flatness::{classical, rigid_jets, BaseMode, JetScratch, RigidJets};
 use crate::args::{check_dt, check_vector, number};
 use crate::error::{Error, Result};
-use crate::flex::state::{normalise_quaternion, quaternion_product};
+use crate::flex::inverse::{
+    classical, rigid_jets, BaseMode, FlexibleInverse, JetScratch, RigidJets,
+};
 use crate::flex::FlexibleArm;
-use crate::spatial::{quaternion_to_rotation, Motion, Vec3};
+use crate::integrate::{OdeSystem, Rk4};
+use crate::spatial::{base_pose_rate, normalise_quaternion, Motion, Vec3, POSE_QUATERNION};
 use std::sync::atomic::{AtomicBool, Ordering};
 
 /// Sample intervals per segment (a power of two, so `s = 1/2`, where the speed peaks, is one).
@@ -359,23 +361,19 @@ pub struct PlanPoint {
     pub base_wrench: [f64; 6],
 }
 
-/// Everything at one instant of a plan, link side.
-#[derive(Debug, Clone, Default)]
+/// Everything at one instant of a plan, link side: the link motion, what the motors and the base
+/// do for it ([`FlexibleInverse`], the result of [`FlexibleArm::inverse_dynamics`]), and the
+/// deflection with the scaled torque jets it is integrated from.
+#[derive(Debug, Clone)]
 struct Point {
     q: Vec<f64>,
     qd: Vec<f64>,
     qdd: Vec<f64>,
-    theta: Vec<f64>,
-    theta_dot: Vec<f64>,
-    theta_ddot: Vec<f64>,
-    u: Vec<f64>,
-    tau: Vec<f64>,
+    /// The motors and the base.
+    flexible: FlexibleInverse,
     /// Scaled `[τ, τ̇, τ̈]` per joint, for the deflection integration.
     tau_jet: Vec<[f64; 3]>,
     deflection: Vec<f64>,
-    base_twist: [f64; 6],
-    base_acc: [f64; 6],
-    base_wrench: [f64; 6],
 }
 
 impl Point {
@@ -384,14 +382,9 @@ impl Point {
             q: vec![0.0; n],
             qd: vec![0.0; n],
             qdd: vec![0.0; n],
-            theta: vec![0.0; n],
-            theta_dot: vec![0.0; n],
-            theta_ddot: vec![0.0; n],
-            u: vec![0.0; n],
-            tau: vec![0.0; n],
+            flexible: FlexibleInverse::zeros(n),
             tau_jet: vec![[0.0; 3]; n],
             deflection: vec![0.0; n],
-            ..Self::default()
         }
     }
 }
@@ -429,6 +422,22 @@ pub struct Reference {
     pub q: Vec<f64>,
     /// The planned base pose `[r_B; quat_B]` at every state time (`steps + 1` rows, 7 wide).
     pub base_pose: Vec<f64>,
+}
+
+impl Reference {
+    /// Empty tables with room for `steps` steps of `n` joints.
+    fn reserved(dt: f64, steps: usize, n: usize) -> Self {
+        Self {
+            dt,
+            steps,
+            u: Vec::with_capacity(steps * n),
+            theta_ref: Vec::with_capacity(steps * n),
+            theta_dot_ref: Vec::with_capacity(steps * n),
+            base_wrench: Vec::with_capacity(steps * 6),
+            q: Vec::with_capacity((steps + 1) * n),
+            base_pose: Vec::with_capacity((steps + 1) * 7),
+        }
+    }
 }
 
 /// The arrays of a plan at its samples ([`Plan::samples`]); row-major, one row per sample.
@@ -681,7 +690,6 @@ impl Plan {
             let tj = &jets.tau[i];
             let tau = [tj[0] * w2, tj[1] * w3, tj[2] * w4];
             p.tau_jet[i] = tau;
-            p.tau[i] = tau[0];
             let (k, damping) = (joints.stiffness[i], joints.damping[i]);
             let [delta, rate, acc] = if self.rigid {
                 [0.0; 3]
@@ -701,22 +709,18 @@ impl Plan {
                 [tau[0] / k, tau[1] / k, tau[2] / k]
             };
             p.deflection[i] = delta;
-            p.theta[i] = p.q[i] + delta;
-            p.theta_dot[i] = p.qd[i] + rate;
-            let theta_ddot = p.qdd[i] + acc;
-            p.theta_ddot[i] = theta_ddot;
-            p.u[i] = joints.motor_inertia[i] * theta_ddot
-                + joints.motor_damping[i] * p.theta_dot[i]
-                + tau[0];
+            let link = [p.q[i], p.qd[i], p.qdd[i]];
+            p.flexible
+                .set_joint(joints, i, link, [delta, rate, acc], tau[0]);
         }
-        p.base_twist = (jets.base_twist[0] * w).to_array();
-        p.base_acc = classical(&[
+        p.flexible.base_twist = (jets.base_twist[0] * w).to_array();
+        p.flexible.base_acc = classical(&[
             jets.base_twist[0] * w,
             jets.base_twist[1] * w2,
             Motion::zero(),
             Motion::zero(),
         ]);
-        p.base_wrench = (jets.base_wrench[0] * w2).to_array();
+        p.flexible.base_wrench = (jets.base_wrench[0] * w2).to_array();
     }
 
     /// The largest ratio of a quantity to its limit at `p`, and which.
@@ -733,9 +737,9 @@ impl Plan {
                 worst = (ratio, c, joint, value, limit);
             }
         };
-        for i in 0..p.u.len() {
+        for i in 0..p.flexible.u.len() {
             consider(
-                p.u[i].abs(),
+                p.flexible.u[i].abs(),
                 self.limits.motor_torque[i],
                 Constraint::MotorTorque,
                 Some(i),
@@ -748,7 +752,7 @@ impl Plan {
             );
         }
         if self.base == BaseMode::Held {
-            let f = &p.base_wrench;
+            let f = &p.flexible.base_wrench;
             if let Some(limit) = self.limits.base_torque {
                 consider(
                     Vec3::new(f[0], f[1], f[2]).norm(),
@@ -877,10 +881,10 @@ impl Plan {
         let mut out = vec![Vec::with_capacity(seg.s.len()); 2 * n + 2];
         self.walk(seg, w, |_, p| {
             for i in 0..n {
-                out[i].push(p.u[i].abs() / self.limits.motor_torque[i]);
+                out[i].push(p.flexible.u[i].abs() / self.limits.motor_torque[i]);
                 out[n + i].push(p.qd[i].abs() / self.limits.joint_speed[i]);
             }
-            let f = &p.base_wrench;
+            let f = &p.flexible.base_wrench;
             let held = self.base == BaseMode::Held;
             out[2 * n].push(match (held, self.limits.base_torque) {
                 (true, Some(l)) => Vec3::new(f[0], f[1], f[2]).norm() / l,
@@ -1116,6 +1120,7 @@ impl Plan {
         let n = self.arm.dof();
         let mut out = Samples::default();
         let mut pose = self.base_pose0;
+        let mut rk4 = Rk4::new(7);
         for (k, seg) in self.segments.iter().enumerate() {
             let w = 1.0 / seg.duration;
             let mut previous_twist: Option<(f64, [Motion; 2])> = None;
@@ -1126,7 +1131,7 @@ impl Plan {
                     // the middle by cubic Hermite interpolation in s: fourth-order accurate
                     let ds = seg.s[j] - s_prev;
                     let mid = (a[0] + twist[0]) * 0.5 + (a[1] - twist[1]) * (ds / 8.0);
-                    pose = rk4_pose(&pose, &a[0], &mid, &twist[0], ds);
+                    rk4_pose(&mut rk4, &mut pose, [a[0], mid, twist[0]], ds);
                 }
                 previous_twist = Some((seg.s[j], twist));
                 if k > 0 && j == 0 {
@@ -1136,12 +1141,12 @@ impl Plan {
                 out.q.extend_from_slice(&p.q);
                 out.qd.extend_from_slice(&p.qd);
                 out.qdd.extend_from_slice(&p.qdd);
-                out.theta.extend_from_slice(&p.theta);
-                out.theta_dot.extend_from_slice(&p.theta_dot);
-                out.u.extend_from_slice(&p.u);
-                out.tau.extend_from_slice(&p.tau);
-                out.base_wrench.extend_from_slice(&p.base_wrench);
-                out.base_twist.extend_from_slice(&p.base_twist);
+                out.theta.extend_from_slice(&p.flexible.theta);
+                out.theta_dot.extend_from_slice(&p.flexible.theta_dot);
+                out.u.extend_from_slice(&p.flexible.u);
+                out.tau.extend_from_slice(&p.flexible.tau);
+                out.base_wrench.extend_from_slice(&p.flexible.base_wrench);
+                out.base_twist.extend_from_slice(&p.flexible.base_twist);
                 out.base_pose.extend_from_slice(&pose);
                 true
             });
@@ -1202,10 +1207,10 @@ impl Plan {
                 let [delta, rate, acc] =
                     deflection::advance(k, d, overtime, out.deflection[i], &[0.0; 3], &[0.0; 3]);
                 out.deflection[i] = delta;
-                out.theta[i] = out.q[i] + delta;
-                out.theta_dot[i] = rate;
-                out.theta_ddot[i] = acc;
-                out.u[i] = joints.motor_inertia[i] * acc + joints.motor_damping[i] * rate;
+                out.flexible.theta[i] = out.q[i] + delta;
+                out.flexible.theta_dot[i] = rate;
+                out.flexible.theta_ddot[i] = acc;
+                out.flexible.u[i] = joints.motor_inertia[i] * acc + joints.motor_damping[i] * rate;
             }
         }
     }
@@ -1224,15 +1229,15 @@ impl Plan {
             q: p.q,
             qd: p.qd,
             qdd: p.qdd,
-            theta: p.theta,
+            theta: p.flexible.theta,
             deflection: p.deflection,
-            theta_dot: p.theta_dot,
-            theta_ddot: p.theta_ddot,
-            u: p.u,
-            tau: p.tau,
-            base_twist: p.base_twist,
-            base_acc: p.base_acc,
-            base_wrench: p.base_wrench,
+            theta_dot: p.flexible.theta_dot,
+            theta_ddot: p.flexible.theta_ddot,
+            u: p.flexible.u,
+            tau: p.flexible.tau,
+            base_twist: p.flexible.base_twist,
+            base_acc: p.flexible.base_acc,
+            base_wrench: p.flexible.base_wrench,
         })
     }
 
@@ -1266,17 +1271,9 @@ impl Plan {
                 ),
             });
         }
-        let mut r = Reference {
-            dt,
-            steps,
-            u: Vec::with_capacity(steps * n),
-            theta_ref: Vec::with_capacity(steps * n),
-            theta_dot_ref: Vec::with_capacity(steps * n),
-            base_wrench: Vec::with_capacity(steps * 6),
-            q: Vec::with_capacity((steps + 1) * n),
-            base_pose: Vec::with_capacity((steps + 1) * 7),
-        };
+        let mut r = Reference::reserved(dt, steps, n);
         let mut pose = self.base_pose0;
+        let mut rk4 = Rk4::new(7);
         let mut scratch = JetScratch::new(self.arm.robot());
         // the plan's end, once: every instant after it is this point settled (as in `at`)
         let last = self.segments.last().expect("a plan has a segment");
@@ -1301,18 +1298,26 @@ impl Plan {
             let t = k as f64 * dt;
             evaluate(&mut scratch, t + 0.5 * dt, &mut mid)?;
             evaluate(&mut scratch, t + dt, &mut end)?;
-            r.theta_ref.extend_from_slice(&start.theta);
-            r.theta_dot_ref.extend_from_slice(&start.theta_dot);
+            r.theta_ref.extend_from_slice(&start.flexible.theta);
+            r.theta_dot_ref.extend_from_slice(&start.flexible.theta_dot);
             r.q.extend_from_slice(&start.q);
             r.base_pose.extend_from_slice(&pose);
-            let twist = |p: &Point| Motion::from_slice(&p.base_twist);
-            pose = rk4_pose(&pose, &twist(&start), &twist(&mid), &twist(&end), dt);
+            let twist = |p: &Point| Motion::from_slice(&p.flexible.base_twist);
+            rk4_pose(
+                &mut rk4,
+                &mut pose,
+                [twist(&start), twist(&mid), twist(&end)],
+                dt,
+            );
             for i in 0..n {
-                r.u.push((start.u[i] + 4.0 * mid.u[i] + end.u[i]) / 6.0);
+                r.u.push((start.flexible.u[i] + 4.0 * mid.flexible.u[i] + end.flexible.u[i]) / 6.0);
             }
             for c in 0..6 {
                 r.base_wrench.push(
-                    (start.base_wrench[c] + 4.0 * mid.base_wrench[c] + end.base_wrench[c]) / 6.0,
+                    (start.flexible.base_wrench[c]
+                        + 4.0 * mid.flexible.base_wrench[c]
+                        + end.flexible.base_wrench[c])
+                        / 6.0,
                 );
             }
             std::mem::swap(&mut start, &mut end);
@@ -1335,31 +1340,39 @@ fn vertex(x0: f64, x1: f64, x2: f64, y0: f64, y1: f64, y2: f64) -> Option<f64> {
     (x > x0 && x < x2).then_some(x)
 }
 
-/// One RK4 step of the base pose kinematics `ṙ = R v`, `quat' = ½ quat ⊗ ω` over `h`, with the
-/// twist at the start, middle and end of the step.
-fn rk4_pose(pose: &[f64; 7], a: &Motion, mid: &Motion, b: &Motion, h: f64) -> [f64; 7] {
-    let rate = |x: &[f64; 7], v: &Motion| -> [f64; 7] {
-        let r = quaternion_to_rotation(&x[3..]) * v.linear;
-        let q = quaternion_product(&x[3..], &[v.angular.x, v.angular.y, v.angular.z, 0.0]);
-        [
-            r.x,
-            r.y,
-            r.z,
-            0.5 * q[0],
-            0.5 * q[1],
-            0.5 * q[2],
-            0.5 * q[3],
-        ]
-    };
-    let add = |x: &[f64; 7], k: &[f64; 7], c: f64| -> [f64; 7] {
-        std::array::from_fn(|i| x[i] + c * k[i])
-    };
-    let k1 = rate(pose, a);
-    let k2 = rate(&add(pose, &k1, h / 2.0), mid);
-    let k3 = rate(&add(pose, &k2, h / 2.0), mid);
-    let k4 = rate(&add(pose, &k3, h), b);
-    let mut out: [f64; 7] =
-        std::array::from_fn(|i| pose[i] + h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]));
-    normalise_quaternion(&mut out[3..]);
-    out
+/// The base pose `[r_B; quat_B]` under a twist given at the start, the middle and the end of a
+/// step: the system [`Rk4`] integrates for the free base of a plan ([`base_pose_rate`]). Its
+/// stages are called in order, `k₁` at the start, `k₂` and `k₃` at the middle, `k₄` at the end.
+struct PoseKinematics {
+    /// The twist at the start, the middle and the end of the step.
+    twists: [Motion; 3],
+    /// The stage the next derivative is for (0 to 3).
+    stage: usize,
+}
+
+impl OdeSystem for PoseKinematics {
+    fn state_len(&self) -> usize {
+        7
+    }
+    fn derivative(&mut self, x: &[f64], xdot: &mut [f64]) -> Result<()> {
+        let v = &self.twists[match self.stage {
+            0 => 0,
+            1 | 2 => 1,
+            _ => 2,
+        }];
+        self.stage += 1;
+        base_pose_rate(&x[POSE_QUATERNION], &v.angular, &v.linear, xdot);
+        Ok(())
+    }
+    fn project(&mut self, x: &mut [f64]) {
+        normalise_quaternion(&mut x[POSE_QUATERNION]);
+    }
+}
+
+/// One RK4 step of the base pose over `h` with the twist at the start, middle and end of the
+/// step (`rk4`: buffers of length 7, reused from step to step).
+fn rk4_pose(rk4: &mut Rk4, pose: &mut [f64; 7], twists: [Motion; 3], h: f64) {
+    let mut system = PoseKinematics { twists, stage: 0 };
+    rk4.step(&mut system, pose, h)
+        .expect("the pose kinematics cannot fail, and their buffers have its length");
 }

@@ -3,8 +3,8 @@
 use super::slew::{Plan, Reference};
 use super::BaseMode;
 use crate::error::{Error, Result};
-use crate::flex::state::{quaternion_log, quaternion_product};
 use crate::integrate::{MotorPD, Schedule, Trajectory, Wrenches};
+use crate::spatial::{quaternion_log, quaternion_product};
 
 /// The outcome of [`Plan::track`]: the run, its reference and what a GNC engineer checks.
 #[derive(Debug, Clone)]

@@ -1,20 +1,21 @@
 //! `orbitflex.FlexibleArm`: state, derivative, step, diagnostics, ``simulate`` and the
 //! flexible-joint inverse dynamics.
 
-use super::control::{schedule, PyCallable, PyMotorPD};
+use super::control::{controller, schedule, wheel_schedule};
 use super::convert::{array1, count, positive_count, real, try_array2, vector, vector_or};
 use super::errors::simulation_error;
 use super::errors::ModelError;
 use super::joints::PyFlexibleJoints;
 use super::robot::PyRobot;
-use super::run::{deliver, record_releasing_gil, record_with_gil, Progress, Stream};
+use super::run::{deliver, record_releasing_gil, Channels, Progress, Stream};
 use super::stability::PyStabilityLimit;
 use super::trajectory::PyTrajectory;
 use super::workspaces::{Lent, Pool};
 use crate::args::Loads;
 use crate::error::Error;
-use crate::flex::{ArmWorkspace, FlexibleArm, Inputs, StateSpec};
-use crate::integrate::{self, Chunk, Chunks, Controller, Recorder, Schedule, Trajectory, Wrenches};
+use crate::flex::{FlexibleArm, Inputs, StateSpec};
+use crate::integrate::{self, Chunk, Chunks, Recorder, Trajectory};
+use crate::integrate::{ArmWorkspace, Run};
 use crate::planning::{BaseMode, LinkMotion};
 use numpy::{PyArray1, PyArray2};
 use pyo3::exceptions::PyRuntimeWarning;
@@ -153,36 +154,6 @@ fn jacobians_dict<'py>(
     out.set_item("base_wrench", try_array2(py, &j.base_wrench, call)?)?;
     out.set_item("ee_wrench", try_array2(py, &j.ee_wrench, call)?)?;
     Ok(out)
-}
-
-/// The controller of a run, from ``u``.
-enum RunController<'py> {
-    Pd(crate::MotorPD),
-    Schedule(Schedule),
-    Callable(PyCallable<'py>),
-}
-
-impl<'py> RunController<'py> {
-    fn parse(u: Option<&Bound<'py, PyAny>>, n: usize) -> PyResult<Self> {
-        match u.filter(|o| !o.is_none()) {
-            Some(obj) if obj.is_instance_of::<PyMotorPD>() => {
-                Ok(Self::Pd(obj.downcast::<PyMotorPD>()?.get().pd.clone()))
-            }
-            Some(obj) if obj.is_callable() => Ok(Self::Callable(PyCallable {
-                func: obj.clone(),
-                n,
-                error: None,
-            })),
-            other => Ok(Self::Schedule(schedule(other, "u", n)?)),
-        }
-    }
-    fn controller(&self) -> &dyn Controller {
-        match self {
-            Self::Pd(pd) => pd,
-            Self::Schedule(s) => s,
-            Self::Callable(c) => c,
-        }
-    }
 }
 
 #[pymethods]
@@ -389,8 +360,9 @@ impl PyFlexibleArm {
             Some(x) => self.state_arg(x, "x")?,
             None => self.arm.rest_state(),
         };
-        let controller = RunController::parse(u, self.n())?;
-        let limit = self.arm.rk4_stability_limit(&x, controller.controller())?;
+        let mut error = None;
+        let controller = controller(u, self.n(), &mut error)?;
+        let limit = self.arm.rk4_stability_limit(&x, &*controller)?;
         Ok(PyStabilityLimit { limit })
     }
 
@@ -536,7 +508,6 @@ impl PyFlexibleArm {
     /// base. With these, :meth:`derivative` at the matching state returns ``qdd`` and
     /// ``theta_ddot``.
     #[pyo3(signature = (q, qd, qdd, qddd, qdddd, base="held", deflection=None))]
-    #[allow(clippy::too_many_arguments)]
     fn inverse_dynamics<'py>(
         &self,
         py: Python<'py>,
@@ -705,24 +676,20 @@ impl PyFlexibleArm {
                 )),
                 (None, _) => CHUNK_ROWS,
             };
-        let wrenches =
-            Wrenches {
-                base: schedule(base_wrench, "base_wrench", 6)?,
-                ee: schedule(
-                    super::convert::ee_wrench_arg(arm.robot(), ee_wrench)?.as_ref(),
-                    "ee_wrench",
-                    6 * arm.robot().end_effectors().len(),
-                )?,
-                wheel_torque: match (wheel_torque.filter(|o| !o.is_none()), layout.wheels) {
-                    (Some(_), 0) => return Err(ModelError::new_err(
-                        "wheel_torque: the arm has no reaction wheels; give none (or build the \
-                         arm with wheels=)",
-                    )),
-                    (w, k) => schedule(w, "wheel_torque", k)?,
-                },
-            };
-        let mut controller = RunController::parse(u, arm.dof())?;
-        integrate::check_run(arm, &x0, dt, steps, controller.controller(), &wrenches)?;
+        let mut error = None;
+        // read in this order (the first bad argument is the one reported)
+        let mut channels = Channels {
+            base_wrench: schedule(base_wrench, "base_wrench", 6)?,
+            ee_wrench: schedule(
+                super::convert::ee_wrench_arg(arm.robot(), ee_wrench)?.as_ref(),
+                "ee_wrench",
+                6 * arm.robot().end_effectors().len(),
+            )?,
+            wheel_torque: wheel_schedule(wheel_torque, layout.wheels)?,
+            u: controller(u, arm.dof(), &mut error)?,
+        };
+        let run = Run::new(&x0, dt, steps).recording_every(record_every);
+        run.check(arm, &channels.drive())?;
         // the buffers, before the warning: a run whose record cannot fit does not start
         let callback = on_rows.map(|c| c.clone().unbind());
         let mut stream_error = None;
@@ -736,8 +703,7 @@ impl PyFlexibleArm {
                 Sink::Stream(Stream::new(layout, chunks))
             }
         };
-        if let Some(warning) = integrate::stability_warning(arm, &x0, dt, controller.controller())?
-        {
+        if let Some(warning) = integrate::stability_warning(arm, &x0, dt, &*channels.u)? {
             PyErr::warn(
                 py,
                 &py.get_type::<PyRuntimeWarning>(),
@@ -747,58 +713,13 @@ impl PyFlexibleArm {
         }
         let mut progress = Progress::new(progress.filter(|p| !p.is_none()).cloned());
         let recorder = sink.recorder();
-        let (result, cause) = match &mut controller {
-            RunController::Pd(pd) => (
-                record_releasing_gil(
-                    py,
-                    arm,
-                    &x0,
-                    dt,
-                    steps,
-                    record_every,
-                    pd,
-                    &wrenches,
-                    &mut progress,
-                    recorder,
-                )?,
-                None,
-            ),
-            RunController::Schedule(s) => (
-                record_releasing_gil(
-                    py,
-                    arm,
-                    &x0,
-                    dt,
-                    steps,
-                    record_every,
-                    s,
-                    &wrenches,
-                    &mut progress,
-                    recorder,
-                )?,
-                None,
-            ),
-            RunController::Callable(c) => {
-                let result = record_with_gil(
-                    arm,
-                    &x0,
-                    dt,
-                    steps,
-                    record_every,
-                    c,
-                    &wrenches,
-                    &mut progress,
-                    recorder,
-                )?;
-                // KeyboardInterrupt, SystemExit and other non-Exception errors are not a
-                // controller failure: re-raise them as they are.
-                match c.error.take() {
-                    Some(e) if !e.is_instance_of::<pyo3::exceptions::PyException>(py) => {
-                        return Err(e)
-                    }
-                    cause => (result, cause),
-                }
-            }
+        let result = record_releasing_gil(py, arm, &run, &mut channels, &mut progress, recorder)?;
+        drop(channels);
+        // a callable controller's exception: KeyboardInterrupt, SystemExit and other
+        // non-Exception errors are not a controller failure: re-raise them as they are.
+        let cause = match error {
+            Some(e) if !e.is_instance_of::<pyo3::exceptions::PyException>(py) => return Err(e),
+            cause => cause,
         };
         let traj = match sink {
             Sink::Memory(traj) => traj,

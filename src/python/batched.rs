@@ -286,23 +286,23 @@ pub(crate) fn single_matrix<'py>(
     }
 }
 
-/// Evaluates `f(data, row, out_row)` for every row of a batch of `rows` rows of `width`
-/// numbers, in parallel without the GIL ([`compute_rows`]), into a buffer of its own. The
+/// Evaluates `f(data, row, out_row)` for every row of a batch of `shape = (rows, …)`, a row of
+/// the product of the other axes, in parallel without the GIL ([`compute_rows`]), into a buffer of its own. The
 /// result goes to a new array of `shape`, or is copied into `out` (checked first) once the GIL
 /// is back, so no numpy array is touched without it. The first error (lowest row) is raised,
 /// naming its row. Ctrl-C stops the rows within [`super::run::SIGNAL_CHECK`] and raises
 /// `KeyboardInterrupt`.
-#[allow(clippy::too_many_arguments)]
 pub(crate) fn evaluate<'py>(
     py: Python<'py>,
     robot: &Robot,
     workspaces: &Pool<Data>,
     out: Option<&Bound<'py, PyAny>>,
     shape: &[usize],
-    rows: usize,
-    width: usize,
     f: impl Fn(&mut Data, usize, &mut [f64]) -> crate::Result<()> + Sync,
 ) -> PyResult<Bound<'py, PyAny>> {
+    // `shape` is `(rows, …)`: a row holds the product of the other axes
+    let rows = shape[0];
+    let width = shape[1..].iter().product::<usize>();
     let out = out
         .filter(|o| !o.is_none())
         .map(|o| checked_out(o, shape))

@@ -3,11 +3,23 @@
 use super::convert::{array1, as_float_array, matrix, real, row_major, vector};
 use super::errors::ModelError;
 use super::joints::Param;
+use crate::control::{Controller, MotorPD, Schedule};
 use crate::error::Error;
-use crate::integrate::{Controller, MotorPD, Schedule};
 use numpy::PyArray1;
 use pyo3::prelude::*;
 use pyo3::types::PyTuple;
+
+/// The wheel-torque commands of a run on an arm with `k` reaction wheels: a [`schedule`] of
+/// width `k`; anything but None is refused on an arm without wheels.
+pub(crate) fn wheel_schedule(obj: Option<&Bound<'_, PyAny>>, k: usize) -> PyResult<Schedule> {
+    match (obj.filter(|o| !o.is_none()), k) {
+        (Some(_), 0) => Err(ModelError::new_err(
+            "wheel_torque: the arm has no reaction wheels; give none (or build the arm with \
+             wheels=)",
+        )),
+        (w, k) => schedule(w, "wheel_torque", k),
+    }
+}
 
 /// A per-step input of width `n` from Python: None (zero), a scalar (the same for every element),
 /// an (n,) constant, or a (rows, n) table.
@@ -144,20 +156,42 @@ impl PyMotorPD {
     }
 }
 
-/// A Python callable ``(t, x) -> u`` as a [`Controller`]; the first Python exception is kept.
-pub(crate) struct PyCallable<'py> {
-    pub func: Bound<'py, PyAny>,
-    pub n: usize,
-    pub error: Option<PyErr>,
+/// The controller of a run from ``u``: an ``orbitflex.MotorPD`` (a copy), a callable
+/// ``u(t, x) -> (n,)`` ([`PyCallable`], whose first exception lands in `error`), or a schedule
+/// (None, a scalar, (n,) or (steps, n)). `Send`: a run leaves the GIL whatever drives it.
+pub(crate) fn controller<'a>(
+    u: Option<&Bound<'_, PyAny>>,
+    n: usize,
+    error: &'a mut Option<PyErr>,
+) -> PyResult<Box<dyn Controller + Send + 'a>> {
+    Ok(match u.filter(|o| !o.is_none()) {
+        Some(obj) if obj.is_instance_of::<PyMotorPD>() => {
+            Box::new(obj.downcast::<PyMotorPD>()?.get().pd.clone())
+        }
+        Some(obj) if obj.is_callable() => Box::new(PyCallable {
+            func: obj.clone().unbind(),
+            n,
+            error,
+        }),
+        other => Box::new(schedule(other, "u", n)?),
+    })
+}
+
+/// A Python callable ``(t, x) -> u`` as a [`Controller`], taking the GIL for each call; the first
+/// Python exception is kept in `error`.
+pub(crate) struct PyCallable<'a> {
+    func: Py<PyAny>,
+    n: usize,
+    error: &'a mut Option<PyErr>,
 }
 
 impl Controller for PyCallable<'_> {
-    fn torque(&mut self, _step: usize, t: f64, x: &[f64], u: &mut [f64]) -> crate::Result<()> {
-        let py = self.func.py();
-        let result = self
-            .func
-            .call1((t, array1(py, x)))
-            .and_then(|out| vector(&out, "u returned by the controller", Some(self.n)));
+    fn output(&mut self, _step: usize, t: f64, x: &[f64], u: &mut [f64]) -> crate::Result<()> {
+        let result = Python::with_gil(|py| {
+            self.func
+                .call1(py, (t, array1(py, x)))
+                .and_then(|out| vector(out.bind(py), "u returned by the controller", Some(self.n)))
+        });
         match result {
             Ok(values) => {
                 u.copy_from_slice(&values);
@@ -165,7 +199,7 @@ impl Controller for PyCallable<'_> {
             }
             Err(e) => {
                 let message = e.to_string();
-                self.error = Some(e);
+                *self.error = Some(e);
                 Err(Error::InvalidArgument {
                     what: "controller".into(),
                     message,

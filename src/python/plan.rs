@@ -6,10 +6,11 @@ use super::convert::{array1, as_float_array, count, matrix, real, row_major, vec
 use super::errors::{simulation_error, LimitWarning, ModelError};
 use super::joints::Param;
 use super::robot::PyRobot;
-use super::run::{run_releasing_gil, watched, Progress};
+use super::run::{run_releasing_gil, watched, Channels, Progress};
 use super::trajectory::{freeze, PyTrajectory};
 use crate::args::number;
 use crate::error::Error;
+use crate::integrate::Run;
 use crate::planning::{
     plan_slew_watched, BaseMode, Binding, Limits, Plan, Reference, Samples, Tracking, TrackingSetup,
 };
@@ -698,21 +699,24 @@ impl PyPlan {
         let Some(TrackingSetup {
             steps,
             reference,
-            mut pd,
+            pd,
             wrenches,
         }) = setup
         else {
             return Err(interrupt.expect("stopped only on a pending exception"));
         };
         let x0 = plan.initial_state();
+        let mut channels = Channels {
+            u: Box::new(pd),
+            base_wrench: wrenches.base,
+            ee_wrench: wrenches.ee,
+            wheel_torque: wrenches.wheel_torque,
+        };
         let run = run_releasing_gil(
             py,
             plan.arm(),
-            &x0,
-            dt,
-            steps,
-            &mut pd,
-            &wrenches,
+            &Run::new(&x0, dt, steps),
+            &mut channels,
             &mut Progress::new(None),
         )?;
         let trajectory = match run {

@@ -508,16 +508,7 @@ impl PyRobot {
                     algorithms::frame_poses(robot, data, b.arg(0, r), b.arg(1, r), row)
                 };
                 let shape = [b.rows, frames, 7];
-                evaluate(
-                    py,
-                    robot,
-                    &self.workspaces,
-                    out,
-                    &shape,
-                    b.rows,
-                    7 * frames,
-                    each,
-                )
+                evaluate(py, robot, &self.workspaces, out, &shape, each)
             }
             Call::Single(v) => {
                 let mut values = vec![0.0; 7 * frames];
@@ -587,16 +578,7 @@ impl PyRobot {
                     row_major_into(method.mass_matrix(robot, data, b.arg(0, r))?, row);
                     Ok(())
                 };
-                evaluate(
-                    py,
-                    robot,
-                    &self.workspaces,
-                    out,
-                    &shape,
-                    b.rows,
-                    size * size,
-                    each,
-                )
+                evaluate(py, robot, &self.workspaces, out, &shape, each)
             }
             Call::Single(v) => {
                 let mut data = self.data();
@@ -634,20 +616,11 @@ impl PyRobot {
             Call::Batch(b) => {
                 let robot = &self.robot;
                 let shape = [b.rows, 6 + n];
-                evaluate(
-                    py,
-                    robot,
-                    &self.workspaces,
-                    out,
-                    &shape,
-                    b.rows,
-                    6 + n,
-                    |data, r, row| {
-                        let state = RigidState::new(b.arg(0, r), b.arg(1, r), b.arg(2, r));
-                        row.copy_from_slice(method.bias_forces(robot, data, &state)?.as_slice());
-                        Ok(())
-                    },
-                )
+                evaluate(py, robot, &self.workspaces, out, &shape, |data, r, row| {
+                    let state = RigidState::new(b.arg(0, r), b.arg(1, r), b.arg(2, r));
+                    row.copy_from_slice(method.bias_forces(robot, data, &state)?.as_slice());
+                    Ok(())
+                })
             }
             Call::Single(v) => {
                 let mut data = self.data();
@@ -700,7 +673,6 @@ impl PyRobot {
     /// leading axis too. ``out=`` takes a float64 C-contiguous array of the result's shape to
     /// write into (and returns it), saving the allocation of a new one.
     #[pyo3(signature = (q, base_twist, qd, tau, base_wrench=None, ee_wrench=None, method="recursive", *, out=None))]
-    #[allow(clippy::too_many_arguments)]
     fn forward_dynamics<'py>(
         &self,
         py: Python<'py>,
@@ -729,23 +701,13 @@ impl PyRobot {
             Call::Batch(b) => {
                 let robot = &self.robot;
                 let shape = [b.rows, 6 + n];
-                evaluate(
-                    py,
-                    robot,
-                    &self.workspaces,
-                    out,
-                    &shape,
-                    b.rows,
-                    6 + n,
-                    |data, r, row| {
-                        let state = RigidState::new(b.arg(0, r), b.arg(1, r), b.arg(2, r));
-                        let loads = Loads::from_slices(Some(b.arg(4, r)), Some(b.arg(5, r)))?;
-                        let acc =
-                            method.forward_dynamics(robot, data, &state, b.arg(3, r), &loads)?;
-                        row.copy_from_slice(acc.as_slice());
-                        Ok(())
-                    },
-                )
+                evaluate(py, robot, &self.workspaces, out, &shape, |data, r, row| {
+                    let state = RigidState::new(b.arg(0, r), b.arg(1, r), b.arg(2, r));
+                    let loads = Loads::from_slices(Some(b.arg(4, r)), Some(b.arg(5, r)))?;
+                    let acc = method.forward_dynamics(robot, data, &state, b.arg(3, r), &loads)?;
+                    row.copy_from_slice(acc.as_slice());
+                    Ok(())
+                })
             }
             Call::Single(v) => {
                 let loads = Loads::from_slices(Some(&v[4]), Some(&v[5]))?;
@@ -765,7 +727,6 @@ impl PyRobot {
     /// leading axis too. ``out=`` takes a float64 C-contiguous array of the result's shape to
     /// write into (and returns it), saving the allocation of a new one.
     #[pyo3(signature = (q, base_twist, qd, base_acc, qdd, ee_wrench=None, method="recursive", *, out=None))]
-    #[allow(clippy::too_many_arguments)]
     fn inverse_dynamics<'py>(
         &self,
         py: Python<'py>,
@@ -794,28 +755,19 @@ impl PyRobot {
             Call::Batch(b) => {
                 let robot = &self.robot;
                 let shape = [b.rows, 6 + n];
-                evaluate(
-                    py,
-                    robot,
-                    &self.workspaces,
-                    out,
-                    &shape,
-                    b.rows,
-                    6 + n,
-                    |data, r, row| {
-                        let state = RigidState::new(b.arg(0, r), b.arg(1, r), b.arg(2, r));
-                        let gen = method.inverse_dynamics(
-                            robot,
-                            data,
-                            &state,
-                            b.arg(3, r),
-                            b.arg(4, r),
-                            b.arg(5, r),
-                        )?;
-                        row.copy_from_slice(gen.as_slice());
-                        Ok(())
-                    },
-                )
+                evaluate(py, robot, &self.workspaces, out, &shape, |data, r, row| {
+                    let state = RigidState::new(b.arg(0, r), b.arg(1, r), b.arg(2, r));
+                    let gen = method.inverse_dynamics(
+                        robot,
+                        data,
+                        &state,
+                        b.arg(3, r),
+                        b.arg(4, r),
+                        b.arg(5, r),
+                    )?;
+                    row.copy_from_slice(gen.as_slice());
+                    Ok(())
+                })
             }
             Call::Single(v) => {
                 let mut data = self.data();
@@ -885,7 +837,6 @@ impl PyRobot {
     /// ``"base_wrench"`` (6+n, 6) and ``"ee_wrench"`` (6+n, 6k), one 6-column block per
     /// end-effector in ``ee_links`` order. Analytical, O(n²).
     #[pyo3(signature = (q, base_twist, qd, tau, base_wrench=None, ee_wrench=None))]
-    #[allow(clippy::too_many_arguments)]
     fn forward_dynamics_derivatives<'py>(
         &self,
         py: Python<'py>,
@@ -917,7 +868,6 @@ impl PyRobot {
     /// acceleration held), ``"a"`` (6+n, 6+n) with respect to ``[base_acc; qdd]`` (the mass
     /// matrix) and ``"ee_wrench"`` (6+n, 6k), one block per end-effector. Analytical, O(n²).
     #[pyo3(signature = (q, base_twist, qd, base_acc, qdd, ee_wrench=None))]
-    #[allow(clippy::too_many_arguments)]
     fn inverse_dynamics_derivatives<'py>(
         &self,
         py: Python<'py>,

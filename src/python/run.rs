@@ -2,10 +2,11 @@
 //! it is a Python callable; honouring Ctrl-C and reporting progress either way.
 
 use super::convert::row_major;
+use crate::control::{Controller, Schedule};
 use crate::error::Error;
 use crate::flex::{FlexibleArm, StateLayout};
 use crate::integrate::{
-    self, Chunk, Chunks, Controller, Observer, Recorder, SimulationFailure, Trajectory, Wrenches,
+    self, Chunk, Chunks, Drive, Observer, Recorder, Run, SimulationFailure, Trajectory,
 };
 use numpy::PyArray1;
 use pyo3::prelude::*;
@@ -142,22 +143,43 @@ pub(crate) fn watched<R: Send>(
 
 type RunResult = Result<Trajectory, Box<SimulationFailure>>;
 
+/// The channels of a run from Python, owned and `Send`, so that the run can leave the GIL (a
+/// Python callable takes it back for each of its calls).
+pub(crate) struct Channels<'a> {
+    /// The motor torques.
+    pub u: Box<dyn Controller + Send + 'a>,
+    /// The base wrench.
+    pub base_wrench: Schedule,
+    /// The end-effector wrenches.
+    pub ee_wrench: Schedule,
+    /// The reaction-wheel torque commands.
+    pub wheel_torque: Schedule,
+}
+
+impl Channels<'_> {
+    /// The channels as the [`Drive`] of a run.
+    pub fn drive(&mut self) -> Drive<'_> {
+        Drive {
+            u: &mut *self.u,
+            base_wrench: &mut self.base_wrench,
+            ee_wrench: &mut self.ee_wrench,
+            wheel_torque: &mut self.wheel_torque,
+        }
+    }
+}
+
 /// [`integrate::simulate()`] without the GIL. A pending `KeyboardInterrupt` (or an exception from
 /// the progress callback) stops the run and is raised as it is.
-#[allow(clippy::too_many_arguments)]
 pub(crate) fn run_releasing_gil(
     py: Python<'_>,
     arm: &FlexibleArm,
-    x0: &[f64],
-    dt: f64,
-    steps: usize,
-    u: &mut (dyn Controller + Send),
-    wrenches: &Wrenches,
+    run: &Run<'_>,
+    channels: &mut Channels<'_>,
     progress: &mut Progress,
 ) -> PyResult<RunResult> {
     let mut watch = Watch::new(progress);
     let result =
-        py.allow_threads(|| integrate::simulate(arm, x0, dt, steps, u, wrenches, &mut watch));
+        py.allow_threads(|| integrate::simulate(arm, run, &mut channels.drive(), &mut watch));
     match watch.error {
         Some(e) => Err(e),
         None => Ok(result),
@@ -166,64 +188,18 @@ pub(crate) fn run_releasing_gil(
 
 /// [`integrate::simulate_into()`] without the GIL. A pending `KeyboardInterrupt` (or an
 /// exception from the progress callback) stops the run and is raised as it is.
-#[allow(clippy::too_many_arguments)]
 pub(crate) fn record_releasing_gil(
     py: Python<'_>,
     arm: &FlexibleArm,
-    x0: &[f64],
-    dt: f64,
-    steps: usize,
-    record_every: usize,
-    u: &mut (dyn Controller + Send),
-    wrenches: &Wrenches,
+    run: &Run<'_>,
+    channels: &mut Channels<'_>,
     progress: &mut Progress,
     recorder: &mut (dyn Recorder + Send),
 ) -> PyResult<crate::Result<()>> {
     let mut watch = Watch::new(progress);
     let result = py.allow_threads(|| {
-        integrate::simulate_into(
-            arm,
-            x0,
-            dt,
-            steps,
-            record_every,
-            u,
-            wrenches,
-            &mut watch,
-            recorder,
-        )
+        integrate::simulate_into(arm, run, &mut channels.drive(), &mut watch, recorder)
     });
-    match watch.error {
-        Some(e) => Err(e),
-        None => Ok(result),
-    }
-}
-
-/// [`integrate::simulate_into()`] holding the GIL, for a controller that calls Python.
-#[allow(clippy::too_many_arguments)]
-pub(crate) fn record_with_gil(
-    arm: &FlexibleArm,
-    x0: &[f64],
-    dt: f64,
-    steps: usize,
-    record_every: usize,
-    u: &mut dyn Controller,
-    wrenches: &Wrenches,
-    progress: &mut Progress,
-    recorder: &mut dyn Recorder,
-) -> PyResult<crate::Result<()>> {
-    let mut watch = Watch::new(progress);
-    let result = integrate::simulate_into(
-        arm,
-        x0,
-        dt,
-        steps,
-        record_every,
-        u,
-        wrenches,
-        &mut watch,
-        recorder,
-    );
     match watch.error {
         Some(e) => Err(e),
         None => Ok(result),

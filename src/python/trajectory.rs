@@ -400,7 +400,6 @@ impl PyTrajectory {
     /// ``packages`` maps ROS package names to directories for ``package://`` meshes; ``shapes``
     /// adds shapes (dicts like ``Robot.scene``'s). Needs ``pip install 'orbitflex[viz]'``.
     #[pyo3(signature = (path, fps=30.0, ghost=None, packages=None, title=None, shapes=None))]
-    #[allow(clippy::too_many_arguments)]
     fn animate<'py>(
         slf: &Bound<'py, Self>,
         path: &Bound<'py, PyAny>,

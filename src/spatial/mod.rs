@@ -28,11 +28,17 @@
 
 mod articulated;
 mod inertia;
+mod quaternion;
 mod transform;
 mod vectors;
 
 pub use articulated::{ArticulatedInertia, Symmetric3};
 pub use inertia::{bias_force, coriolis_acceleration, Inertia};
+pub use quaternion::{
+    base_pose_rate, euler_zyx, normalise_quaternion, quaternion_exp, quaternion_log,
+    quaternion_product, quaternion_rate, quaternion_to_rotation, rotation_angle, POSE_POSITION,
+    POSE_QUATERNION,
+};
 pub use transform::{congruence, rotation_about_axis, Transform};
 pub use vectors::{Force, Motion};
 
@@ -63,13 +69,3 @@ pub fn blocks(a: &Mat3, b: &Mat3, c: &Mat3, d: &Mat3) -> Mat6 {
 
 #[cfg(test)]
 mod tests;
-
-/// Rotation matrix of a unit quaternion `(x, y, z, w)` (scalar last, model §1): it maps base-frame
-/// components to inertial-frame components. The quaternion is normalised first.
-#[inline]
-pub fn quaternion_to_rotation(quat: &[f64]) -> Mat3 {
-    let q = nalgebra::Quaternion::new(quat[3], quat[0], quat[1], quat[2]);
-    nalgebra::UnitQuaternion::from_quaternion(q)
-        .to_rotation_matrix()
-        .into_inner()
-}

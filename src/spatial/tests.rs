@@ -266,3 +266,59 @@ fn tilted_congruence_equals_the_general_one() {
         );
     }
 }
+
+/// `euler_zyx` inverts `R = R_z(yaw) R_y(pitch) R_x(roll)`: the quaternion of that product (built
+/// from three axis rotations, not from the formula under test) gives the angles back.
+#[test]
+fn euler_zyx_inverts_the_z_y_x_product() {
+    let axis = |k: usize, angle: f64| {
+        let mut q = [0.0, 0.0, 0.0, (0.5 * angle).cos()];
+        q[k] = (0.5 * angle).sin();
+        q
+    };
+    for &(yaw, pitch, roll) in &[
+        (0.3, -0.2, 1.1),
+        (-2.9, 1.2, -3.0),
+        (1.0, 0.0, 0.0),
+        (0.0, 0.0, -0.5),
+    ] {
+        let q = quaternion_product(
+            &quaternion_product(&axis(2, yaw), &axis(1, pitch)),
+            &axis(0, roll),
+        );
+        let [y, p, r] = euler_zyx(&q);
+        for (got, want) in [(y, yaw), (p, pitch), (r, roll)] {
+            assert!((got - want).abs() < 1e-14, "{got} vs {want}");
+        }
+        // and the matrix agrees with the product of the three
+        let expected = rotation_about_axis(&Vec3::z(), yaw)
+            * rotation_about_axis(&Vec3::y(), pitch)
+            * rotation_about_axis(&Vec3::x(), roll);
+        assert!((quaternion_to_rotation(&q) - expected).abs().max() < 1e-14);
+    }
+}
+
+/// `rotation_angle` is the angle of the relative rotation, symmetric, the short way round, and
+/// keeps its digits at tiny angles (where `2 acos(a · b)` returns 0 below about 1e-8 rad).
+#[test]
+fn rotation_angle_is_the_relative_angle_even_when_tiny() {
+    let about = |axis: Vec3, angle: f64| {
+        let s = (0.5 * angle).sin();
+        let a = axis.normalize();
+        [a.x * s, a.y * s, a.z * s, (0.5 * angle).cos()]
+    };
+    let a = about(Vec3::new(1.0, 2.0, -0.5), 0.7);
+    for &angle in &[1e-12, 1e-9, 1e-4, 0.5, 3.0] {
+        let turn = about(Vec3::new(-0.3, 0.1, 0.9), angle);
+        let b = quaternion_product(&a, &turn);
+        for got in [rotation_angle(&a, &b), rotation_angle(&b, &a)] {
+            assert!(
+                (got - angle).abs() <= 1e-15 + 4.0 * f64::EPSILON * angle,
+                "{got} vs {angle}"
+            );
+        }
+        // −b is the same attitude
+        let minus_b = [-b[0], -b[1], -b[2], -b[3]];
+        assert!((rotation_angle(&a, &minus_b) - angle).abs() <= 1e-15 + 4.0 * f64::EPSILON * angle);
+    }
+}

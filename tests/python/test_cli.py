@@ -843,7 +843,10 @@ def test_attitude_plot_states_the_sequence_and_the_total_rotation(figures):
     total = [line for line in ax.get_lines() if line.get_label().startswith("total rotation")]
     assert len(total) == 1
     q = traj.base_pose[:, 3:]
-    expected = np.degrees(2 * np.arccos(min(1.0, abs(q[0] @ q[-1]))))
+    # the angle between the two attitudes in the form accurate at small angles (arccos of the dot
+    # product loses half the digits there): 4 atan2(|q1 − s q0|, |q1 + s q0|), s = sign(q0·q1)
+    s = 1.0 if q[0] @ q[-1] >= 0 else -1.0
+    expected = np.degrees(4 * np.arctan2(np.linalg.norm(q[-1] - s * q[0]), np.linalg.norm(q[-1] + s * q[0])))
     assert total[0].get_ydata()[-1] == pytest.approx(expected, rel=1e-9, abs=1e-12)
 
 

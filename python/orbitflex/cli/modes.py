@@ -18,7 +18,7 @@ from typing import Any, Dict, List, Optional, Tuple
 import numpy as np
 import numpy.typing as npt
 
-from . import FlexibleArm, FlexibleJoints, MotorPD, analysis, models
+from .. import FlexibleArm, FlexibleJoints, MotorPD, analysis, models
 
 Array = npt.NDArray[np.float64]
 
@@ -40,7 +40,7 @@ examples:
 
 def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     """Adds ``modes`` to the CLI's subparsers."""
-    from .cli import finite, non_negative, positive
+    from .errors import finite, non_negative, positive
 
     p: argparse.ArgumentParser = subparsers.add_parser(
         "modes", help="structural modes, frequency response and Campbell diagram of an arm",
@@ -93,7 +93,8 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
 
 def load(args: argparse.Namespace) -> Tuple[FlexibleArm, Optional[str]]:
     """The arm: the URDF's with --params (or scaled defaults), or the built-in space arm."""
-    from .cli import CliError, cli_words, load_arm
+    from .errors import CliError, cli_words
+    from .robots import load_arm
 
     if args.urdf is not None:
         arm, _, _, note = load_arm(args)
@@ -108,7 +109,8 @@ def load(args: argparse.Namespace) -> Tuple[FlexibleArm, Optional[str]]:
 
 
 def controller(arm: FlexibleArm, args: argparse.Namespace) -> Optional[MotorPD]:
-    from .cli import CliError, per_joint
+    from .errors import CliError
+    from .slew import per_joint
 
     if args.kp is None:
         if args.kd is not None:
@@ -121,7 +123,8 @@ def controller(arm: FlexibleArm, args: argparse.Namespace) -> Optional[MotorPD]:
 
 def command(args: argparse.Namespace) -> int:
     """Runs ``orbitflex modes``; returns the exit code."""
-    from .cli import CliError, output_folder, per_joint
+    from .errors import CliError, output_folder
+    from .slew import per_joint
 
     arm, note = load(args)
     robot = arm.robot
@@ -164,7 +167,7 @@ def command(args: argparse.Namespace) -> int:
 
 def run_sweep(arm: FlexibleArm, q: Array, pd: Optional[MotorPD],
               args: argparse.Namespace) -> Tuple[analysis.Sweep, Array, str]:
-    from .cli import CliError
+    from .errors import CliError
 
     joint, low, high, count = args.sweep
     names = arm.robot.joint_names

@@ -1,7 +1,10 @@
 //! The state vector of the flexible floating-base arm (model §4): its layout, the one place where
-//! its offsets live, and the quaternion and base-pose helpers that act on it.
+//! its offsets live (and those of its tangent), split into named parts. The quaternion arithmetic
+//! it uses lives in [`crate::spatial`].
 
-use crate::spatial::Vec3;
+use crate::spatial::{
+    quaternion_exp, quaternion_log, quaternion_product, Vec3, POSE_POSITION, POSE_QUATERNION,
+};
 use std::ops::Range;
 
 /// Offsets of the blocks of the state `x ∈ R^{13+4n+k}` (model §4):
@@ -57,11 +60,11 @@ impl StateLayout {
     }
     /// `r_B`: base origin in the inertial frame (m).
     pub fn position(&self) -> Range<usize> {
-        0..3
+        POSE_POSITION
     }
     /// `quat_B = (x, y, z, w)`: base-frame to inertial-frame components.
     pub fn quaternion(&self) -> Range<usize> {
-        3..7
+        POSE_QUATERNION
     }
     /// `[r_B; quat_B]`.
     pub fn base_pose(&self) -> Range<usize> {
@@ -112,7 +115,7 @@ impl StateLayout {
             .zip(x[..3].iter().zip(&dx[..3]))
             .for_each(|(o, (a, b))| *o = a + b);
         let turn = quaternion_exp(&Vec3::new(dx[3], dx[4], dx[5]));
-        out[3..7].copy_from_slice(&quaternion_product(&x[3..7], &turn));
+        out[POSE_QUATERNION].copy_from_slice(&quaternion_product(&x[POSE_QUATERNION], &turn));
         out[7..]
             .iter_mut()
             .zip(x[7..].iter().zip(&dx[6..]))
@@ -126,9 +129,9 @@ impl StateLayout {
             .iter_mut()
             .zip(x1[..3].iter().zip(&x0[..3]))
             .for_each(|(o, (a, b))| *o = a - b);
-        let q0 = &x0[3..7];
+        let q0 = &x0[POSE_QUATERNION];
         let conjugate = [-q0[0], -q0[1], -q0[2], q0[3]];
-        let relative = quaternion_product(&conjugate, &x1[3..7]);
+        let relative = quaternion_product(&conjugate, &x1[POSE_QUATERNION]);
         out[3..6].copy_from_slice(quaternion_log(&relative).as_slice());
         out[6..]
             .iter_mut()
@@ -220,76 +223,6 @@ impl StateParts<'_> {
     pub fn velocity(&self) -> Vec3 {
         Vec3::new(self.base_twist[3], self.base_twist[4], self.base_twist[5])
     }
-}
-
-/// `d quat / dt = ½ quat ⊗ (ω, 0)` (Hamilton product, scalar last) for a quaternion mapping body
-/// to inertial components and the body-frame angular velocity `ω`.
-#[inline]
-pub fn quaternion_rate(quat: &[f64], omega: &Vec3) -> [f64; 4] {
-    let v = Vec3::new(quat[0], quat[1], quat[2]);
-    let d = (omega * quat[3] + v.cross(omega)) * 0.5;
-    [d.x, d.y, d.z, -0.5 * v.dot(omega)]
-}
-
-/// The Hamilton product `a ⊗ b` of quaternions `(x, y, z, w)`, scalar last.
-#[inline]
-pub fn quaternion_product(a: &[f64], b: &[f64]) -> [f64; 4] {
-    let (av, aw) = (Vec3::new(a[0], a[1], a[2]), a[3]);
-    let (bv, bw) = (Vec3::new(b[0], b[1], b[2]), b[3]);
-    let v = bv * aw + av * bw + av.cross(&bv);
-    [v.x, v.y, v.z, aw * bw - av.dot(&bv)]
-}
-
-/// `Exp(φ)`: the unit quaternion of the rotation by `|φ|` about `φ/|φ|` (a rotation vector, rad).
-#[inline]
-pub fn quaternion_exp(phi: &Vec3) -> [f64; 4] {
-    let angle = phi.norm();
-    // sin(θ/2)/θ by its series near 0, where the division would lose digits
-    let scale = if angle < 1e-4 {
-        0.5 - angle * angle / 48.0
-    } else {
-        (0.5 * angle).sin() / angle
-    };
-    [
-        phi.x * scale,
-        phi.y * scale,
-        phi.z * scale,
-        (0.5 * angle).cos(),
-    ]
-}
-
-/// `Log(quat)`: the rotation vector (rad, `|φ| ≤ π`) of a unit quaternion, taken with `w ≥ 0`
-/// (the same rotation as `−quat`).
-#[inline]
-pub fn quaternion_log(quat: &[f64]) -> Vec3 {
-    let sign = if quat[3] < 0.0 { -1.0 } else { 1.0 };
-    let v = Vec3::new(quat[0], quat[1], quat[2]) * sign;
-    let w = quat[3] * sign;
-    let s = v.norm();
-    // θ/sin(θ/2) with θ = 2 atan2(s, w), by its series where s is tiny
-    let scale = if s < 1e-8 {
-        2.0 / w * (1.0 - s * s / (3.0 * w * w))
-    } else {
-        2.0 * s.atan2(w) / s
-    };
-    v * scale
-}
-
-/// Scales a quaternion to unit norm. The norm is taken after dividing by the largest component,
-/// so huge but finite components do not overflow into a zero quaternion; a zero or non-finite
-/// quaternion is left as it is (and is then caught as a diverged state).
-pub fn normalise_quaternion(quat: &mut [f64]) {
-    let squares: f64 = quat.iter().map(|v| v * v).sum();
-    let norm = if squares.is_finite() && squares > f64::MIN_POSITIVE {
-        squares.sqrt()
-    } else {
-        let scale = quat.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-        if !(scale.is_finite() && scale > 0.0) {
-            return;
-        }
-        scale * quat.iter().map(|v| (v / scale).powi(2)).sum::<f64>().sqrt()
-    };
-    quat.iter_mut().for_each(|v| *v /= norm);
 }
 
 /// Why `x` is not a valid state, if it is not: a non-finite element or a zero quaternion.

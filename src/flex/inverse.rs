@@ -14,14 +14,15 @@
 //!    `δ̈ = (τ̇ − k δ̇)/d` follow.
 //! 3. The motors: `θ = q + δ` and `u = j θ̈ + β θ̇ + τ`.
 //!
-//! `τ̇` and `τ̈` come exactly from running the recursion on time jets ([`super::taylor`]): every
+//! `τ̇` and `τ̈` come exactly from running the recursion on time jets ([`super::jets`]): every
 //! body velocity is carried with its first three time derivatives, its acceleration is the
 //! derivative of that jet, and forces and torques follow by the Leibniz rule.
 
-use super::taylor::{derivative, joint_rotation, leibniz, solve6, Jet, TERMS};
+use super::arm::FlexibleArm;
+use super::jets::{derivative, joint_rotation, leibniz, solve6, Jet, TERMS};
+use super::joints::FlexibleJoints;
 use crate::args::check_vector;
 use crate::error::{Error, Result};
-use crate::flex::FlexibleArm;
 use crate::model::Robot;
 use crate::spatial::{Force, Mat3, Motion, Transform, Vec3};
 use nalgebra::{Matrix6, Vector6};
@@ -121,6 +122,45 @@ pub struct FlexibleInverse {
     pub base_acc: [f64; 6],
     /// `f_B = [moment; force]` (N·m, N) the base actuators apply: zero when free.
     pub base_wrench: [f64; 6],
+}
+
+impl FlexibleInverse {
+    /// All zeros, for `n` joints.
+    pub fn zeros(n: usize) -> Self {
+        Self {
+            theta: vec![0.0; n],
+            theta_dot: vec![0.0; n],
+            theta_ddot: vec![0.0; n],
+            u: vec![0.0; n],
+            tau: vec![0.0; n],
+            base_twist: [0.0; 6],
+            base_acc: [0.0; 6],
+            base_wrench: [0.0; 6],
+        }
+    }
+
+    /// Joint `i`'s motor side (step 3 of the module docs) from its link motion
+    /// `link = [q, q̇, q̈]`, its deflection `[δ, δ̇, δ̈]` and its spring torque `τ`:
+    /// `θ = q + δ`, `θ̇ = q̇ + δ̇`, `θ̈ = q̈ + δ̈`, `u = j θ̈ + β θ̇ + τ`.
+    #[inline]
+    pub(crate) fn set_joint(
+        &mut self,
+        joints: &FlexibleJoints,
+        i: usize,
+        link: [f64; 3],
+        deflection: [f64; 3],
+        tau: f64,
+    ) {
+        let [q, qd, qdd] = link;
+        let [delta, rate, acc] = deflection;
+        self.theta[i] = q + delta;
+        self.theta_dot[i] = qd + rate;
+        self.theta_ddot[i] = qdd + acc;
+        self.tau[i] = tau;
+        self.u[i] = joints.motor_inertia[i] * self.theta_ddot[i]
+            + joints.motor_damping[i] * self.theta_dot[i]
+            + tau;
+    }
 }
 
 /// The rigid-body dynamics along a motion, as time jets.
@@ -302,7 +342,7 @@ pub(crate) fn deflection_rates(
 }
 
 impl FlexibleArm {
-    /// Flexible-joint inverse dynamics (module [`crate::planning::flatness`]): the motor angles,
+    /// Flexible-joint inverse dynamics (module [`crate::flex::inverse`]): the motor angles,
     /// rates, accelerations and torques, the spring torques, and the base twist, acceleration and
     /// wrench that make the links move with `motion` (no external wrench on the EE).
     ///
@@ -378,19 +418,14 @@ impl FlexibleArm {
         };
         for i in 0..n {
             let tau = &rigid.tau[i];
-            let [delta, rate, acc] = deflection_rates(
+            let deflection = deflection_rates(
                 joints.stiffness[i],
                 joints.damping[i],
                 tau,
                 deflection.map(|d| d[i]),
             );
-            out.theta[i] = motion.q[i] + delta;
-            out.theta_dot[i] = motion.qd[i] + rate;
-            out.theta_ddot[i] = motion.qdd[i] + acc;
-            out.tau[i] = tau[0];
-            out.u[i] = joints.motor_inertia[i] * out.theta_ddot[i]
-                + joints.motor_damping[i] * out.theta_dot[i]
-                + tau[0];
+            let link = [motion.q[i], motion.qd[i], motion.qdd[i]];
+            out.set_joint(joints, i, link, deflection, tau[0]);
         }
         let finite = [
             &out.theta[..],

@@ -1,0 +1,361 @@
+//! The inputs of a batch: [`BatchInput`], one per-step input broadcast over the run and step
+//! axes; each run's own controller and wrenches; the checks a batch makes before its first step
+//! and the runs past their stability limit.
+
+use super::pool::{in_pool, interrupted};
+use super::{Batch, BatchControl, BatchSettings, BatchWatch, PerRun};
+use crate::args::check_dt;
+use crate::control::{Controller, MotorPD, Schedule, Wrenches};
+use crate::error::{Error, Result};
+use crate::flex::FlexibleArm;
+use crate::integrate::record::check_record_every;
+use crate::integrate::run::{Drive, Run};
+use rayon::prelude::*;
+use std::sync::atomic::AtomicBool;
+
+/// A per-step input of `width` numbers for every run of a batch, broadcast over the run and step
+/// axes (module docs): a row-major buffer with a stride per run and per step, either of which may
+/// be 0 (the same row repeated).
+#[derive(Debug, Clone, Copy)]
+pub struct BatchInput<'a> {
+    values: &'a [f64],
+    width: usize,
+    pub(super) run_stride: usize,
+    pub(super) step_stride: usize,
+    /// The length of the run axis when it is not broadcast.
+    runs: Option<usize>,
+    /// The length of the step axis of a table.
+    steps: Option<usize>,
+}
+
+impl<'a> BatchInput<'a> {
+    /// Zeros of this width for every run and step (no buffer).
+    pub const fn zero(width: usize) -> Self {
+        Self {
+            values: &[],
+            width,
+            run_stride: 0,
+            step_stride: 0,
+            runs: None,
+            steps: None,
+        }
+    }
+
+    /// The input `what` of a batch of `runs` runs, from a row-major buffer of shape `shape`:
+    /// `(width,)`, `(R, width)` or, when `steps` is given, `(R, steps, width)`, with `R` either
+    /// 1 or `runs`. An error names `what`, the shape expected and the shape given.
+    pub fn new(
+        what: &str,
+        values: &'a [f64],
+        shape: &[usize],
+        runs: usize,
+        steps: Option<usize>,
+        width: usize,
+    ) -> Result<Self> {
+        let shown = crate::args::describe_shape;
+        let expected = match steps {
+            Some(s) => format!(
+                "shape ({width},), ({runs}, {width}), (1, {width}), ({runs}, {s}, {width}) or \
+                 (1, {s}, {width})"
+            ),
+            None => format!("shape ({width},), ({runs}, {width}) or (1, {width})"),
+        };
+        let wrong = || Error::Dimension {
+            what: what.to_string(),
+            expected: expected.clone(),
+            given: format!("shape {}", shown(shape)),
+        };
+        let run_axis = |r: usize| match r {
+            1 => Ok(0),
+            r if r == runs => Ok(1),
+            _ => Err(wrong()),
+        };
+        let (run_stride, step_stride) = match *shape {
+            [w] if w == width => (0, 0),
+            [r, w] if w == width => (run_axis(r)? * width, 0),
+            [r, s, w] if w == width && Some(s) == steps => (run_axis(r)? * s * width, width),
+            _ => return Err(wrong()),
+        };
+        if values.len() != shape.iter().product::<usize>() {
+            return Err(Error::Dimension {
+                what: what.to_string(),
+                expected: format!(
+                    "{} numbers for shape {}",
+                    shape.iter().product::<usize>(),
+                    shown(shape)
+                ),
+                given: format!("{} numbers", values.len()),
+            });
+        }
+        Ok(Self {
+            values,
+            width,
+            run_stride,
+            step_stride,
+            runs: (run_stride > 0).then_some(runs),
+            steps: (step_stride > 0).then_some(steps).flatten(),
+        })
+    }
+
+    /// Checks the width, that a run axis has `runs` rows and a step axis `steps`.
+    fn check(&self, what: &str, width: usize, runs: usize, steps: usize) -> Result<()> {
+        if let Some(s) = self.steps.filter(|&s| s != steps) {
+            return Err(Error::Dimension {
+                what: what.into(),
+                expected: format!("a table of {steps} rows (one per step)"),
+                given: format!("{s} rows"),
+            });
+        }
+        // a zero input has no rows to check (its width is only a default)
+        if self.width != width && !self.values.is_empty() {
+            return Err(Error::Dimension {
+                what: what.into(),
+                expected: format!("rows of {width} numbers"),
+                given: format!("rows of {}", self.width),
+            });
+        }
+        match self.runs {
+            Some(r) if r != runs => Err(Error::Dimension {
+                what: what.into(),
+                expected: format!("one row or table per run ({runs} runs)"),
+                given: format!("{r}"),
+            }),
+            _ => Ok(()),
+        }
+    }
+
+    /// Whether every run reads the same rows.
+    pub fn is_shared(&self) -> bool {
+        self.run_stride == 0
+    }
+
+    /// The first row of run `run` (for inputs without a step axis: its only row). `None` for
+    /// [`zero`](Self::zero).
+    pub fn row(&self, run: usize) -> Option<&'a [f64]> {
+        let start = run * self.run_stride;
+        (!self.values.is_empty()).then(|| &self.values[start..start + self.width])
+    }
+
+    /// The schedule of run `run` over `steps` steps (a copy of its rows).
+    pub fn schedule(&self, run: usize, steps: usize) -> Schedule {
+        match self.row(run) {
+            None => Schedule::Zero,
+            Some(row) if self.step_stride == 0 => Schedule::Constant(row.to_vec()),
+            Some(_) => {
+                let start = run * self.run_stride;
+                Schedule::Table {
+                    values: self.values[start..start + steps * self.width].to_vec(),
+                    width: self.width,
+                }
+            }
+        }
+    }
+}
+
+/// Names the run an argument error belongs to.
+pub(super) fn in_run(run: usize, error: Error) -> Error {
+    error.in_context(&format!("run {run}"))
+}
+
+/// The owned inputs of run `run`: its controller and wrenches.
+enum RunControl {
+    Open(Schedule),
+    Pd(Box<MotorPD>),
+}
+
+impl RunControl {
+    fn controller(&mut self) -> &mut dyn Controller {
+        match self {
+            RunControl::Open(s) => s,
+            RunControl::Pd(pd) => pd.as_mut(),
+        }
+    }
+}
+
+pub(super) struct RunInputs<'a> {
+    pub(super) arm: &'a FlexibleArm,
+    pub(super) x0: &'a [f64],
+    control: RunControl,
+    wrenches: Wrenches,
+}
+
+impl RunInputs<'_> {
+    /// The run's channels, as a [`Drive`].
+    pub(super) fn drive(&mut self) -> Drive<'_> {
+        Drive {
+            u: self.control.controller(),
+            base_wrench: &mut self.wrenches.base,
+            ee_wrench: &mut self.wrenches.ee,
+            wheel_torque: &mut self.wrenches.wheel_torque,
+        }
+    }
+}
+
+impl<'a> Batch<'a> {
+    pub(super) fn inputs(&self, run: usize, steps: usize) -> RunInputs<'a> {
+        RunInputs {
+            arm: self.arms.get(run),
+            x0: self.x0.row(run).unwrap_or(&[]),
+            control: match &self.u {
+                BatchControl::Open(u) => RunControl::Open(u.schedule(run, steps)),
+                BatchControl::Pd(pd) => RunControl::Pd(Box::new(pd.get(run).clone())),
+            },
+            wrenches: Wrenches {
+                base: self.base_wrench.schedule(run, steps),
+                ee: self.ee_wrench.schedule(run, steps),
+                wheel_torque: self.wheel_torque.schedule(run, steps),
+            },
+        }
+    }
+
+    /// The runs whose stability limit can differ from run 0's: all of them, or only run 0 when
+    /// every run has the same arm, start and feedback gains (open-loop torques, whatever their
+    /// values, have no feedback).
+    fn distinct_starts(&self) -> usize {
+        let shared = self.arms.is_shared()
+            && self.x0.is_shared()
+            && match &self.u {
+                BatchControl::Open(_) => true,
+                BatchControl::Pd(PerRun::All(_)) => true,
+                BatchControl::Pd(PerRun::Each(pds)) => pds
+                    .iter()
+                    .all(|pd| pd.kp == pds[0].kp && pd.kd == pds[0].kd),
+            };
+        if shared {
+            self.runs.min(1)
+        } else {
+            self.runs
+        }
+    }
+
+    /// Checks everything [`simulate_batch`](super::simulate_batch) needs before its first step,
+    /// run by run as [`Run::check`] does for one run: `dt`, `record_every`, the number of runs, the same number
+    /// of joints in every arm, the shapes, and each run's start, controller and wrench tables,
+    /// on `settings.threads` threads. An error names the run.
+    pub fn check(&self, settings: &BatchSettings) -> Result<()> {
+        self.check_watched(settings, &BatchWatch::default())
+    }
+
+    /// [`Batch::check`], stopping with [`Error::Interrupted`] once `watch.cancel` is set (it
+    /// looks before each run's checks).
+    pub fn check_watched(&self, settings: &BatchSettings, watch: &BatchWatch) -> Result<()> {
+        in_pool(settings.threads, || {
+            self.check_runs(settings, &watch.cancel)
+        })?
+    }
+
+    fn check_runs(&self, settings: &BatchSettings, cancel: &AtomicBool) -> Result<()> {
+        check_dt(settings.dt)?;
+        check_record_every(settings.record_every)?;
+        if self.runs == 0 {
+            return Err(Error::InvalidArgument {
+                what: "runs".into(),
+                message: "expected at least one run, given 0".into(),
+            });
+        }
+        if let PerRun::Each(arms) = &self.arms {
+            if arms.len() != self.runs {
+                return Err(Error::Dimension {
+                    what: "arms".into(),
+                    expected: format!("{} arms (one per run)", self.runs),
+                    given: format!("{}", arms.len()),
+                });
+            }
+        }
+        if let BatchControl::Pd(PerRun::Each(pds)) = &self.u {
+            if pds.len() != self.runs {
+                return Err(Error::Dimension {
+                    what: "u".into(),
+                    expected: format!("{} MotorPD controllers (one per run)", self.runs),
+                    given: format!("{}", pds.len()),
+                });
+            }
+        }
+        let n = self.arms.get(0).dof();
+        if let PerRun::Each(arms) = &self.arms {
+            if let Some((run, arm)) = arms.iter().enumerate().find(|(_, a)| a.dof() != n) {
+                return Err(Error::Dimension {
+                    what: format!("arms[{run}]"),
+                    expected: format!("an arm with {n} joints (as run 0's)"),
+                    given: format!("one with {} joints", arm.dof()),
+                });
+            }
+        }
+        let width = self.arms.get(0).layout().len();
+        let wheels = self.arms.get(0).layout().wheels;
+        if let PerRun::Each(arms) = &self.arms {
+            if let Some((run, arm)) = arms
+                .iter()
+                .enumerate()
+                .find(|(_, a)| a.layout().wheels != wheels)
+            {
+                return Err(Error::Dimension {
+                    what: format!("arms[{run}]"),
+                    expected: format!("an arm with {wheels} reaction wheels (as run 0's)"),
+                    given: format!("one with {}", arm.layout().wheels),
+                });
+            }
+        }
+        for (what, input, w) in [
+            ("x0s", &self.x0, width),
+            ("base_wrench", &self.base_wrench, 6),
+            (
+                "ee_wrench",
+                &self.ee_wrench,
+                6 * self.arms.get(0).robot().end_effectors().len(),
+            ),
+            ("wheel_torque", &self.wheel_torque, wheels),
+        ] {
+            input.check(what, w, self.runs, settings.steps)?;
+        }
+        if let BatchControl::Open(u) = &self.u {
+            u.check("u", n, self.runs, settings.steps)?;
+        }
+        (0..self.runs).into_par_iter().try_for_each(|run| {
+            interrupted(cancel, "the checks of the runs")?;
+            let mut inputs = self.inputs(run, settings.steps);
+            let x0 = inputs.x0;
+            Run::new(x0, settings.dt, settings.steps)
+                .check(inputs.arm, &inputs.drive())
+                .map_err(|e| in_run(run, e))
+        })
+    }
+
+    /// The runs whose `dt` is past the closed-loop RK4 stability limit at their start
+    /// ([`FlexibleArm::rk4_stability_limit`]), with that limit (s), in run order. Computed once
+    /// when every run has the same arm, start and controller.
+    pub fn unstable_runs(&self, dt: f64, threads: Option<usize>) -> Result<Vec<(usize, f64)>> {
+        self.unstable_runs_watched(dt, threads, &BatchWatch::default())
+    }
+
+    /// [`Batch::unstable_runs`], stopping with [`Error::Interrupted`] once `watch.cancel` is
+    /// set (it looks before each run's limit, which takes milliseconds on a large model).
+    pub fn unstable_runs_watched(
+        &self,
+        dt: f64,
+        threads: Option<usize>,
+        watch: &BatchWatch,
+    ) -> Result<Vec<(usize, f64)>> {
+        let distinct = self.distinct_starts();
+        let limits: Vec<f64> = in_pool(threads, || {
+            (0..distinct)
+                .into_par_iter()
+                .map(|run| {
+                    interrupted(&watch.cancel, "the stability limits of the runs")?;
+                    let mut inputs = self.inputs(run, 0);
+                    inputs
+                        .arm
+                        .rk4_stability_limit(inputs.x0, inputs.control.controller())
+                        .map(|l| l.dt)
+                        .map_err(|e| in_run(run, e))
+                })
+                .collect::<Result<_>>()
+        })??;
+        Ok((0..self.runs)
+            .filter_map(|run| {
+                let limit = limits[run.min(distinct - 1)];
+                (dt > limit).then_some((run, limit))
+            })
+            .collect())
+    }
+}
