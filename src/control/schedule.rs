@@ -117,14 +117,14 @@ impl Controller for &Schedule {
     }
 
     fn feedback(&self) -> Feedback<'_> {
-        Feedback::None
+        (**self).feedback()
     }
 
     fn check_run(&self, what: &str, width: usize, steps: usize) -> Result<()> {
-        self.check(what, width, self.rows().map(|_| steps))
+        (**self).check_run(what, width, steps)
     }
 
     fn is_zero(&self) -> bool {
-        matches!(self, Schedule::Zero)
+        (**self).is_zero()
     }
 }
