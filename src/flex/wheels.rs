@@ -139,6 +139,15 @@ impl ReactionWheels {
         &self.wheels
     }
 
+    /// The minimum-norm torque allocation of these wheels (k×3, row-major,
+    /// [`crate::control::min_norm_allocation`] of their axes): what
+    /// [`AttitudePD`](crate::control::AttitudePD) uses by default. An error naming the axes if
+    /// they do not span three dimensions.
+    pub fn allocation(&self) -> Result<Vec<f64>> {
+        let axes: Vec<[f64; 3]> = self.wheels.iter().map(|w| w.axis).collect();
+        crate::control::min_norm_allocation(&axes)
+    }
+
     /// What the wheels add to the bus as rigid bodies locked to it: per wheel the mass `m` at
     /// `p` and the rotational inertia `J_t (𝟙 − a aᵀ)` about `p` (no spin inertia: that is
     /// the free axial part), summed about the base origin in base axes.

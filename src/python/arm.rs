@@ -1,7 +1,7 @@
 //! `orbitflex.FlexibleArm`: state, derivative, step, diagnostics, ``simulate`` and the
 //! flexible-joint inverse dynamics.
 
-use super::control::{controller, schedule, wheel_schedule};
+use super::control::{base_wrench_controller, controller, schedule, wheel_controller};
 use super::convert::{array1, count, positive_count, real, try_array2, vector, vector_or};
 use super::errors::simulation_error;
 use super::errors::ModelError;
@@ -606,7 +606,12 @@ impl PyFlexibleArm {
     /// ``u(t, x) -> (n,)`` called once per step, or an ``orbitflex.MotorPD`` (runs in Rust
     /// without the GIL). ``base_wrench`` / ``ee_wrench``: None, (6,) or (steps, 6); with k
     /// end-effectors ``ee_wrench`` is (k, 6) or (steps, k, 6), or a dict from EE link name to
-    /// (6,) or (steps, 6). ``progress``:
+    /// (6,) or (steps, 6); ``base_wrench`` may also be a callable ``f(t, x) -> (6,)`` (thrusters,
+    /// a custom ACS closing a loop). ``wheel_torque`` (an arm with k reaction wheels): the
+    /// commands, None, (k,), (steps, k), a callable ``(t, x) -> (k,)`` or an
+    /// ``orbitflex.AttitudePD`` (in Rust without the GIL); saturated once per step, the applied
+    /// torques recorded in ``Trajectory.wheel_torque``. Every callable is called once per step
+    /// with the state at its start, its row held over the step. ``progress``:
     /// an optional callable ``progress(done, steps)`` called about every thousand steps and at
     /// the end.
     ///
@@ -676,16 +681,17 @@ impl PyFlexibleArm {
                 )),
                 (None, _) => CHUNK_ROWS,
             };
-        let mut error = None;
+        // the first exception of a callable channel, one slot per channel
+        let (mut error, mut wheel_error, mut base_error) = (None, None, None);
         // read in this order (the first bad argument is the one reported)
         let mut channels = Channels {
-            base_wrench: schedule(base_wrench, "base_wrench", 6)?,
+            base_wrench: base_wrench_controller(base_wrench, &mut base_error)?,
             ee_wrench: schedule(
                 super::convert::ee_wrench_arg(arm.robot(), ee_wrench)?.as_ref(),
                 "ee_wrench",
                 6 * arm.robot().end_effectors().len(),
             )?,
-            wheel_torque: wheel_schedule(wheel_torque, layout.wheels)?,
+            wheel_torque: wheel_controller(wheel_torque, arm, &mut wheel_error)?,
             u: controller(u, arm.dof(), &mut error)?,
         };
         let run = Run::new(&x0, dt, steps).recording_every(record_every);
@@ -715,6 +721,7 @@ impl PyFlexibleArm {
         let recorder = sink.recorder();
         let result = record_releasing_gil(py, arm, &run, &mut channels, &mut progress, recorder)?;
         drop(channels);
+        let error = error.or(wheel_error).or(base_error);
         // a callable controller's exception: KeyboardInterrupt, SystemExit and other
         // non-Exception errors are not a controller failure: re-raise them as they are.
         let cause = match error {

@@ -708,9 +708,9 @@ impl PyPlan {
         let x0 = plan.initial_state();
         let mut channels = Channels {
             u: Box::new(pd),
-            base_wrench: wrenches.base,
+            base_wrench: Box::new(wrenches.base),
             ee_wrench: wrenches.ee,
-            wheel_torque: wrenches.wheel_torque,
+            wheel_torque: Box::new(wrenches.wheel_torque),
         };
         let run = run_releasing_gil(
             py,

@@ -149,11 +149,11 @@ pub(crate) struct Channels<'a> {
     /// The motor torques.
     pub u: Box<dyn Controller + Send + 'a>,
     /// The base wrench.
-    pub base_wrench: Schedule,
+    pub base_wrench: Box<dyn Controller + Send + 'a>,
     /// The end-effector wrenches.
     pub ee_wrench: Schedule,
     /// The reaction-wheel torque commands.
-    pub wheel_torque: Schedule,
+    pub wheel_torque: Box<dyn Controller + Send + 'a>,
 }
 
 impl Channels<'_> {
@@ -161,9 +161,9 @@ impl Channels<'_> {
     pub fn drive(&mut self) -> Drive<'_> {
         Drive {
             u: &mut *self.u,
-            base_wrench: &mut self.base_wrench,
+            base_wrench: &mut *self.base_wrench,
             ee_wrench: &mut self.ee_wrench,
-            wheel_torque: &mut self.wheel_torque,
+            wheel_torque: &mut *self.wheel_torque,
         }
     }
 }
