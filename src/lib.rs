@@ -10,6 +10,7 @@
 pub mod algorithms;
 pub mod analysis;
 pub mod args;
+pub mod capture;
 pub mod control;
 pub mod dynamics;
 pub mod error;
@@ -29,6 +30,7 @@ pub mod testing;
 
 pub use algorithms::Data;
 pub use args::{Loads, RigidState};
+pub use capture::{capture, Capture, Target};
 pub use control::{Controller, MotorPD, Schedule, Wrenches};
 pub use dynamics::Method;
 pub use error::{Error, Result};

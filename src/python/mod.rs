@@ -17,7 +17,8 @@
 //!
 //! One file per class: `robot` (`Robot`), `joints` (`FlexibleJoints`), `control` (`MotorPD`,
 //! input schedules, Python controllers), `arm` (`FlexibleArm`), `trajectory` (`Trajectory`),
-//! `plan` (`Limits`, `Plan`, `plan_slew`), `stability` (`StabilityLimit`), `batch` (`simulate_batch`, `BatchTrajectory`); `analysis` (the linear analysis's private
+//! `plan` (`Limits`, `Plan`, `plan_slew`), `stability` (`StabilityLimit`), `batch` (`simulate_batch`, `BatchTrajectory`), `capture`
+//! (`Target`, `capture`, `Capture`); `analysis` (the linear analysis's private
 //! functions, wrapped by `orbitflex.analysis`);
 //! `batched` gives the per-call dynamics their leading batch axis and `out=`; `run` drives a
 //! simulation with or without the GIL; `errors` maps [`crate::Error`] onto the Python
@@ -28,6 +29,7 @@ mod appearance;
 mod arm;
 mod batch;
 mod batched;
+mod capture;
 mod control;
 mod convert;
 mod errors;
@@ -65,6 +67,9 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<plan::PyLimits>()?;
     m.add_class::<plan::PyPlan>()?;
     m.add_class::<batch::PyBatchTrajectory>()?;
+    m.add_class::<capture::PyTarget>()?;
+    m.add_class::<capture::PyCapture>()?;
+    m.add_function(wrap_pyfunction!(capture::py_capture, m)?)?;
     m.add_function(wrap_pyfunction!(plan::py_plan_slew, m)?)?;
     m.add_function(wrap_pyfunction!(batch::py_simulate_batch, m)?)?;
     m.add_function(wrap_pyfunction!(analysis::py_state_space, m)?)?;

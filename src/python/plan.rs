@@ -574,7 +574,7 @@ impl PyPlan {
         Ok(d)
     }
 
-    /// The state (13+4n,) a run of this plan starts from: ``q = θ = `` the start, at rest, base
+    /// The state (13+4n,) a run of this plan starts from: ``q = θ =`` the start, at rest, base
     /// at the origin with identity attitude.
     fn initial_state<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
         array1(py, &self.plan.initial_state())

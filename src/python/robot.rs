@@ -91,22 +91,25 @@ impl StateArgs {
 }
 
 /// A rotational inertia given as three principal moments (3,) or a matrix (3, 3), kg·m².
-fn inertia_matrix(inertia: &Bound<'_, PyAny>) -> PyResult<crate::spatial::Mat3> {
+pub(super) fn inertia_matrix(
+    inertia: &Bound<'_, PyAny>,
+    what: &str,
+) -> PyResult<crate::spatial::Mat3> {
     use crate::spatial::{Mat3, Vec3};
-    let array = super::convert::as_float_array(inertia, "inertia")?;
+    let array = super::convert::as_float_array(inertia, what)?;
     let shape: Vec<usize> = array.getattr("shape")?.extract()?;
     match shape.as_slice() {
         [3] => Ok(Mat3::from_diagonal(&Vec3::from_column_slice(&vector(
             &array,
-            "inertia",
+            what,
             Some(3),
         )?))),
         [3, 3] => {
-            let (_, values) = super::convert::matrix(&array, "inertia", 3)?;
+            let (_, values) = super::convert::matrix(&array, what, 3)?;
             Ok(Mat3::from_row_slice(&values))
         }
         other => Err(ModelError::new_err(format!(
-            "inertia: expected three principal moments (3,) or a matrix (3, 3), given shape \
+            "{what}: expected three principal moments (3,) or a matrix (3, 3), given shape \
              {other:?}"
         ))),
     }
@@ -394,7 +397,7 @@ impl PyRobot {
         let mass = super::convert::real(mass, "mass")?;
         let com = vector_or(com, "com", 3, 0.0)?;
         let about_com = match inertia.filter(|o| !o.is_none()) {
-            Some(inertia) => inertia_matrix(inertia)?,
+            Some(inertia) => inertia_matrix(inertia, "inertia")?,
             None => Inertia::solid_cube(mass, crate::model::DEFAULT_BUS_SIDE, Vec3::zeros())
                 .inertia_about_com(),
         };
@@ -427,7 +430,7 @@ impl PyRobot {
         let com = Vec3::from_column_slice(&vector_or(com, "com", 3, 0.0)?);
         let about_com = match inertia.filter(|o| !o.is_none()) {
             None => Mat3::zeros(),
-            Some(inertia) => inertia_matrix(inertia)?,
+            Some(inertia) => inertia_matrix(inertia, "inertia")?,
         };
         if !(mass.is_finite() && mass >= 0.0) {
             return Err(ModelError::new_err(format!(
