@@ -323,7 +323,11 @@ mod tests {
         // A M = 1
         for i in 0..3 {
             for j in 0..3 {
-                let v: f64 = axes.iter().enumerate().map(|(w, a)| a[i] * m[3 * w + j]).sum();
+                let v: f64 = axes
+                    .iter()
+                    .enumerate()
+                    .map(|(w, a)| a[i] * m[3 * w + j])
+                    .sum();
                 assert!(
                     (v - f64::from(u8::from(i == j))).abs() < 1e-14,
                     "{i} {j} {v}"
