@@ -157,7 +157,7 @@ class MotorPD:
     def kd(self) -> _Array: ...
     def __reduce__(self) -> Tuple[Any, ...]: ...
 
-_Controller = Union[None, _ArrayLike, Callable[[float, _Array], _ArrayLike], MotorPD]
+_Controller = Union[None, _ArrayLike, Callable[[float, _Array], _ArrayLike], MotorPD, "Sampled"]
 
 @final
 class AttitudePD:
@@ -173,8 +173,21 @@ class AttitudePD:
     def command(self, arm: FlexibleArm, x: _ArrayLike, step: int = 0) -> _Array: ...
     def __reduce__(self) -> Tuple[Any, ...]: ...
 
-_WheelTorque = Union[None, _ArrayLike, Callable[[float, _Array], _ArrayLike], AttitudePD]
-_BaseWrench = Union[None, _ArrayLike, Callable[[float, _Array], _ArrayLike]]
+@final
+class Sampled:
+    """Any controller (MotorPD, AttitudePD, a callable, a table) run at rate_hz with zero-order
+    hold and a delay of whole samples; the dynamics keep their RK4 dt."""
+    def __new__(cls, controller: Any, rate_hz: float, delay: int = 0) -> Sampled: ...
+    @property
+    def controller(self) -> Any: ...
+    @property
+    def rate_hz(self) -> float: ...
+    @property
+    def delay(self) -> int: ...
+    def __reduce__(self) -> Tuple[Any, ...]: ...
+
+_WheelTorque = Union[None, _ArrayLike, Callable[[float, _Array], _ArrayLike], AttitudePD, Sampled]
+_BaseWrench = Union[None, _ArrayLike, Callable[[float, _Array], _ArrayLike], Sampled]
 
 @final
 class ReactionWheels:

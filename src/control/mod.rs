@@ -10,11 +10,13 @@
 mod attitude_pd;
 mod controller;
 mod motor_pd;
+mod sampled;
 mod schedule;
 mod wrenches;
 
 pub use attitude_pd::{min_norm_allocation, AttitudePD, AttitudeTarget};
 pub use controller::{Controller, Feedback};
 pub use motor_pd::MotorPD;
+pub use sampled::Sampled;
 pub use schedule::Schedule;
 pub use wrenches::Wrenches;

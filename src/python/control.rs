@@ -3,7 +3,7 @@
 use super::convert::{array1, as_float_array, matrix, real, row_major, vector};
 use super::errors::ModelError;
 use super::joints::Param;
-use crate::control::{AttitudePD, AttitudeTarget, Controller, MotorPD, Schedule};
+use crate::control::{AttitudePD, AttitudeTarget, Controller, MotorPD, Sampled, Schedule};
 use crate::error::Error;
 use crate::flex::FlexibleArm;
 use numpy::PyArray1;
@@ -19,6 +19,9 @@ pub(crate) fn wheel_controller<'a>(
     error: &'a mut Option<PyErr>,
 ) -> PyResult<Box<dyn Controller + Send + 'a>> {
     let k = arm.layout().wheels;
+    if let Some((inner, rate_hz, delay)) = sampled(obj)? {
+        return wrap(wheel_controller(Some(&inner), arm, error)?, rate_hz, delay);
+    }
     Ok(match (obj.filter(|o| !o.is_none()), k) {
         (None, _) => Box::new(Schedule::Zero),
         (Some(_), 0) => {
@@ -46,6 +49,9 @@ pub(crate) fn base_wrench_controller<'a>(
     obj: Option<&Bound<'_, PyAny>>,
     error: &'a mut Option<PyErr>,
 ) -> PyResult<Box<dyn Controller + Send + 'a>> {
+    if let Some((inner, rate_hz, delay)) = sampled(obj)? {
+        return wrap(base_wrench_controller(Some(&inner), error)?, rate_hz, delay);
+    }
     Ok(match obj.filter(|o| !o.is_none()) {
         Some(obj) if obj.is_callable() => Box::new(PyCallable {
             func: obj.clone().unbind(),
@@ -200,6 +206,9 @@ pub(crate) fn controller<'a>(
     n: usize,
     error: &'a mut Option<PyErr>,
 ) -> PyResult<Box<dyn Controller + Send + 'a>> {
+    if let Some((inner, rate_hz, delay)) = sampled(u)? {
+        return wrap(controller(Some(&inner), n, error)?, rate_hz, delay);
+    }
     Ok(match u.filter(|o| !o.is_none()) {
         Some(obj) if obj.is_instance_of::<PyMotorPD>() => {
             Box::new(obj.downcast::<PyMotorPD>()?.get().pd.clone())
@@ -484,4 +493,107 @@ impl PyAttitudePD {
             }
         )
     }
+}
+
+/// Any controller run at its own rate: ``Sampled(controller, rate_hz, delay=0)``, for ``u``,
+/// ``wheel_torque`` or ``base_wrench`` (a ``MotorPD``, an ``AttitudePD``, a callable ``(t, x)``
+/// or a table).
+///
+/// Sample ``j`` is due at ``t = j / rate_hz`` (s) and taken at the first RK4 step starting at or
+/// after it: the controller is asked for its row there (a callable is called only then), and
+/// the row is held until the next sample (zero-order hold). With ``delay = d`` (whole samples)
+/// the row computed at sample ``j`` is applied from sample ``j + d`` on, zero before the first
+/// arrives. The dynamics keep their RK4 ``dt``; when ``1 / rate_hz`` is a whole number ``m`` of
+/// steps the samples fall on steps 0, m, 2m, … exactly. The RK4 stability warning cannot
+/// vouch for a sampled loop: it then checks the arm's open loop and says so.
+#[pyclass(name = "Sampled", module = "orbitflex", frozen)]
+pub struct PySampled {
+    controller: Py<PyAny>,
+    rate_hz: f64,
+    delay: usize,
+}
+
+#[pymethods]
+impl PySampled {
+    #[new]
+    #[pyo3(signature = (controller, rate_hz, delay=0))]
+    fn new(
+        controller: &Bound<'_, PyAny>,
+        rate_hz: &Bound<'_, PyAny>,
+        delay: usize,
+    ) -> PyResult<Self> {
+        let rate_hz = real(rate_hz, "rate_hz")?;
+        Sampled::new(Box::new(Schedule::Zero), rate_hz, delay)?;
+        if controller.is_none() {
+            return Err(ModelError::new_err(
+                "controller: expected a controller to sample, given None",
+            ));
+        }
+        Ok(Self {
+            controller: controller.clone().unbind(),
+            rate_hz,
+            delay,
+        })
+    }
+
+    /// The wrapped controller.
+    #[getter]
+    fn controller(&self, py: Python<'_>) -> PyObject {
+        self.controller.clone_ref(py)
+    }
+
+    /// The sample rate (Hz).
+    #[getter]
+    fn rate_hz(&self) -> f64 {
+        self.rate_hz
+    }
+
+    /// The delay (whole samples).
+    #[getter]
+    fn delay(&self) -> usize {
+        self.delay
+    }
+
+    fn __reduce__<'py>(slf: &Bound<'py, Self>) -> PyResult<(PyObject, PyObject)> {
+        let py = slf.py();
+        let me = slf.get();
+        let args = PyTuple::new(
+            py,
+            [
+                me.controller.clone_ref(py),
+                me.rate_hz.into_pyobject(py)?.into_any().unbind(),
+                me.delay.into_pyobject(py)?.into_any().unbind(),
+            ],
+        )?;
+        Ok((slf.get_type().into_any().unbind(), args.into_any().unbind()))
+    }
+
+    fn __repr__(&self) -> String {
+        format!("Sampled(rate_hz={}, delay={})", self.rate_hz, self.delay)
+    }
+}
+
+/// The wrapped controller, rate and delay of a ``Sampled``, or None.
+fn sampled<'py>(
+    obj: Option<&Bound<'py, PyAny>>,
+) -> PyResult<Option<(Bound<'py, PyAny>, f64, usize)>> {
+    match obj {
+        Some(o) if o.is_instance_of::<PySampled>() => {
+            let s = o.downcast::<PySampled>()?.get();
+            Ok(Some((
+                s.controller.bind(o.py()).clone(),
+                s.rate_hz,
+                s.delay,
+            )))
+        }
+        _ => Ok(None),
+    }
+}
+
+fn wrap<'a>(
+    inner: Box<dyn Controller + Send + 'a>,
+    rate_hz: f64,
+    delay: usize,
+) -> PyResult<Box<dyn Controller + Send + 'a>> {
+    Ok(Box::new(Sampled::new(inner, rate_hz, delay)?))
 }

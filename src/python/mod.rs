@@ -60,6 +60,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<joints::PyFlexibleJoints>()?;
     m.add_class::<control::PyMotorPD>()?;
     m.add_class::<control::PyAttitudePD>()?;
+    m.add_class::<control::PySampled>()?;
     m.add_class::<arm::PyFlexibleArm>()?;
     m.add_class::<wheels::PyReactionWheels>()?;
     m.add_class::<trajectory::PyTrajectory>()?;
