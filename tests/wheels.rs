@@ -821,27 +821,47 @@ fn robot_urdf_round_trips() {
     }
 }
 
-/// Planning with wheels comes with phase 2: until then a clear error, not a plan that ignores
-/// them.
+/// Planning with wheels (phase 2): a held bus does not turn, so the plan and its holding wrench
+/// are those of the arm without wheels, bit for bit; the wheels' demand is that wrench's moment
+/// allocated and integrated, back to zero when the arm is at rest again; a free-floating plan
+/// with rubbing wheels is refused (their friction turns the bus, which the plan does not model).
 #[test]
-fn planning_refuses_an_arm_with_wheels_for_now() {
-    let arm = FlexibleArm::new(Robot::space_arm(), FlexibleJoints::space_arm())
-        .unwrap()
-        .with_wheels(pyramid())
-        .unwrap();
+fn planning_with_wheels() {
+    let plain = FlexibleArm::new(Robot::space_arm(), FlexibleJoints::space_arm()).unwrap();
+    let arm = plain.clone().with_wheels(pyramid()).unwrap();
     let limits = orbitflex::Limits::from_robot(arm.robot(), None, None).unwrap();
-    let e = orbitflex::plan_slew(
-        &arm,
-        &[0.1; 7],
-        None,
-        &limits,
-        orbitflex::BaseMode::Held,
-        &[],
-    )
-    .unwrap_err()
-    .to_string();
-    assert!(
-        e.starts_with("plan_slew: not available yet for an arm with reaction wheels"),
-        "{e}"
+    let plan =
+        |arm: &FlexibleArm, base| orbitflex::plan_slew(arm, &[0.1; 7], None, &limits, base, &[]);
+    let (held, held_plain) = (
+        plan(&arm, orbitflex::BaseMode::Held).unwrap(),
+        plan(&plain, orbitflex::BaseMode::Held).unwrap(),
     );
+    assert_eq!(held.duration(), held_plain.duration());
+    assert_eq!(held.samples(), held_plain.samples());
+    let demand = held.wheel_demand(&pyramid()).unwrap();
+    let last = demand.t.len() - 1;
+    assert!(demand.peak_momentum > 0.0);
+    assert!(demand.momentum[3 * last..]
+        .iter()
+        .all(|h| h.abs() < 1e-6 * demand.peak_momentum));
+    assert!(plan(&arm, orbitflex::BaseMode::Free)
+        .unwrap()
+        .wheel_demand(&pyramid())
+        .is_err());
+    let rubbing: Vec<Wheel> = pyramid()
+        .wheels()
+        .iter()
+        .map(|w| Wheel {
+            friction: 0.01,
+            ..w.clone()
+        })
+        .collect();
+    let rubbing = plain
+        .with_wheels(ReactionWheels::new(rubbing).unwrap())
+        .unwrap();
+    let e = plan(&rubbing, orbitflex::BaseMode::Free)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("friction"), "{e}");
+    assert!(plan(&rubbing, orbitflex::BaseMode::Held).is_ok());
 }
