@@ -853,7 +853,7 @@ fn planning_with_wheels() {
         .iter()
         .map(|w| Wheel {
             friction: 0.01,
-            ..w.clone()
+            ..*w
         })
         .collect();
     let rubbing = plain
