@@ -2,13 +2,17 @@
 //! method (BENCHMARKS.md, "Reaction wheels"):
 //!
 //! ```text
-//! valgrind --tool=callgrind target/release/examples/wheel_step_cost BLOCKS [WHEELS]
+//! valgrind --tool=callgrind target/release/examples/wheel_step_cost BLOCKS [WHEELS [RUN]]
 //! ```
 //! runs `BLOCKS × 1000` steps of the built-in space arm from a moving state, with `WHEELS` (0 or
 //! 4, default 0) wheels in a pyramid driven by constant commands. The difference of the totals at
 //! two block counts over the extra steps is the cost of one step; loading and set-up cancel.
+//! With `RUN` = 1 the steps are those of a run (`Stepper::step` with a `Drive`: constant motor
+//! torques, and with wheels an `AttitudePD` holding the bus), which is what `simulate` does.
 
+use orbitflex::control::{AttitudePD, AttitudeTarget, Schedule};
 use orbitflex::flex::{ReactionWheels, Wheel};
+use orbitflex::integrate::{Drive, Stepper};
 use orbitflex::{FlexibleArm, FlexibleJoints, Inputs, Robot, StateSpec};
 use std::hint::black_box;
 
@@ -17,9 +21,10 @@ fn main() {
         .skip(1)
         .map(|a| a.parse().unwrap())
         .collect();
-    let (blocks, wheels) = (
+    let (blocks, wheels, run) = (
         args.first().copied().unwrap_or(1),
         args.get(1).copied().unwrap_or(0),
+        args.get(2).copied().unwrap_or(0) == 1,
     );
     let mut arm = FlexibleArm::new(Robot::space_arm(), FlexibleJoints::space_arm()).unwrap();
     if wheels > 0 {
@@ -61,9 +66,41 @@ fn main() {
         wheel_torque: &commands,
         ..Inputs::torques(&u)
     };
-    let mut ws = arm.workspace();
-    for _ in 0..blocks * 1000 {
-        arm.step(&mut ws, black_box(&mut x), 1e-3, &inputs).unwrap();
+    if run {
+        let mut stepper = Stepper::new(&arm);
+        let (mut motor, mut zero6, mut zero_ee) = (
+            Schedule::Constant(u.to_vec()),
+            Schedule::Zero,
+            Schedule::Zero,
+        );
+        let mut hold: Box<dyn orbitflex::control::Controller> = match arm.wheels() {
+            Some(w) => Box::new(
+                AttitudePD::new(
+                    [2e5; 3],
+                    [2e4; 3],
+                    AttitudeTarget::Initial,
+                    w.allocation().unwrap(),
+                )
+                .unwrap(),
+            ),
+            None => Box::new(Schedule::Zero),
+        };
+        let mut drive = Drive {
+            u: &mut motor,
+            base_wrench: &mut zero6,
+            ee_wrench: &mut zero_ee,
+            wheel_torque: hold.as_mut(),
+        };
+        for k in 0..blocks * 1000 {
+            stepper
+                .step(&arm, &mut drive, black_box(&mut x), k, 1e-3)
+                .unwrap();
+        }
+    } else {
+        let mut ws = arm.workspace();
+        for _ in 0..blocks * 1000 {
+            arm.step(&mut ws, black_box(&mut x), 1e-3, &inputs).unwrap();
+        }
     }
     println!("{}", x[layout.q().start]);
 }

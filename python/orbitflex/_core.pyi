@@ -11,6 +11,7 @@ import numpy.typing as npt
 from orbitflex.analysis import Modes, StateSpace
 
 __all__ = [
+    "AttitudePD",
     "BatchTrajectory",
     "Capture",
     "FlexibleArm",
@@ -40,6 +41,7 @@ __all__ = [
     "_modes",
     "_state_space",
     "_sweep",
+    "Sampled",
 ]
 
 _Array = npt.NDArray[np.float64]
@@ -423,7 +425,8 @@ class Plan:
     def initial_state(self) -> _Array: ...
     def reference(self, dt: float, steps: Optional[int] = None) -> Dict[str, _Array]: ...
     def rigid(self) -> Plan: ...
-    def track(self, dt: float, kp: _Param, kd: _Param, settle: Optional[float] = 2.0) -> Dict[str, Any]: ...
+    def track(self, dt: float, kp: _Param, kd: _Param, settle: Optional[float] = 2.0, *, wheel_torque: "_WheelTorque" = None) -> Dict[str, Any]: ...
+    def wheel_demand(self, wheels: ReactionWheels) -> Dict[str, Any]: ...
     def __reduce__(self) -> Tuple[Any, ...]: ...
 
 @final

@@ -157,5 +157,6 @@ def _listed(entries: Any, defaults: Dict[str, float], source: str) -> ReactionWh
                 columns[key].append(0.0)
             else:
                 raise WheelsFileError(f"{where}.{key}: missing (give it here or in [defaults])")
-    return ReactionWheels(np.array(axes), np.array(positions), *(np.array(columns[k]) for k in WHEEL_KEYS[:-1]),
-                          friction=np.array(columns["friction"]))
+    c = {k: np.array(v) for k, v in columns.items()}
+    return ReactionWheels(np.array(axes), np.array(positions), c["mass"], c["spin_inertia"],
+                          c["transverse_inertia"], c["max_torque"], c["max_speed"], friction=c["friction"])

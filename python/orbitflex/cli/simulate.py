@@ -123,8 +123,11 @@ def run(job: Job, args: argparse.Namespace) -> int:
     outcome = simulate(job.arm, pd, steps, args.dt, progress=not args.quiet, record_every=args.record_every)
     wheels = wheels_for(args, demo=job.compare_plans)
     wheel_case = None
-    if wheels is not None:
+    if wheels is not None and outcome.failure is None:
         wheel_case = run_wheel_case(job, wheels, pd, steps, args.dt, outcome.meaningful(), args.record_every)
+    elif wheels is not None:
+        print("orbitflex: the wheel case is not run: the free-floating run it is compared with failed",
+              file=sys.stderr)
     comparison, note = demo_comparison(job.arm, job.name, args.dt) if job.compare_plans else (None, None)
     with np.errstate(all="ignore"):  # a diverged run's finite part may overflow in the summary
         summary = summarise(job.name, outcome, steps)
