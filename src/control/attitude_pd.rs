@@ -44,7 +44,10 @@ pub enum AttitudeTarget {
 }
 
 /// Quaternion-error PD on the bus attitude, allocated to the reaction wheels: a [`Controller`]
-/// of the wheel-torque channel (width `k`). See the [module](self) for the law and the signs.
+/// of the wheel-torque channel (width `k`). With `q_e = q_ref* ⊗ q_B` (the shorter way round)
+/// and `e = 2 vec(q_e)`, the bus must feel `T = −kp ∘ e − kd ∘ (ω_B − R(q_e)ᵀ ω_ref)` (N·m, base
+/// frame), and the wheels get `u = −M T` (a wheel driven with `u_w` pushes the bus with
+/// `−u_w a_w`; any `M` with `A M = 1` delivers `T`; [`min_norm_allocation`] by default).
 ///
 /// ```
 /// use orbitflex::control::{min_norm_allocation, AttitudePD, AttitudeTarget, Controller};

@@ -12,7 +12,9 @@
 use super::controller::{Controller, Feedback};
 use crate::error::{Error, Result};
 
-/// A controller sampled at `rate_hz` with a delay of `delay` samples (see the [module](self)).
+/// A controller sampled at `rate_hz` with a delay of `delay` samples: sample `j` is taken at the
+/// first step starting at or after `j / rate_hz` (to 1e-9 of the period), its row applied from
+/// sample `j + delay` on (zero before), held between samples.
 pub struct Sampled<'a> {
     inner: Box<dyn Controller + Send + 'a>,
     rate_hz: f64,
