@@ -15,6 +15,7 @@ pub mod control;
 pub mod dynamics;
 pub mod error;
 pub mod flex;
+pub mod fmu;
 pub mod integrate;
 pub mod io;
 pub mod linalg;
@@ -38,7 +39,7 @@ pub use flex::{
     FlexibleArm, FlexibleJoints, Inputs, ModelWorkspace, MotorGains, ReactionWheels, StateLayout,
     StateSpec, Wheel,
 };
-pub use integrate::{ArmWorkspace, SimulationFailure, Trajectory};
+pub use integrate::{ArmWorkspace, SimulationFailure, Simulator, Trajectory};
 pub use model::{
     check_mesh_bytes, check_mesh_file, EndEffector, Geometry, JointLimits, JointModel, LinkFrame,
     MeshFormat, MeshSearch, Robot, RobotBuilder, Scene, Shape, UrdfOptions, Visual, DUAL_ARM_URDF,

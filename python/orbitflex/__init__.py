@@ -33,6 +33,8 @@ from ._core import (
     SPACE_ARM_URDF,
     BatchTrajectory,
     Capture,
+    CaptureEvent,
+    CaptureWhen,
     FlexibleArm,
     FlexibleJoints,
     LimitWarning,
@@ -45,6 +47,7 @@ from ._core import (
     ReactionWheels,
     Robot,
     SimulationError,
+    Simulator,
     StabilityLimit,
     Target,
     Trajectory,
@@ -55,8 +58,10 @@ from ._core import (
     rotation_angle,
     rotation_matrix,
     simulate_batch,
+    simulate_capture_batch,
 )
 from . import analysis, models
+from .detumble import detumble_metrics
 
 __all__ = [
     "rotation_matrix",
@@ -70,8 +75,11 @@ __all__ = [
     "MotorPD",
     "Sampled",
     "Trajectory",
+    "Simulator",
     "StabilityLimit",
     "simulate_batch",
+    "simulate_capture_batch",
+    "detumble_metrics",
     "BatchTrajectory",
     "Limits",
     "LimitWarning",
@@ -80,6 +88,8 @@ __all__ = [
     "Target",
     "capture",
     "Capture",
+    "CaptureWhen",
+    "CaptureEvent",
     "ModelError",
     "SimulationError",
     "models",

@@ -10,6 +10,10 @@ alone, in ``Robot.with_base_inertia(mass)`` and ``orbitflex simulate --base-mass
 ``pyramid_wheels()``: four reaction wheels in a pyramid inside that bus, sized to hold it through
 the demo's slew (``orbitflex demo``); ``PYRAMID_GAINS`` the ``AttitudePD`` gains that do.
 
+``capture_scenario()``: the built-in space arm holding a pre-grasp posture under its motor PD
+while a 200 kg target (a 1.0 × 1.2 × 1.4 m box) spinning at 2 deg/s about its major axis drifts
+onto the end-effector at 2 cm/s; see :class:`CaptureScenario`.
+
 ``dual_arm()``: the same bus carrying two of those arms, mounted 0.9 m apart on the same face
 (the right arm is the mirror image of the left): 14 joints, ``left_*`` first, end-effectors
 ``left_ee`` and ``right_ee``, 672 kg in all (``dual_arm_urdf()``).
@@ -18,8 +22,25 @@ the demo's slew (``orbitflex demo``); ``PYRAMID_GAINS`` the ``AttitudePD`` gains
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
+from typing import Any, Optional
 
-from ._core import DEFAULT_BUS_SIDE, DUAL_ARM_URDF, SPACE_ARM_URDF, FlexibleJoints, ReactionWheels, Robot
+import numpy as np
+
+from ._core import (
+    DEFAULT_BUS_SIDE,
+    DUAL_ARM_URDF,
+    SPACE_ARM_URDF,
+    CaptureWhen,
+    FlexibleArm,
+    FlexibleJoints,
+    MotorPD,
+    ReactionWheels,
+    Robot,
+    Target,
+    Trajectory,
+    _capture_scenario,
+)
 
 __all__ = [
     "DEFAULT_BUS_SIDE",
@@ -31,6 +52,8 @@ __all__ = [
     "dual_arm",
     "dual_arm_urdf",
     "dual_arm_joints",
+    "capture_scenario",
+    "CaptureScenario",
 ]
 
 
@@ -104,3 +127,63 @@ def pyramid_wheels(spin_inertia: float = 0.25, transverse_inertia: float = 0.15,
         positions.append([radius * math.cos(az), radius * math.sin(az), depth])
     return ReactionWheels(axes, positions, mass, spin_inertia, transverse_inertia, max_torque, max_speed,
                           friction=friction)
+
+
+@dataclass(frozen=True)
+class CaptureScenario:
+    """A capture run as values (``capture_scenario()``).
+
+    - ``arm``: the built-in space arm (500 kg bus, 7 flexible joints);
+    - ``x0``: the arm at rest in its pre-grasp posture (springs relaxed);
+    - ``target``: the 200 kg client at ``t = 0``;
+    - ``when``: the trigger (1 cm, 5 cm/s, 5 deg);
+    - ``controller``: the motor PD (0.25 Hz, damping ratio 1) holding the pre-grasp posture
+      before and after the capture;
+    - ``dt`` (s), ``duration`` (s), ``meet`` (s): when the handle would reach the EE exactly
+      (the trigger fires once it is within ``when.distance``, 0.5 s earlier at 2 cm/s).
+    """
+
+    arm: FlexibleArm
+    x0: np.ndarray
+    target: Target
+    when: CaptureWhen
+    controller: MotorPD
+    dt: float
+    duration: float
+    meet: float
+
+    @property
+    def steps(self) -> int:
+        """``round(duration / dt)``."""
+        return int(round(self.duration / self.dt))
+
+    def run(self, duration: Optional[float] = None, **simulate: Any) -> Trajectory:
+        """``arm.simulate`` of the scenario (``duration`` in s, default the scenario's), with
+        its target and trigger; other keywords (``record_every``, ``progress``, ...) pass on."""
+        steps = self.steps if duration is None else int(round(duration / self.dt))
+        return self.arm.simulate(
+            self.x0, self.dt, steps, self.controller,
+            target=self.target, capture=self.when, **simulate,
+        )
+
+
+def capture_scenario(
+    tumble_deg_s: float = 2.0, drift: float = 0.02, meet: float = 5.0
+) -> CaptureScenario:
+    """The built-in capture scenario: the space arm, holding its pre-grasp posture, captures a
+    200 kg target spinning at ``tumble_deg_s`` (deg/s) about its major axis, whose handle
+    drifts onto the end-effector along its approach axis at ``drift`` (m/s), reaching it at
+    ``meet`` (s). Computed in Rust (``orbitflex::capture::scenario``)."""
+    d = _capture_scenario(tumble_deg_s, drift, meet)
+    arm = FlexibleArm(space_arm(), space_arm_joints())
+    target = Target(d["mass"], d["inertia"], d["pose"], d["twist"], d["grasp"], name=d["name"])
+    return CaptureScenario(
+        arm=arm,
+        x0=d["x0"],
+        target=target,
+        when=CaptureWhen(d["distance"], d["speed"], d["angle"]),
+        controller=MotorPD(d["kp"], d["kd"], d["theta_ref"]),
+        dt=d["dt"],
+        duration=d["duration"],
+        meet=d["meet"],
+    )

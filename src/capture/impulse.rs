@@ -118,8 +118,8 @@ pub fn capture(
     let payload = Inertia::from_com(target.mass(), payload_com, payload_inertia);
 
     // V_rel = G ν − X W
-    algorithms::velocities_unchecked(robot, &mut data, &RigidState::new(s.q, s.base_twist, s.qd));
-    let relative_twist = to_ee.apply_motion(&data.v[body]) - x_et.apply_motion(target.twist());
+    let relative_twist =
+        ee_twist(robot, &mut data, x, &layout, ee) - x_et.apply_motion(target.twist());
 
     let (solves, lambda_inv) = unit_impulse_responses(robot, &mut data, s.q, ee)?;
     let y_inv = payload
@@ -187,7 +187,7 @@ pub fn capture(
 /// `X = Φ_{e,t}`: motions from the target frame `t` to the frame of end-effector `ee`, from the
 /// inertial placements `E_e, o_e` (base pose and `Φ_{e,B}(q)`) and `E_t, o_t`:
 /// `R_{e,t} = E_eᵀ E_t`, `p_{t,e} = E_tᵀ (o_e − o_t)`.
-fn target_to_ee(
+pub(crate) fn target_to_ee(
     robot: &Robot,
     base_pose: &[f64],
     q: &[f64],
@@ -204,6 +204,20 @@ fn target_to_ee(
         ee_axes.tr_mul(&target_axes),
         target_axes.tr_mul(&(ee_origin - target_origin)),
     )
+}
+
+/// `V_e = G ν`: the twist of end-effector `ee` (EE frame) at the arm state `x`.
+pub(crate) fn ee_twist(
+    robot: &Robot,
+    data: &mut Data,
+    x: &[f64],
+    layout: &crate::state::StateLayout,
+    ee: usize,
+) -> Motion {
+    let s = layout.split(x);
+    algorithms::velocities_unchecked(robot, data, &RigidState::new(s.q, s.base_twist, s.qd));
+    let body = robot.end_effectors()[ee].body;
+    robot.frame_ee_transform(ee).apply_motion(&data.v[body])
 }
 
 /// The target's centre of mass `R_{e,t} (c − p_{t,e})` and its rotational inertia about it

@@ -5,6 +5,7 @@
 //! same value and is bit for bit the same run.
 
 use super::arm::ArmWorkspace;
+use super::record::Recorder;
 use super::run::Drive;
 use super::simulate::step_unchecked;
 use crate::args::{check_finite, Loads};
@@ -150,7 +151,55 @@ impl Stepper {
     }
 }
 
-/// The message of a wrench or wheel-torque channel whose controller failed or returned non-finite numbers.
+/// What [`simulate_into`](super::simulate_into)'s loop calls for each step: step `k` of `x` in
+/// place, the motor torques held over it, and how a kept row is handed to the recorder. The arm
+/// alone ([`ArmSteps`]) is every ordinary run; a run that carries more beside the arm (a target
+/// to capture, which may also change the arm mid-run) implements it around a [`Stepper`] and goes
+/// through the same loop ([`run_steps`](super::simulate::run_steps)), so observers, failures and
+/// the rows kept behave the same.
+pub trait StepBody {
+    /// Step `k` (from `t = k dt` to `(k + 1) dt`) of `x` in place; errors are an
+    /// [`Error::Simulation`] at step `k`.
+    fn step(&mut self, drive: &mut Drive<'_>, x: &mut [f64], k: usize, dt: f64) -> Result<()>;
+    /// The motor torques held during the last step.
+    fn u(&self) -> &[f64];
+    /// The inputs held during the last step as a record row keeps them: `u` (n), then the
+    /// applied reaction-wheel torques (k). The default: [`u`](Self::u) (an arm without wheels).
+    fn inputs(&self) -> &[f64] {
+        self.u()
+    }
+    /// Hands the kept row `(t, x)` to `recorder` (the default: [`Recorder::state`]).
+    fn record(&mut self, recorder: &mut dyn Recorder, t: f64, x: &[f64]) -> Result<()> {
+        recorder.state(t, x)
+    }
+}
+
+/// The arm alone, as a [`StepBody`]: [`Stepper::step`] on `arm`.
+#[derive(Debug)]
+pub struct ArmSteps<'a> {
+    /// The arm stepped.
+    pub arm: &'a FlexibleArm,
+    /// Its step's workspace.
+    pub stepper: Stepper,
+}
+
+impl StepBody for ArmSteps<'_> {
+    #[inline]
+    fn step(&mut self, drive: &mut Drive<'_>, x: &mut [f64], k: usize, dt: f64) -> Result<()> {
+        self.stepper.step(self.arm, drive, x, k, dt)
+    }
+    #[inline]
+    fn u(&self) -> &[f64] {
+        self.stepper.u()
+    }
+    #[inline]
+    fn inputs(&self) -> &[f64] {
+        self.stepper.inputs()
+    }
+}
+
+/// The message of a wrench or wheel-torque channel whose controller failed or returned
+/// non-finite numbers.
 #[inline]
 fn wrench_row(written: Result<()>, what: &str, row: &[f64]) -> std::result::Result<(), String> {
     written.map_err(|e| format!("the {what} controller failed: {e}"))?;

@@ -1,6 +1,7 @@
 //! `orbitflex.FlexibleArm`: state, derivative, step, diagnostics, ``simulate`` and the
 //! flexible-joint inverse dynamics.
 
+use super::capture_run::{capture_releasing_gil, CaptureInfo, Capturing};
 use super::control::{base_wrench_controller, controller, schedule, wheel_controller};
 use super::convert::{array1, count, positive_count, real, try_array2, vector, vector_or};
 use super::errors::simulation_error;
@@ -636,7 +637,7 @@ impl PyFlexibleArm {
     /// non-finite or the controller raises or returns non-finite torques; its trajectory keeps
     /// the rows kept so far and ends on the last good state (with ``on_rows``: that state
     /// alone). Ctrl-C stops the run.
-    #[pyo3(signature = (x0, dt, steps, u=None, base_wrench=None, ee_wrench=None, *, wheel_torque=None, progress=None, record_every=None, on_rows=None, chunk_rows=None))]
+    #[pyo3(signature = (x0, dt, steps, u=None, base_wrench=None, ee_wrench=None, *, wheel_torque=None, progress=None, record_every=None, on_rows=None, chunk_rows=None, target=None, capture=None, capture_ee=None))]
     #[allow(clippy::too_many_arguments)]
     fn simulate<'py>(
         slf: &Bound<'py, Self>,
@@ -651,6 +652,9 @@ impl PyFlexibleArm {
         record_every: Option<&Bound<'py, PyAny>>,
         on_rows: Option<&Bound<'py, PyAny>>,
         chunk_rows: Option<&Bound<'py, PyAny>>,
+        target: Option<&Bound<'py, PyAny>>,
+        capture: Option<&Bound<'py, PyAny>>,
+        capture_ee: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<PyTrajectory> {
         let py = slf.py();
         let me = slf.get();
@@ -664,6 +668,13 @@ impl PyFlexibleArm {
             None => 1,
         };
         let on_rows = on_rows.filter(|o| !o.is_none());
+        let capturing = Capturing::from_args(arm, target, capture, capture_ee)?;
+        if capturing.is_some() && on_rows.is_some() {
+            return Err(ModelError::new_err(
+                "on_rows: a run with a target keeps its rows in memory (the target's rows and \
+                 events are recorded with them); leave on_rows out, or use record_every",
+            ));
+        }
         if let Some(callback) = on_rows {
             if !callback.is_callable() {
                 return Err(ModelError::new_err(format!(
@@ -719,7 +730,24 @@ impl PyFlexibleArm {
         }
         let mut progress = Progress::new(progress.filter(|p| !p.is_none()).cloned());
         let recorder = sink.recorder();
-        let result = record_releasing_gil(py, arm, &run, &mut channels, &mut progress, recorder)?;
+        let (result, record) = match &capturing {
+            None => (
+                record_releasing_gil(py, arm, &run, &mut channels, &mut progress, recorder)?,
+                None,
+            ),
+            Some(capturing) => {
+                let (result, record) = capture_releasing_gil(
+                    py,
+                    arm,
+                    &run,
+                    &mut channels,
+                    &mut progress,
+                    recorder,
+                    capturing,
+                )?;
+                (result, Some(record))
+            }
+        };
         drop(channels);
         let error = error.or(wheel_error).or(base_error);
         // a callable controller's exception: KeyboardInterrupt, SystemExit and other
@@ -736,16 +764,24 @@ impl PyFlexibleArm {
         if let Some(e) = stream_error {
             return Err(e);
         }
-        let arm_ref = slf.clone().unbind();
+        let record = |traj| -> PyResult<PyTrajectory> {
+            let traj = PyTrajectory::from_run(py, slf.clone().unbind(), traj)?;
+            Ok(match (record, &capturing) {
+                (Some(record), Some(c)) => {
+                    traj.with_capture(CaptureInfo::new(py, slf, record, &c.target)?)
+                }
+                _ => traj,
+            })
+        };
         match result {
             Ok(()) => {
                 progress.finish(py, steps, steps)?;
-                PyTrajectory::from_run(py, arm_ref, traj)
+                record(traj)
             }
             Err(error) => match error {
                 Error::Simulation { step, time, .. } => {
                     let message = error.to_string();
-                    let traj = PyTrajectory::from_run(py, arm_ref, traj)?;
+                    let traj = record(traj)?;
                     let traj = Py::new(py, traj)?.into_any();
                     Err(simulation_error(py, message, step, time, traj, cause)?)
                 }

@@ -18,7 +18,7 @@
 //! One file per class: `robot` (`Robot`), `joints` (`FlexibleJoints`), `control` (`MotorPD`,
 //! input schedules, Python controllers), `arm` (`FlexibleArm`), `trajectory` (`Trajectory`),
 //! `plan` (`Limits`, `Plan`, `plan_slew`), `stability` (`StabilityLimit`), `batch` (`simulate_batch`, `BatchTrajectory`), `capture`
-//! (`Target`, `capture`, `Capture`); `analysis` (the linear analysis's private
+//! (`Target`, `capture`, `Capture`); `simulator` (`Simulator`); `fmu` (the FMU's files); `analysis` (the linear analysis's private
 //! functions, wrapped by `orbitflex.analysis`);
 //! `batched` gives the per-call dynamics their leading batch axis and `out=`; `run` drives a
 //! simulation with or without the GIL; `errors` maps [`crate::Error`] onto the Python
@@ -30,15 +30,18 @@ mod arm;
 mod batch;
 mod batched;
 mod capture;
+mod capture_run;
 mod control;
 mod convert;
 mod errors;
+mod fmu;
 mod joints;
 mod parallel;
 mod plan;
 mod robot;
 mod rotations;
 mod run;
+mod simulator;
 mod stability;
 mod trajectory;
 mod wheels;
@@ -68,9 +71,14 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<plan::PyLimits>()?;
     m.add_class::<plan::PyPlan>()?;
     m.add_class::<batch::PyBatchTrajectory>()?;
+    m.add_class::<simulator::PySimulator>()?;
     m.add_class::<capture::PyTarget>()?;
     m.add_class::<capture::PyCapture>()?;
+    m.add_class::<capture_run::PyCaptureWhen>()?;
+    m.add_class::<capture_run::PyCaptureEvent>()?;
     m.add_function(wrap_pyfunction!(capture::py_capture, m)?)?;
+    m.add_function(wrap_pyfunction!(capture_run::py_capture_scenario, m)?)?;
+    m.add_function(wrap_pyfunction!(capture_run::py_simulate_capture_batch, m)?)?;
     m.add_function(wrap_pyfunction!(plan::py_plan_slew, m)?)?;
     m.add_function(wrap_pyfunction!(batch::py_simulate_batch, m)?)?;
     m.add_function(wrap_pyfunction!(analysis::py_state_space, m)?)?;
@@ -80,5 +88,6 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(rotations::rotation_matrix, m)?)?;
     m.add_function(wrap_pyfunction!(rotations::euler_zyx, m)?)?;
     m.add_function(wrap_pyfunction!(rotations::rotation_angle, m)?)?;
+    m.add_function(wrap_pyfunction!(fmu::py_fmu_files, m)?)?;
     Ok(())
 }

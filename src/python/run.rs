@@ -53,14 +53,14 @@ impl Progress {
 /// Looks for signals every [`SIGNAL_CHECK`] and reports progress every [`EVERY`] steps, taking
 /// the GIL back for it; the first Python error (a `KeyboardInterrupt`, or an exception from the
 /// progress callback) stops the run.
-struct Watch<'a> {
+pub(crate) struct Watch<'a> {
     progress: &'a Progress,
-    error: Option<PyErr>,
+    pub(crate) error: Option<PyErr>,
     last: Instant,
 }
 
 impl<'a> Watch<'a> {
-    fn new(progress: &'a Progress) -> Self {
+    pub(crate) fn new(progress: &'a Progress) -> Self {
         Self {
             progress,
             error: None,

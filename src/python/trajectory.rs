@@ -38,6 +38,8 @@ pub struct PyTrajectory {
     momentum: GILOnceCell<Py<PyArray2<f64>>>,
     energy: GILOnceCell<Py<PyArray1<f64>>>,
     ee_pose: GILOnceCell<Py<PyArray2<f64>>>,
+    /// A run with a target: its rows, events and combined arm.
+    capture: Option<super::capture_run::CaptureInfo>,
 }
 
 /// A read-only 2-D array that takes over `values` (no copy).
@@ -85,7 +87,30 @@ impl PyTrajectory {
             momentum: GILOnceCell::new(),
             energy: GILOnceCell::new(),
             ee_pose: GILOnceCell::new(),
+            capture: None,
         })
+    }
+
+    /// The record of a run with a target: its target rows, events and combined arm.
+    pub(crate) fn with_capture(mut self, info: super::capture_run::CaptureInfo) -> Self {
+        self.capture = Some(info);
+        self
+    }
+
+    /// The total momentum (6 per row) or energy (1 per row) of a run with a target, `None`
+    /// for a run without one.
+    fn with_target(&self, py: Python<'_>, momentum: bool) -> PyResult<Option<Vec<f64>>> {
+        let Some(info) = &self.capture else {
+            return Ok(None);
+        };
+        let t = self.t.bind(py).readonly();
+        let x = self.x.bind(py).readonly();
+        let (t, x) = (t.as_slice()?, x.as_slice()?);
+        let arm = &self.arm.get().arm;
+        Ok(Some(py.allow_threads(|| match momentum {
+            true => info.record.momentum(arm, t, x),
+            false => info.record.energy(arm, t, x),
+        })))
     }
 
     /// A diagnostic of `per_row` numbers per stored row, computed without the GIL by `f` over
@@ -229,6 +254,35 @@ impl PyTrajectory {
     fn arm(&self, py: Python<'_>) -> Py<PyFlexibleArm> {
         self.arm.clone_ref(py)
     }
+    /// The target's state ``[r_t; quat_t (x, y, z, w); ω; v]`` at each row, (k, 13), in a run
+    /// with a target (``None`` otherwise): the free body before the capture, then the body
+    /// welded to the end-effector.
+    #[getter]
+    fn target(&self, py: Python<'_>) -> Option<Py<PyArray2<f64>>> {
+        self.capture.as_ref().map(|c| c.target.clone_ref(py))
+    }
+    /// What happened in the run: a list of :class:`CaptureEvent` (empty for a run without one).
+    #[getter]
+    fn events<'py>(&self, py: Python<'py>) -> Bound<'py, pyo3::types::PyList> {
+        match &self.capture {
+            Some(c) => c.events.bind(py).clone(),
+            None => pyo3::types::PyList::empty(py),
+        }
+    }
+    /// The run's :class:`Target` at ``t = 0`` (mass, inertia, handle) in a run with a target,
+    /// ``None`` otherwise.
+    #[getter]
+    fn target_body(&self, py: Python<'_>) -> Option<Py<super::capture::PyTarget>> {
+        self.capture.as_ref().map(|c| c.body.clone_ref(py))
+    }
+    /// The combined arm (the target a payload of the EE) after a capture; ``None`` before or
+    /// without one. The rows after the capture are states of this arm.
+    #[getter]
+    fn arm_after(&self, py: Python<'_>) -> Option<Py<PyFlexibleArm>> {
+        self.capture
+            .as_ref()
+            .and_then(|c| c.arm_after.as_ref().map(|a| a.clone_ref(py)))
+    }
     /// Times (s), shape (k,).
     #[getter]
     fn t(&self, py: Python<'_>) -> Py<PyArray1<f64>> {
@@ -301,22 +355,30 @@ impl PyTrajectory {
         Ok(row_major(py, self.rows(py), self.layout.n, values))
     }
     /// Total momentum ``[angular (N·m·s); linear (N·s)]`` of base and links, inertial frame,
-    /// about the inertial origin, (k, 6).
+    /// about the inertial origin, (k, 6). In a run with a target, the target's is included: the
+    /// free target's before the capture, the combined arm's after it.
     #[getter]
     fn momentum(&self, py: Python<'_>) -> PyResult<Py<PyArray2<f64>>> {
         self.momentum
             .get_or_try_init(py, || {
-                let values = self.along(py, 6, |arm, rows| rows.momentum(arm))?;
+                let values = match self.with_target(py, true)? {
+                    Some(values) => values,
+                    None => self.along(py, 6, |arm, rows| rows.momentum(arm))?,
+                };
                 frozen_rows(py, self.rows(py), 6, values)
             })
             .map(|a| a.clone_ref(py))
     }
-    /// Total energy (J): rigid kinetic + motor kinetic + spring, (k,).
+    /// Total energy (J): rigid kinetic + motor kinetic + spring, (k,). In a run with a target,
+    /// plus the free target's kinetic energy before the capture (the combined arm's after).
     #[getter]
     fn energy(&self, py: Python<'_>) -> PyResult<Py<PyArray1<f64>>> {
         self.energy
             .get_or_try_init(py, || {
-                let values = self.along(py, 1, |arm, rows| rows.energy(arm))?;
+                let values = match self.with_target(py, false)? {
+                    Some(values) => values,
+                    None => self.along(py, 1, |arm, rows| rows.energy(arm))?,
+                };
                 let array = PyArray1::from_vec(py, values);
                 freeze(array.as_any())?;
                 Ok::<_, PyErr>(array.unbind())

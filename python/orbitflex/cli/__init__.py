@@ -16,7 +16,10 @@ and as if they were rigid, runs both plans on the flexible arm and compares them
 limits, plans it again as if the joints were rigid, tracks both on the flexible arm, and writes
 the plans, the comparison, ``plan_summary.json`` and plots.
 
+``capture`` runs the built-in capture of a tumbling target (:mod:`orbitflex.cli.capture`).
+
 ``modes`` prints the structural modes of an arm and draws them (:mod:`orbitflex.cli.modes`).
+``fmu`` writes an FMI co-simulation FMU of an arm (:mod:`orbitflex.cli.fmu`).
 
 ``campaign`` runs a Monte-Carlo campaign file (:mod:`orbitflex.campaign`) locally or on a Dask
 cluster (``--scheduler``) and writes the per-run table ``runs.parquet``, ``summary.csv``
@@ -246,6 +249,14 @@ def main(argv: Optional[List[str]] = None) -> int:
             from . import modes
 
             return modes.command(args)
+        if args.command == "fmu":
+            from . import fmu
+
+            return fmu.command(args)
+        if args.command == "capture":
+            from . import capture
+
+            return capture.command(args)
         if args.dt > args.duration:
             raise CliError("--dt", f"expected at most --duration ({args.duration:g} s), given {args.dt:g}")
         job = demo_job(args) if args.command == "demo" else simulate_job(args)

@@ -60,7 +60,7 @@ mod pool;
 mod record;
 
 pub use input::BatchInput;
-pub use pool::MAX_THREADS;
+pub use pool::{in_pool, Cancel, MAX_THREADS};
 pub use record::{BatchRecord, RunRecord, RunStatus};
 
 use super::record::{is_recorded, recorded_rows, Recorder};
@@ -69,7 +69,6 @@ use super::simulate::simulate_into;
 use crate::control::MotorPD;
 use crate::error::{Error, Result};
 use crate::flex::FlexibleArm;
-use pool::{in_pool, Cancel};
 use rayon::prelude::*;
 use record::{buffer, per_run, Slot, SlotRecorder};
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
