@@ -7,6 +7,9 @@ The URDF text is embedded in the compiled module (``space_arm_urdf()``).
 ``DEFAULT_BUS_SIDE`` (1.5 m): the edge of the solid cube that stands for a bus given by its mass
 alone, in ``Robot.with_base_inertia(mass)`` and ``orbitflex simulate --base-mass``.
 
+``pyramid_wheels()``: four reaction wheels in a pyramid inside that bus, sized to hold it through
+the demo's slew (``orbitflex demo``); ``PYRAMID_GAINS`` the ``AttitudePD`` gains that do.
+
 ``capture_scenario()``: the built-in space arm holding a pre-grasp posture under its motor PD
 while a 200 kg target (a 1.0 × 1.2 × 1.4 m box) spinning at 2 deg/s about its major axis drifts
 onto the end-effector at 2 cm/s; see :class:`CaptureScenario`.
@@ -18,6 +21,7 @@ onto the end-effector at 2 cm/s; see :class:`CaptureScenario`.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Any, Optional
 
@@ -31,6 +35,7 @@ from ._core import (
     FlexibleArm,
     FlexibleJoints,
     MotorPD,
+    ReactionWheels,
     Robot,
     Target,
     Trajectory,
@@ -42,6 +47,8 @@ __all__ = [
     "space_arm",
     "space_arm_urdf",
     "space_arm_joints",
+    "pyramid_wheels",
+    "PYRAMID_GAINS",
     "dual_arm",
     "dual_arm_urdf",
     "dual_arm_joints",
@@ -90,6 +97,36 @@ def dual_arm_urdf() -> str:
 def dual_arm_joints() -> FlexibleJoints:
     """``space_arm_joints()`` for each arm of ``dual_arm()``: the left arm's 7, then the right's."""
     return FlexibleJoints.dual_arm()
+
+
+# AttitudePD gains (kp N·m/rad, kd N·m·s/rad, per base axis) that hold the built-in bus within
+# 1e-3 rad through the demo's slew with pyramid_wheels(): about 3.7 Hz, damping ratio ≈ 1.1 on
+# the bus (≈ 190 kg·m² about each axis), so the arm's reaction (≈ 50 N·m peak) leaves ≈ 4e-4 rad.
+PYRAMID_GAINS = (2.0e5, 2.0e4)
+
+
+def pyramid_wheels(spin_inertia: float = 0.25, transverse_inertia: float = 0.15, mass: float = 12.0,
+                   max_torque: float = 60.0, max_speed: float = 800.0, friction: float = 0.0,
+                   elevation_deg: float = math.degrees(math.atan(1 / math.sqrt(2))),
+                   radius: float = 0.45, depth: float = -0.45) -> ReactionWheels:
+    """Four reaction wheels in a pyramid: spin axes at ``elevation_deg`` above the bus's x-y
+    plane and at azimuths 45°, 135°, 225°, 315° (the default elevation 35.26° puts them along
+    ``(±1, ±1, 1)/√3``, equal capacity about every axis); centres ``radius`` m out along each
+    axis's azimuth and ``depth`` m along z (base frame), inside the built-in 1.5 m bus.
+
+    The defaults are sized for the demo: the built-in arm's 5 s slew, with the bus held by
+    ``AttitudePD(*PYRAMID_GAINS)``, needs about 50 N·m of wheel torque at its peak and leaves
+    about 110 N·m·s in the wheels: ``spin_inertia`` 0.25 kg·m² (at ``max_speed`` 800 rad/s,
+    200 N·m·s per wheel), ``max_torque`` 60 N·m. Large for reaction wheels (a fast slew of
+    a 2 m arm is a large disturbance): shrink them to see saturation."""
+    el = math.radians(elevation_deg)
+    axes, positions = [], []
+    for k in range(4):
+        az = math.radians(45.0 + 90.0 * k)
+        axes.append([math.cos(el) * math.cos(az), math.cos(el) * math.sin(az), math.sin(el)])
+        positions.append([radius * math.cos(az), radius * math.sin(az), depth])
+    return ReactionWheels(axes, positions, mass, spin_inertia, transverse_inertia, max_torque, max_speed,
+                          friction=friction)
 
 
 @dataclass(frozen=True)

@@ -102,7 +102,10 @@ pub fn capture(
     ee: Option<usize>,
 ) -> Result<Capture> {
     arm.check_state(x)?;
-    let robot = arm.robot();
+    // with reaction wheels the bus carries their locked parts (mass, transverse inertia); their
+    // free spin takes no impulse (no impulsive torque about a wheel's axis), so the grasp sees
+    // the augmented bus, and each wheel keeps its absolute axial rate a·ω_B + Ω
+    let robot = arm.rigid_model();
     let ee = robot.ee_choice(ee)?;
     let layout = arm.layout();
     let s = layout.split(x);
@@ -143,6 +146,13 @@ pub fn capture(
     let nu_after = nu - &solves * DVector::from_column_slice(impulse.as_slice());
     after[layout.base_twist()].copy_from_slice(&nu_after.as_slice()[..6]);
     after[layout.qd()].copy_from_slice(&nu_after.as_slice()[6..]);
+    if let Some(wheels) = arm.wheels() {
+        let d_omega = Vec3::from_column_slice(&nu_after.as_slice()[..3])
+            - Vec3::from_column_slice(&s.base_twist[..3]);
+        for (speed, wheel) in after[layout.wheel_speed()].iter_mut().zip(wheels.wheels()) {
+            *speed -= Vec3::from(wheel.axis).dot(&d_omega);
+        }
+    }
 
     let s_after = layout.split(&after);
     algorithms::velocities_unchecked(
@@ -152,8 +162,14 @@ pub fn capture(
     );
     let target_twist = x_et.apply_motion_inverse(&to_ee.apply_motion(&data.v[body]));
 
-    let combined = FlexibleArm::new(robot.with_payload_at(payload, ee)?, arm.joints().clone())?
-        .with_method(arm.method());
+    let mut combined = FlexibleArm::new(
+        arm.robot().with_payload_at(payload, ee)?,
+        arm.joints().clone(),
+    )?
+    .with_method(arm.method());
+    if let Some(wheels) = arm.wheels() {
+        combined = combined.with_wheels(wheels.clone())?;
+    }
     Ok(Capture {
         arm: combined,
         x: after,

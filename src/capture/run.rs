@@ -328,6 +328,9 @@ impl StepBody for CaptureSteps<'_> {
     fn u(&self) -> &[f64] {
         self.stepper.u()
     }
+    fn inputs(&self) -> &[f64] {
+        self.stepper.inputs()
+    }
     fn record(&mut self, recorder: &mut dyn Recorder, t: f64, x: &[f64]) -> Result<()> {
         recorder.state(t, x)?;
         let row = self.target_state(x);

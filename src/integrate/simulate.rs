@@ -87,8 +87,17 @@ pub fn step(
     check_dt(dt)?;
     crate::algorithms::check_data(arm.robot(), &ws.data)?;
     arm.check_state(x)?;
-    inputs.check(arm.robot())?;
-    step_unchecked(arm, ws, x, dt, inputs)?;
+    arm.check_inputs(inputs)?;
+    // the wheel torques are saturated once, at the start of the step, and held over it
+    let mut applied = std::mem::take(&mut ws.wheel_torque);
+    arm.saturate_wheels(x, inputs, &mut applied);
+    let held = Inputs {
+        wheel_torque: &applied,
+        ..*inputs
+    };
+    let outcome = step_unchecked(arm, ws, x, dt, &held);
+    ws.wheel_torque = applied;
+    outcome?;
     match state_defect(&arm.layout(), x) {
         Some(defect) => Err(Error::Simulation {
             step: 0,
@@ -279,7 +288,7 @@ pub fn run_steps(
             return Err(error);
         }
         if kept {
-            recorder.input(body.u()).map_err(|e| recording(k, e))?;
+            recorder.input(body.inputs()).map_err(|e| recording(k, e))?;
         }
         if is_recorded(k + 1, steps, record_every) {
             body.record(recorder, (k + 1) as f64 * dt, &x)

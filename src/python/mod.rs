@@ -44,6 +44,7 @@ mod run;
 mod simulator;
 mod stability;
 mod trajectory;
+mod wheels;
 mod workspaces;
 
 use pyo3::prelude::*;
@@ -61,7 +62,10 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<robot::PyRobot>()?;
     m.add_class::<joints::PyFlexibleJoints>()?;
     m.add_class::<control::PyMotorPD>()?;
+    m.add_class::<control::PyAttitudePD>()?;
+    m.add_class::<control::PySampled>()?;
     m.add_class::<arm::PyFlexibleArm>()?;
+    m.add_class::<wheels::PyReactionWheels>()?;
     m.add_class::<trajectory::PyTrajectory>()?;
     m.add_class::<stability::PyStabilityLimit>()?;
     m.add_class::<plan::PyLimits>()?;

@@ -76,13 +76,13 @@ impl PyTrajectory {
         let steps = traj
             .u
             .len()
-            .checked_div(layout.n)
+            .checked_div(layout.inputs_len())
             .unwrap_or(rows.saturating_sub(1));
         Ok(Self {
             arm,
             t: t.unbind(),
             x: frozen_rows(py, rows, layout.len(), traj.x)?,
-            u: frozen_rows(py, steps, layout.n, traj.u)?,
+            u: frozen_rows(py, steps, layout.inputs_len(), traj.u)?,
             layout,
             momentum: GILOnceCell::new(),
             energy: GILOnceCell::new(),
@@ -174,25 +174,62 @@ impl PyTrajectory {
     fn rows(&self, py: Python<'_>) -> usize {
         self.t.bind(py).len()
     }
+
+    /// Columns `range` of the held inputs `[u | applied wheel torques]`, a view.
+    fn inputs_view(&self, py: Python<'_>, range: std::ops::Range<usize>) -> PyResult<PyObject> {
+        let columns = PySlice::new(py, range.start as isize, range.end as isize, 1);
+        let key = PyTuple::new(py, [PySlice::full(py).into_any(), columns.into_any()])?;
+        Ok(self.u.bind(py).get_item(key)?.unbind())
+    }
 }
 
 #[pymethods]
 impl PyTrajectory {
-    /// Rebuilds a record from its arrays (as pickling does): ``t`` (k,), ``x`` (k, 13+4n) and
-    /// ``u`` (k-1, n). The arrays are copied, and checked: finite numbers, and each row of ``x`` a
-    /// valid state (a quaternion of non-zero norm).
+    /// Rebuilds a record from its arrays (as pickling does): ``t`` (k,), ``x`` (k, 13+4n+w),
+    /// ``u`` (k-1, n) and, for an arm with w reaction wheels, ``wheel_torque`` (k-1, w). The
+    /// arrays are copied, and checked: finite numbers, and each row of ``x`` a valid state (a
+    /// quaternion of non-zero norm).
     #[new]
+    #[pyo3(signature = (arm, t, x, u, wheel_torque=None))]
     fn new(
         py: Python<'_>,
         arm: Py<PyFlexibleArm>,
         t: &Bound<'_, PyAny>,
         x: &Bound<'_, PyAny>,
         u: &Bound<'_, PyAny>,
+        wheel_torque: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Self> {
         let layout = arm.get().arm.layout();
         let t = vector(t, "t", None)?;
         let (rows, x) = matrix(x, "x", layout.len())?;
-        let (steps, u) = matrix(u, "u", layout.n)?;
+        let (steps, mut u) = matrix(u, "u", layout.n)?;
+        match (wheel_torque.filter(|o| !o.is_none()), layout.wheels) {
+            (None, 0) => {}
+            (Some(_), 0) => {
+                return Err(ModelError::new_err(
+                    "wheel_torque: the arm has no reaction wheels; give none",
+                ))
+            }
+            (None, k) => {
+                return Err(ModelError::new_err(format!(
+                    "wheel_torque: the arm has {k} reaction wheels; give their applied torques \
+                     (k-1, {k})"
+                )))
+            }
+            (Some(w), k) => {
+                let (wheel_steps, w) = matrix(w, "wheel_torque", k)?;
+                if wheel_steps != steps {
+                    return Err(ModelError::new_err(format!(
+                        "wheel_torque: expected {steps} rows (as u), given {wheel_steps}"
+                    )));
+                }
+                let n = layout.n;
+                u = (0..steps)
+                    .flat_map(|r| u[r * n..(r + 1) * n].iter().chain(&w[r * k..(r + 1) * k]))
+                    .copied()
+                    .collect();
+            }
+        }
         if rows != t.len() || steps != rows.saturating_sub(1) {
             return Err(ModelError::new_err(format!(
                 "Trajectory: expected t (k,), x (k, {}) and u (k-1, {}), given {} times, {rows} \
@@ -258,8 +295,22 @@ impl PyTrajectory {
     }
     /// Motor torques (N·m, link side) held during each step, shape (k-1, n).
     #[getter]
-    fn u(&self, py: Python<'_>) -> Py<PyArray2<f64>> {
-        self.u.clone_ref(py)
+    fn u(&self, py: Python<'_>) -> PyResult<PyObject> {
+        if self.layout.wheels == 0 {
+            return Ok(self.u.clone_ref(py).into_any());
+        }
+        self.inputs_view(py, 0..self.layout.n)
+    }
+    /// Reaction-wheel torques applied during each step, after saturation (N·m, on each wheel
+    /// about its axis), shape (k-1, w); (k-1, 0) without wheels.
+    #[getter]
+    fn wheel_torque(&self, py: Python<'_>) -> PyResult<PyObject> {
+        self.inputs_view(py, self.layout.n..self.layout.inputs_len())
+    }
+    /// Reaction-wheel speeds relative to the bus (rad/s), (k, w); a view of ``x``.
+    #[getter]
+    fn wheel_speed(&self, py: Python<'_>) -> PyResult<PyObject> {
+        self.view(py, self.layout.wheel_speed())
     }
     /// ``[r_B (m); quat_B (x, y, z, w)]`` per state, (k, 7); a view of ``x``.
     #[getter]
@@ -443,19 +494,23 @@ impl PyTrajectory {
     }
 
     /// Writes ``t``, ``x``, ``u``, ``columns`` (the names of ``x``'s columns), ``momentum``,
-    /// ``energy``, ``ee_pose``, ``spring_torque`` and ``deflection`` to a ``.npz`` file.
+    /// ``energy``, ``ee_pose``, ``spring_torque``, ``deflection``, ``wheel_speed`` and
+    /// ``wheel_torque`` (the applied torques; both with 0 columns without wheels) to a ``.npz``
+    /// file.
     fn save_npz(&self, py: Python<'_>, path: &Bound<'_, PyAny>) -> PyResult<()> {
         let np = py.import("numpy")?;
         let kwargs = PyDict::new(py);
         kwargs.set_item("t", self.t(py))?;
         kwargs.set_item("x", self.x(py))?;
-        kwargs.set_item("u", self.u(py))?;
+        kwargs.set_item("u", self.u(py)?)?;
         kwargs.set_item("columns", np.call_method1("array", (self.column_names(),))?)?;
         kwargs.set_item("momentum", self.momentum(py)?)?;
         kwargs.set_item("energy", self.energy(py)?)?;
         kwargs.set_item("ee_pose", self.ee_pose(py)?)?;
         kwargs.set_item("spring_torque", self.spring_torque(py)?)?;
         kwargs.set_item("deflection", self.deflection(py)?)?;
+        kwargs.set_item("wheel_speed", self.wheel_speed(py)?)?;
+        kwargs.set_item("wheel_torque", self.wheel_torque(py)?)?;
         np.call_method("savez", (path,), Some(&kwargs))?;
         Ok(())
     }
@@ -490,7 +545,15 @@ impl PyTrajectory {
     fn __reduce__<'py>(slf: &Bound<'py, Self>) -> PyResult<(PyObject, PyObject)> {
         let py = slf.py();
         let me = slf.get();
-        let args = (me.arm(py), me.t(py), me.x(py), me.u(py));
+        let args = (
+            me.arm(py),
+            me.t(py),
+            me.x(py),
+            me.u(py)?,
+            (me.layout.wheels > 0)
+                .then(|| me.wheel_torque(py))
+                .transpose()?,
+        );
         Ok((
             slf.get_type().into_any().unbind(),
             args.into_pyobject(py)?.into_any().unbind(),

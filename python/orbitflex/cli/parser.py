@@ -36,6 +36,10 @@ def common_options(p: argparse.ArgumentParser, duration: float) -> None:
     pd.add_argument("--force", action="store_true",
                     help="run even when --dt is past the RK4 stability limit of the closed loop "
                          "(refused otherwise); the run then warns and most likely diverges")
+    p.add_argument("--wheels", metavar="TOML", default=None,
+                   help="reaction wheels on the bus and the AttitudePD holding it (keys: "
+                        "examples/wheels.toml): the slew is run again with them; the demo does so "
+                        "with orbitflex.models.pyramid_wheels() when not given")
     p.add_argument("--out", metavar="DIR", default="orbitflex_out",
                    help="output folder, created if missing (default %(default)s)")
     p.add_argument("--csv", action="store_true", help="also write trajectory.csv (t and x, named columns)")
