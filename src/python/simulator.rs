@@ -139,16 +139,18 @@ impl PySimulator {
         };
         let arm = self.arm.bind(py).get();
         let robot = arm.arm.robot();
-        let wheel_torque = match (wheel_torque.filter(|o| !o.is_none()), arm.arm.layout().wheels) {
-            (None, _) => None,
-            (Some(_), 0) => {
-                return Err(ModelError::new_err(
+        let wheel_torque =
+            match (
+                wheel_torque.filter(|o| !o.is_none()),
+                arm.arm.layout().wheels,
+            ) {
+                (None, _) => None,
+                (Some(_), 0) => return Err(ModelError::new_err(
                     "wheel_torque: the arm has no reaction wheels; pass None (or build the arm \
                      with wheels=)",
-                ))
-            }
-            (Some(w), k) => Some(vector(w, "wheel_torque", Some(k))?),
-        };
+                )),
+                (Some(w), k) => Some(vector(w, "wheel_torque", Some(k))?),
+            };
         let inputs = StepInputs {
             u: match u.filter(|o| !o.is_none()) {
                 Some(u) => Some(vector(u, "u", Some(robot.dof()))?),
