@@ -15,6 +15,7 @@ pub mod control;
 pub mod dynamics;
 pub mod error;
 pub mod flex;
+pub mod fmu;
 pub mod integrate;
 pub mod io;
 pub mod linalg;
@@ -37,7 +38,7 @@ pub use error::{Error, Result};
 pub use flex::{
     FlexibleArm, FlexibleJoints, Inputs, ModelWorkspace, MotorGains, StateLayout, StateSpec,
 };
-pub use integrate::{ArmWorkspace, SimulationFailure, Trajectory};
+pub use integrate::{ArmWorkspace, SimulationFailure, Simulator, Trajectory};
 pub use model::{
     check_mesh_bytes, check_mesh_file, EndEffector, Geometry, JointLimits, JointModel, LinkFrame,
     MeshFormat, MeshSearch, Robot, RobotBuilder, Scene, Shape, UrdfOptions, Visual, DUAL_ARM_URDF,

@@ -8,6 +8,7 @@
 //!   over a leading run axis, one record with a status per run;
 //! - [`record`]: which rows a run keeps (`record_every`) and where they go: the [`Recorder`]
 //!   trait, the in-memory [`Trajectory`], the streaming [`Chunks`];
+//! - [`simulator`]: a [`Simulator`] stepped by its caller with held inputs (co-simulation);
 //! - [`trajectory`]: the [`Trajectory`] a run returns and the diagnostics along it.
 //!
 //! ```
@@ -33,6 +34,7 @@ pub mod record;
 pub mod rk4;
 pub mod run;
 pub mod simulate;
+pub mod simulator;
 pub mod stepper;
 pub mod trajectory;
 
@@ -47,5 +49,6 @@ pub use simulate::{
     run_steps, simulate, simulate_into, stability_warning, step, Observer, SimulationFailure,
     Unobserved,
 };
+pub use simulator::{arm_fingerprint, Outputs, Simulator, STATE_FORMAT_VERSION};
 pub use stepper::{ArmSteps, StepBody, Stepper};
 pub use trajectory::{StateRows, Trajectory};

@@ -18,7 +18,7 @@
 //! One file per class: `robot` (`Robot`), `joints` (`FlexibleJoints`), `control` (`MotorPD`,
 //! input schedules, Python controllers), `arm` (`FlexibleArm`), `trajectory` (`Trajectory`),
 //! `plan` (`Limits`, `Plan`, `plan_slew`), `stability` (`StabilityLimit`), `batch` (`simulate_batch`, `BatchTrajectory`), `capture`
-//! (`Target`, `capture`, `Capture`); `analysis` (the linear analysis's private
+//! (`Target`, `capture`, `Capture`); `simulator` (`Simulator`); `fmu` (the FMU's files); `analysis` (the linear analysis's private
 //! functions, wrapped by `orbitflex.analysis`);
 //! `batched` gives the per-call dynamics their leading batch axis and `out=`; `run` drives a
 //! simulation with or without the GIL; `errors` maps [`crate::Error`] onto the Python
@@ -34,12 +34,14 @@ mod capture_run;
 mod control;
 mod convert;
 mod errors;
+mod fmu;
 mod joints;
 mod parallel;
 mod plan;
 mod robot;
 mod rotations;
 mod run;
+mod simulator;
 mod stability;
 mod trajectory;
 mod workspaces;
@@ -65,6 +67,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<plan::PyLimits>()?;
     m.add_class::<plan::PyPlan>()?;
     m.add_class::<batch::PyBatchTrajectory>()?;
+    m.add_class::<simulator::PySimulator>()?;
     m.add_class::<capture::PyTarget>()?;
     m.add_class::<capture::PyCapture>()?;
     m.add_class::<capture_run::PyCaptureWhen>()?;
@@ -81,5 +84,6 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(rotations::rotation_matrix, m)?)?;
     m.add_function(wrap_pyfunction!(rotations::euler_zyx, m)?)?;
     m.add_function(wrap_pyfunction!(rotations::rotation_angle, m)?)?;
+    m.add_function(wrap_pyfunction!(fmu::py_fmu_files, m)?)?;
     Ok(())
 }

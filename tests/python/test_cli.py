@@ -139,6 +139,33 @@ def test_demo_exits_zero_and_prints_summary(demo_run):
     assert "500 RK4 steps" in out
 
 
+def test_demo_prints_the_first_three_closed_loop_modes_of_its_arm(demo_run):
+    # the demo's line and summary.json hold what orbitflex.analysis computes for the same arm,
+    # controller and start state (the demo's PD at the default gains, free floating)
+    import json
+
+    import orbitflex
+    from orbitflex import analysis, models
+
+    result, out = demo_run
+    assert result.returncode == 0, result.stderr[-2000:]
+    line = next(l for l in result.stdout.splitlines() if l.startswith("first closed-loop modes"))
+    summary = json.loads((out / "summary.json").read_text())
+    saved = summary["closed_loop_modes"]
+    assert len(saved) == 3
+    arm = orbitflex.FlexibleArm(models.space_arm(), models.space_arm_joints())
+    # the PD's reference does not enter the linearisation: only its gains do
+    pd = orbitflex.MotorPD(summary["controller"]["kp"], summary["controller"]["kd"], np.zeros(arm.dof))
+    modes, expected = analysis.closed_loop_modes(arm, arm.state(), pd, count=3)
+    assert line == expected
+    for i, m in enumerate(saved):
+        assert m["frequency_hz"] == pytest.approx(modes.frequency_hz[i], rel=1e-9)
+        assert m["damping_ratio"] == pytest.approx(modes.damping_ratio[i], rel=1e-9, abs=1e-12)
+        assert m["dominant_joint"] == modes.dominant_joints[i]
+    # ascending, structural (not rigid-body) modes
+    assert 0 < saved[0]["frequency_hz"] <= saved[1]["frequency_hz"] <= saved[2]["frequency_hz"]
+
+
 def test_demo_writes_trajectory_summary_and_plots(demo_run):
     result, out = demo_run
     assert result.returncode == 0, result.stderr[-2000:]

@@ -33,7 +33,7 @@ def test_the_documents_have_python_examples():
     assert {document for document, _, _ in BLOCKS} >= {
         "README.md", "docs/getting_started.md", "docs/simulation.md", "docs/visualisation.md",
         "docs/batches.md", "docs/derivatives.md", "docs/modes.md", "docs/planning.md", "docs/trees.md",
-        "docs/model.md"}
+        "docs/model.md", "docs/cosimulation.md"}
     assert len(BLOCKS) >= 20
 
 
@@ -89,7 +89,7 @@ def test_the_readme_is_a_front_page():
     assert len(text) <= README_LIMIT, f"README.md has {len(text)} characters, more than {README_LIMIT}"
     # what a front page must have: the two commands, one example, one figure, the peers, the docs
     assert "pip install -v '.[viz]' && orbitflex demo" in text
-    assert "pip install '.[test]' && cargo test --release && (cd tests/python && python -m pytest -q)" in text
+    assert "pip install '.[test]' && cargo test --release --workspace && (cd tests/python && python -m pytest -q)" in text
     assert len([b for b in BLOCKS if b[0] == "README.md"]) == 1
     assert len(re.findall(r"!\[[^\]]*\]\(([^)]+\.png)\)", text)) == 1
     for section in ("## Two commands", "## How it compares", "## Documentation"):

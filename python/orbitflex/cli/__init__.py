@@ -19,6 +19,7 @@ the plans, the comparison, ``plan_summary.json`` and plots.
 ``capture`` runs the built-in capture of a tumbling target (:mod:`orbitflex.cli.capture`).
 
 ``modes`` prints the structural modes of an arm and draws them (:mod:`orbitflex.cli.modes`).
+``fmu`` writes an FMI co-simulation FMU of an arm (:mod:`orbitflex.cli.fmu`).
 
 ``campaign`` runs a Monte-Carlo campaign file (:mod:`orbitflex.campaign`) locally or on a Dask
 cluster (``--scheduler``) and writes the per-run table ``runs.parquet``, ``summary.csv``
@@ -248,6 +249,10 @@ def main(argv: Optional[List[str]] = None) -> int:
             from . import modes
 
             return modes.command(args)
+        if args.command == "fmu":
+            from . import fmu
+
+            return fmu.command(args)
         if args.command == "capture":
             from . import capture
 

@@ -122,7 +122,7 @@ def build_parser() -> Parser:
     parser = Parser(prog="orbitflex", description="Flexible-joint space manipulator simulation: a "
                     "free-floating slew of an arm on a spacecraft bus.")
     parser.add_argument("--version", action="version", version=f"orbitflex {__version__}")
-    sub = parser.add_subparsers(dest="command", metavar="{demo,simulate,plan,campaign,modes,capture}")
+    sub = parser.add_subparsers(dest="command", metavar="{demo,simulate,plan,campaign,modes,fmu,capture}")
     demo = sub.add_parser("demo", help="simulate the built-in space arm (bus + 7-joint arm), free floating",
                           description="Simulates the built-in space arm (a 500 kg bus with a 7-joint arm) "
                                       "slewing free-floating, and writes the trajectory, a summary and plots.")
@@ -167,6 +167,9 @@ def build_parser() -> Parser:
     from . import modes  # `orbitflex modes` lives in its own module
 
     modes.add_parser(sub)
+    from . import fmu  # `orbitflex fmu` too
+
+    fmu.add_parser(sub)
     from . import capture  # `orbitflex capture` too
 
     capture.add_parser(sub)

@@ -119,11 +119,21 @@ def run(job: Job, args: argparse.Namespace) -> int:
           f"dt = {args.dt:g} s (RK4 limit of the closed loop at rest: {limit:.3g} s)")
     if job.note:
         print(job.note)
+    modes = None
+    if job.compare_plans:  # the demo: the structural modes its controller closes (docs/modes.md)
+        from ..analysis import closed_loop_modes
+
+        modes, line = closed_loop_modes(job.arm, job.arm.state(), pd, count=3, base="free")
+        print(line)
     outcome = simulate(job.arm, pd, steps, args.dt, progress=not args.quiet, record_every=args.record_every)
     comparison, note = demo_comparison(job.arm, job.name, args.dt) if job.compare_plans else (None, None)
     with np.errstate(all="ignore"):  # a diverged run's finite part may overflow in the summary
         summary = summarise(job.name, outcome, steps)
         summary["controller"] = {**gains.as_dict(), "rk4_stability_limit_s": limit}
+        if modes is not None:
+            summary["closed_loop_modes"] = [
+                {"frequency_hz": float(f), "damping_ratio": float(z), "dominant_joint": str(j)}
+                for f, z, j in zip(modes.frequency_hz[:3], modes.damping_ratio[:3], modes.dominant_joints[:3])]
         if comparison is not None:
             summary["planned_slew"] = {"goal_rad": DEMO_PLAN_GOAL.tolist(), "base": comparison.plan.base,
                                        "limits": limits_dict(comparison.plan.limits),

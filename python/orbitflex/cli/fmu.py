@@ -1,0 +1,110 @@
+"""``orbitflex fmu [URDF]``: writes an FMI co-simulation FMU (3.0, or 2.0 with ``--fmi 2``) of an
+arm, for FMPy, Simulink's FMU Import block or any FMI master.
+
+A self-contained command: :func:`add_parser` adds it to the CLI's subparsers and :func:`command`
+runs it. The FMU is made by :func:`orbitflex.fmu.write_fmu` (the files by the Rust core); this
+module only reads the flags.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+from typing import Any, List
+
+from .. import SPACE_ARM_URDF, FlexibleArm, FlexibleJoints, models
+from ..fmu import write_fmu
+
+DESCRIPTION = """\
+Writes a co-simulation FMU of your URDF (default: the built-in space arm) with its joint
+parameters: FMI 3.0, or FMI 2.0 with --fmi 2 (older Simulink releases and most tools). The FMU
+steps the arm with RK4 at --dt; a master's communication step must be a whole multiple of it.
+Inputs: motor_torque.<joint> (N.m), base_force.{x,y,z} (N), base_moment.{x,y,z} (N.m, base
+frame). Outputs: q, qd, theta, theta_dot, deflection, spring_torque per joint, the base pose and
+twist, the end-effector poses, momentum and energy. Parameters: the joint parameters and q0.<joint>,
+settable before initialisation. See docs/cosimulation.md."""
+
+EPILOG = """\
+examples:
+  orbitflex fmu --out space_arm.fmu                       # the built-in arm, FMI 3.0, dt = 1 ms
+  orbitflex fmu --fmi 2 --out space_arm_fmi2.fmu
+  orbitflex fmu arm.urdf --params joints.toml --ee-link tool0 --dt 5e-4 --out arm.fmu
+  python -m fmpy.gui space_arm.fmu   # or: fmpy simulate space_arm.fmu / fmpy validate space_arm.fmu
+"""
+
+
+def add_parser(subparsers: Any) -> argparse.ArgumentParser:
+    """Adds ``fmu`` to the CLI's subparsers."""
+    from .errors import positive
+
+    p: argparse.ArgumentParser = subparsers.add_parser(
+        "fmu", help="write an FMI 3.0 (or 2.0) co-simulation FMU of an arm",
+        description=DESCRIPTION, epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("urdf", metavar="URDF", nargs="?", default=None,
+                   help="path to the URDF; the root link is the floating base (default: the built-in space arm)")
+    p.add_argument("--params", metavar="TOML", default=None,
+                   help="joint parameters keyed by joint name, as for 'orbitflex simulate' (default: "
+                        "the built-in arm's, or scaled to the links)")
+    p.add_argument("--ee-link", metavar="LINK", default=None, help="the one end-effector link")
+    p.add_argument("--ee-links", metavar="LINKS", action="append", default=None,
+                   help="end-effector links of a tree: a comma-separated list; repeatable")
+    p.add_argument("--locked-joints", metavar="NAMES", action="append", default=None,
+                   help="joints held at zero: a comma-separated list; repeatable")
+    p.add_argument("--dt", metavar="S", type=positive, default=1e-3,
+                   help="the FMU's internal RK4 step, s (default %(default)s)")
+    p.add_argument("--fmi", type=int, choices=(2, 3), default=3, help="FMI version (default %(default)s)")
+    p.add_argument("--model-identifier", metavar="ID", default=None,
+                   help="the binary's name, a C identifier (default: the robot's name)")
+    p.add_argument("--out", metavar="FILE", default=None,
+                   help="the FMU to write (default: <model identifier>.fmu)")
+    return p
+
+
+def command(args: argparse.Namespace) -> int:
+    """Writes the FMU and prints what it holds."""
+    from .errors import CliError, cli_words
+    from .robots import joint_list, load_robot
+
+    if args.urdf is None:
+        for flag, value in (("--ee-link", args.ee_link), ("--ee-links", args.ee_links),
+                            ("--locked-joints", args.locked_joints)):
+            if value:
+                raise CliError(flag, "applies to a URDF; give the URDF file (the built-in arm has one end-effector, ee)")
+        urdf = SPACE_ARM_URDF
+        robot = models.space_arm()
+        ee_links: List[str] = []
+        locked: List[str] = []
+    else:
+        try:
+            urdf = Path(args.urdf).read_text(encoding="utf-8")
+        except (OSError, UnicodeDecodeError) as e:
+            raise CliError("URDF", f"cannot read {args.urdf}: {e}") from None
+        robot = load_robot(args)
+        ee_links = [args.ee_link] if args.ee_link else joint_list(args.ee_links)
+        locked = joint_list(args.locked_joints)
+    try:
+        if args.params is not None:
+            joints = FlexibleJoints.from_toml(args.params, robot)
+        elif args.urdf is None:
+            joints = models.space_arm_joints()
+        else:
+            joints = FlexibleJoints.defaults_for(robot)
+        arm = FlexibleArm(robot, joints)
+    except (ValueError, OSError) as e:
+        raise CliError("--params", cli_words(str(e))) from None
+    from ..fmu import _identifier
+
+    ident = args.model_identifier if args.model_identifier is not None else _identifier(robot.name)
+    out = args.out if args.out is not None else f"{ident}.fmu"
+    try:
+        path = write_fmu(out, urdf, arm, args.dt, fmi=args.fmi, ee_links=ee_links, locked_joints=locked,
+                         model_identifier=ident)
+    except FileNotFoundError as e:
+        raise CliError("fmu", str(e)) from None
+    except ValueError as e:
+        flag = "--model-identifier" if "model_identifier" in str(e) else "--dt" if str(e).startswith("dt") else "URDF"
+        raise CliError(flag, cli_words(str(e))) from None
+    note = "" if args.params is not None or args.urdf is None else " (joint parameters scaled to the links: give --params)"
+    print(f"wrote {path}: FMI {args.fmi}.0 co-simulation, {robot.name} ({arm.dof} joints), dt = {args.dt:g} s{note}")
+    print(f"  run it: python -c \"import fmpy; fmpy.dump('{path}')\"  (pip install fmpy)")
+    return 0
