@@ -269,10 +269,29 @@ fn momentum_across_the_event_and_the_target_welded_after() {
     for (i, (a, b)) in at.iter().zip(e.momentum_before).enumerate() {
         assert!((a - b).abs() <= 1e-14 * scale, "row momentum[{i}]");
     }
+    // row 0 is the arm at rest and the free target: the target's momentum alone
+    let h0 = target.momentum();
+    for (i, (a, b)) in h[..6].iter().zip(h0).enumerate() {
+        assert!(
+            (a - b).abs() <= 1e-14 * scale,
+            "row 0 momentum[{i}]: {a} vs {b}"
+        );
+    }
+    // after the capture the rows are the combined arm's; its momentum there equals that of the
+    // arm without the payload plus the welded target's (the target's twist is the EE's carried
+    // to it), so reading the rows after with either gives the same numbers to round-off
+    let combined = record.arm_after.as_ref().unwrap();
+    let last = traj.len() - 1;
+    let after_arm = combined.momentum(&mut ModelWorkspace::new(combined), traj.state(last));
+    for (i, (a, b)) in h[last * 6..last * 6 + 6].iter().zip(after_arm).enumerate() {
+        assert!(
+            (a - b).abs() <= 1e-14 * scale,
+            "last row momentum[{i}]: {a} vs {b}"
+        );
+    }
     // the energy: the row at the event (arm and free target) less the event's loss is the
     // combined arm's energy just after (spring and motor energies are untouched by the impulse)
     let energy = record.energy(&arm, &traj.t, &traj.x);
-    let combined = record.arm_after.as_ref().unwrap();
     let after = combined.energy(&mut ModelWorkspace::new(combined), &e.x_after);
     assert!(
         (energy[e.step] - e.energy_loss - after).abs() <= 1e-12 * energy[e.step],

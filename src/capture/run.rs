@@ -165,22 +165,16 @@ impl CaptureRecord {
     ) -> Vec<f64> {
         let len = arm.layout().len();
         let mut out = vec![0.0; t.len() * width];
+        // the combined arm has the arm's bodies and joints (only an inertia differs): one
+        // workspace serves both
         let mut ws = crate::flex::ModelWorkspace::new(arm);
-        let mut ws_after = self
-            .arm_after
-            .as_ref()
-            .map(crate::flex::ModelWorkspace::new);
         for (k, &time) in t.iter().enumerate() {
             let (which, free) = self.arm_at(arm, time);
             let target =
                 free.then(|| &self.target[k * TARGET_STATE_LEN..(k + 1) * TARGET_STATE_LEN]);
-            let ws = match (free, ws_after.as_mut()) {
-                (false, Some(w)) => w,
-                _ => &mut ws,
-            };
             f(
                 which,
-                ws,
+                &mut ws,
                 &x[k * len..(k + 1) * len],
                 target,
                 &mut out[k * width..(k + 1) * width],

@@ -165,7 +165,7 @@ class CaptureCampaign:
             from dask.distributed import Client
 
             own = client is None
-            client = Client(scheduler) if own else client
+            client = Client(scheduler) if own else client  # type: ignore[no-untyped-call]
             try:
                 futures = [client.submit(_chunk_task, self, a, b, pure=False) for a, b in chunks]
                 pieces = client.gather(futures)

@@ -146,10 +146,10 @@ def print_summary(s: Dict[str, Any]) -> None:
 
 
 def save_npz(traj: Trajectory, path: Path) -> None:
-    e = traj.events[0] if traj.events else None
     arrays: Dict[str, Any] = {"t": traj.t, "x": traj.x, "u": traj.u, "target": traj.target,
                               "spring_torque": traj.spring_torque, "momentum": traj.momentum}
-    if e is not None:
+    if traj.events:
+        e = traj.events[0]
         arrays.update(event_time=e.time, event_step=e.step, impulse=e.impulse, energy_loss=e.energy_loss,
                       x_before=e.x_before, x_after=e.x_after)
     np.savez(path, **arrays)
