@@ -23,6 +23,7 @@
 # [Co-simulation](../cosimulation.md) documents every variable and call.
 
 # %%
+import os
 import shutil
 import subprocess
 import sys
@@ -158,7 +159,9 @@ plt.show()
 # `examples/c/slew.py`, prints the same digits. Built here with the system C compiler:
 
 # %%
-repo = Path.cwd()
+# the repository holds the example and the header: the docs build names it (it runs the notebooks
+# in a temporary folder); otherwise look upwards from here
+repo = Path(os.environ.get("ORBITFLEX_SOURCE", Path.cwd()))
 while not (repo / "include" / "orbitflex.h").is_file() and repo != repo.parent:
     repo = repo.parent
 library = runtime_library()
