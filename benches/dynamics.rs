@@ -282,8 +282,17 @@ fn rk4_step(c: &mut Criterion) {
         group.bench_with_input(BenchmarkId::from_parameter(n), &n, |b, _| {
             b.iter(|| {
                 x.copy_from_slice(&x0);
-                arm.step(&mut ws, black_box(&mut x), dt, &Inputs { u: &u, loads })
-                    .unwrap();
+                arm.step(
+                    &mut ws,
+                    black_box(&mut x),
+                    dt,
+                    &Inputs {
+                        u: &u,
+                        loads,
+                        wheel_torque: &[],
+                    },
+                )
+                .unwrap();
                 x[0]
             })
         });

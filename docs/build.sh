@@ -9,6 +9,9 @@
 # there is one.
 set -euo pipefail
 cd "$(dirname "$0")/.."
+# tutorial 7 builds examples/c/slew.c against include/ from the repository (notebooks run in a
+# temporary folder)
+export ORBITFLEX_SOURCE="$PWD"
 start=$SECONDS
 export PYTHONWARNINGS="${PYTHONWARNINGS:-}"
 

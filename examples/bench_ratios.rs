@@ -135,7 +135,11 @@ fn main() {
                         &mut c.ws,
                         black_box(&mut c.x),
                         c.dt,
-                        &Inputs { u: &c.tau, loads },
+                        &Inputs {
+                            u: &c.tau,
+                            loads,
+                            wheel_torque: &[],
+                        },
                     )
                     .unwrap();
                 black_box(c.x[0]);

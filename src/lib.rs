@@ -37,7 +37,8 @@ pub use control::{Controller, MotorPD, Schedule, Wrenches};
 pub use dynamics::Method;
 pub use error::{Error, Result};
 pub use flex::{
-    FlexibleArm, FlexibleJoints, Inputs, ModelWorkspace, MotorGains, StateLayout, StateSpec,
+    FlexibleArm, FlexibleJoints, Inputs, ModelWorkspace, MotorGains, ReactionWheels, StateLayout,
+    StateSpec, Wheel,
 };
 pub use integrate::{ArmWorkspace, SimulationFailure, Simulator, Trajectory};
 pub use model::{

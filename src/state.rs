@@ -7,31 +7,52 @@ use crate::spatial::{
 };
 use std::ops::Range;
 
-/// Offsets of the blocks of the state `x ∈ R^{13+4n}` (model §4):
+/// Offsets of the blocks of the state `x ∈ R^{13+4n+k}` (model §4):
 ///
 /// ```text
-/// x = [ r_B (3) | quat_B (4) | q (n) | θ (n) | ω_B (3) | v_B (3) | q̇ (n) | θ̇ (n) ]
+/// x = [ r_B (3) | quat_B (4) | q (n) | θ (n) | ω_B (3) | v_B (3) | q̇ (n) | θ̇ (n) | Ω (k) ]
 /// ```
 /// configuration first, then velocities. `r_B` is the base origin in the inertial frame (m),
 /// `quat_B = (x, y, z, w)` maps base-frame components to inertial ones, `q` and `θ` are the link
-/// and (link-side) motor angles (rad), `[ω_B; v_B]` is the base twist in base-frame components.
+/// and (link-side) motor angles (rad), `[ω_B; v_B]` is the base twist in base-frame components,
+/// and `Ω` the speeds of the `k` reaction wheels relative to the bus (rad/s; none without
+/// wheels, [`crate::flex::ReactionWheels`]).
 ///
 /// ```
 /// use orbitflex::StateLayout;
-/// let layout = StateLayout { n: 7 };
+/// let layout = StateLayout { n: 7, wheels: 0 };
 /// assert_eq!(layout.len(), 41);
 /// assert_eq!(layout.theta(), 14..21);
+/// assert_eq!(StateLayout::with_wheels(7, 4).wheel_speed(), 41..45);
 /// ```
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct StateLayout {
     /// Number of joints.
     pub n: usize,
+    /// Number of reaction wheels `k` (0 without).
+    pub wheels: usize,
 }
 
 impl StateLayout {
-    /// Length `13 + 4n`.
+    /// The layout of an arm of `n` joints without wheels.
+    pub fn new(n: usize) -> Self {
+        Self { n, wheels: 0 }
+    }
+
+    /// The layout of an arm of `n` joints and `k` reaction wheels.
+    pub fn with_wheels(n: usize, k: usize) -> Self {
+        Self { n, wheels: k }
+    }
+
+    /// Length `13 + 4n + k`.
     pub fn len(&self) -> usize {
-        13 + 4 * self.n
+        13 + 4 * self.n + self.wheels
+    }
+
+    /// Length `n + k` of a row of held inputs in a record: the motor torques `u` (n), then the
+    /// wheel torques applied (k).
+    pub fn inputs_len(&self) -> usize {
+        self.n + self.wheels
     }
     /// Never empty (the base alone has 13 states).
     pub fn is_empty(&self) -> bool {
@@ -69,21 +90,25 @@ impl StateLayout {
     pub fn theta_dot(&self) -> Range<usize> {
         13 + 3 * self.n..13 + 4 * self.n
     }
-    /// Everything but the base pose: `[q | θ | V_B | q̇ | θ̇]`, the part the dynamics act on.
+    /// Reaction-wheel speeds `Ω` relative to the bus (rad/s), at the end (empty without wheels).
+    pub fn wheel_speed(&self) -> Range<usize> {
+        13 + 4 * self.n..self.len()
+    }
+    /// Everything but the base pose: `[q | θ | V_B | q̇ | θ̇ | Ω]`, the part the dynamics act on.
     pub fn dynamic(&self) -> Range<usize> {
-        7..13 + 4 * self.n
+        7..self.len()
     }
 
-    /// Length `12 + 4n` of the tangent `dx` (model §4): the quaternion's four numbers become a
-    /// rotation vector of three.
+    /// Length `12 + 4n + k` of the tangent `dx` (model §4): the quaternion's four numbers become
+    /// a rotation vector of three.
     pub fn tangent_len(&self) -> usize {
-        12 + 4 * self.n
+        self.len() - 1
     }
 
     /// `x ⊕ dx` into `out`: the tangent `dx = [δr_B | δφ_B | δq | δθ | δω_B | δv_B | δq̇ | δθ̇]`
     /// applied to `x`: `r_B + δr_B` (inertial frame), `quat_B ⊗ Exp(δφ_B)` (`δφ_B` a rotation
     /// vector in the base frame), and every other block added. Lengths: `x` and `out`
-    /// `13 + 4n`, `dx` `12 + 4n`.
+    /// `13 + 4n + k`, `dx` `12 + 4n + k`.
     pub fn integrate(&self, x: &[f64], dx: &[f64], out: &mut [f64]) {
         out[..3]
             .iter_mut()
@@ -115,8 +140,9 @@ impl StateLayout {
     }
 
     /// The named blocks, in order, with their ranges: `base_pose`, `q`, `theta`, `base_twist`,
-    /// `qd`, `theta_dot`. Bindings build their views from this list.
-    pub fn blocks(&self) -> [(&'static str, Range<usize>); 6] {
+    /// `qd`, `theta_dot`, `wheel_speed` (empty without wheels). Bindings build their views from
+    /// this list.
+    pub fn blocks(&self) -> [(&'static str, Range<usize>); 7] {
         [
             ("base_pose", self.base_pose()),
             ("q", self.q()),
@@ -124,11 +150,12 @@ impl StateLayout {
             ("base_twist", self.base_twist()),
             ("qd", self.qd()),
             ("theta_dot", self.theta_dot()),
+            ("wheel_speed", self.wheel_speed()),
         ]
     }
 
     /// Names of the state's elements, in order: `r_x … quat_w`, `q[joint]`, `theta[joint]`,
-    /// `omega_x … v_z`, `qd[joint]`, `theta_dot[joint]`.
+    /// `omega_x … v_z`, `qd[joint]`, `theta_dot[joint]`, `wheel_speed[w]`.
     pub fn element_names(&self, joint_names: &[&str]) -> Vec<String> {
         let per_joint =
             |prefix: &'static str| joint_names.iter().map(move |j| format!("{prefix}[{j}]"));
@@ -144,6 +171,7 @@ impl StateLayout {
             )
             .chain(per_joint("qd"))
             .chain(per_joint("theta_dot"))
+            .chain((0..self.wheels).map(|w| format!("wheel_speed[{w}]")))
             .collect()
     }
 
@@ -158,6 +186,7 @@ impl StateLayout {
             base_twist: &x[self.base_twist()],
             qd: &x[self.qd()],
             theta_dot: &x[self.theta_dot()],
+            wheel_speed: &x[self.wheel_speed()],
         }
     }
 }
@@ -179,6 +208,8 @@ pub struct StateParts<'a> {
     pub qd: &'a [f64],
     /// Motor rates `θ̇` (rad/s).
     pub theta_dot: &'a [f64],
+    /// Reaction-wheel speeds `Ω` relative to the bus (rad/s; empty without wheels).
+    pub wheel_speed: &'a [f64],
 }
 
 impl StateParts<'_> {

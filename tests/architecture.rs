@@ -14,6 +14,7 @@ const FLOORS: &[(&str, &[&str])] = &[
     ("control", &["control"]),
     ("flex", &["flex"]),
     ("integrate", &["integrate", "lanes"]),
+    ("capture", &["capture"]),
     ("planning", &["planning"]),
     ("analysis", &["analysis"]),
     ("python", &["python"]),

@@ -9,7 +9,7 @@ use orbitflex::capture::{capture, rigid_body_derivative, Capture, Target};
 use orbitflex::spatial::{quaternion_to_rotation, Force, Inertia, Mat3, Motion, Transform, Vec3};
 use orbitflex::testing::{random_chain, random_joints, random_tree, random_tree_all_leaves, Rng};
 use orbitflex::testing::{TREE_ONE_TRUNK, TREE_THREE_ARMS};
-use orbitflex::{FlexibleArm, Inputs, Robot, StateSpec};
+use orbitflex::{FlexibleArm, Inputs, ReactionWheels, Robot, StateSpec, Wheel};
 
 /// Random arms: chains of 3 to 8 joints, two trees with one EE, a tree with an EE on every leaf.
 fn arms() -> Vec<(String, FlexibleArm)> {
@@ -603,4 +603,72 @@ fn capture_is_a_value() {
     assert_eq!(c.impulse, d.impulse);
     let again = capture(&arm, &x, &target, None).unwrap();
     assert_eq!(again.x, c.x, "deterministic");
+}
+
+/// With reaction wheels spinning on the bus: momentum (spin included) and energy balance across
+/// the capture as without (same bounds, same reasons), the wheels keep their absolute axial rate
+/// `a·ω_B + Ω` (no impulsive torque about their axes), and the combined arm keeps the wheels.
+#[test]
+fn a_capture_with_reaction_wheels_keeps_momentum_and_the_wheels_spin() {
+    let mut rng = Rng::new(2926);
+    let robot = Robot::space_arm();
+    let wheels: Vec<Wheel> = (0..4)
+        .map(|w| {
+            let phi = std::f64::consts::FRAC_PI_2 * w as f64 + 0.4;
+            let (side, tilt) = ((2.0f64 / 3.0).sqrt(), (1.0f64 / 3.0).sqrt());
+            Wheel {
+                axis: [side * phi.cos(), side * phi.sin(), tilt],
+                position: [0.4 * phi.cos(), 0.4 * phi.sin(), -0.45],
+                mass: 8.0,
+                spin_inertia: 0.2,
+                transverse_inertia: 0.12,
+                max_torque: 1.0,
+                max_speed: 1e3,
+                friction: 0.0,
+            }
+        })
+        .collect();
+    let arm = FlexibleArm::new(robot.clone(), random_joints(robot.dof(), 7))
+        .unwrap()
+        .with_wheels(ReactionWheels::new(wheels).unwrap())
+        .unwrap();
+    let layout = arm.layout();
+    for trial in 0..4 {
+        let mut x = random_arm_state(
+            &FlexibleArm::new(robot.clone(), arm.joints().clone()).unwrap(),
+            &mut rng,
+        );
+        x.extend(rng.vector(4, -300.0, 300.0));
+        let target = random_target(&arm, &x, 0, &mut rng);
+        let before_arm = arm.momentum(&mut arm.workspace(), &x);
+        let before = add(&before_arm, &target.momentum());
+        let scale = norm(&before_arm) + norm(&target.momentum());
+        let c = capture(&arm, &x, &target, None).unwrap();
+        assert_eq!(
+            c.arm.layout(),
+            layout,
+            "trial {trial}: the wheels stay on the combined arm"
+        );
+        let after = c.arm.momentum(&mut c.arm.workspace(), &c.x);
+        let err = norm(&sub(&after, &before)) / scale;
+        assert!(err < 1e-12, "trial {trial}: momentum off by {err:e}");
+        let e_before = arm.energy(&mut arm.workspace(), &x) + target.kinetic_energy();
+        let e_after = c.arm.energy(&mut c.arm.workspace(), &c.x);
+        let e_err = (e_before - e_after - c.energy_loss).abs() / e_before;
+        assert!(e_err < 1e-12, "trial {trial}: ΔE − loss off by {e_err:e}");
+        let omega = |x: &[f64]| Vec3::from_column_slice(&x[layout.base_twist()][..3]);
+        assert!(
+            (omega(&c.x) - omega(&x)).norm() > 1e-6,
+            "trial {trial}: the bus rate changed"
+        );
+        for (w, wheel) in arm.wheels().unwrap().wheels().iter().enumerate() {
+            let a = Vec3::from(wheel.axis);
+            let (s0, s1) = (x[layout.wheel_speed()][w], c.x[layout.wheel_speed()][w]);
+            let axial = |s: f64, x: &[f64]| a.dot(&omega(x)) + s;
+            assert!(
+                (axial(s1, &c.x) - axial(s0, &x)).abs() <= 1e-12 * axial(s0, &x).abs().max(1.0),
+                "trial {trial}, wheel {w}"
+            );
+        }
+    }
 }

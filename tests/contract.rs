@@ -56,7 +56,11 @@ fn step_is_the_classic_rk4_combination() {
     let (u, dt) = ([1.5], 0.01);
     let loads =
         Loads::from_slices(Some(&[0.1, 0.2, 0.3, 1.0, -1.0, 0.5]), Some(&[0.0; 6])).unwrap();
-    let inputs = Inputs { u: &u, loads };
+    let inputs = Inputs {
+        u: &u,
+        loads,
+        wheel_torque: &[],
+    };
     let f = |ws: &mut orbitflex::ArmWorkspace, x: &[f64]| {
         let mut d = vec![0.0; x.len()];
         arm.derivative(ws, x, &inputs, &mut d).unwrap();
@@ -86,6 +90,7 @@ fn step_is_the_classic_rk4_combination() {
             &Wrenches {
                 base: Schedule::Constant(vec![0.1, 0.2, 0.3, 1.0, -1.0, 0.5]),
                 ee: Schedule::Zero,
+                wheel_torque: orbitflex::Schedule::Zero,
             },
         )
         .unwrap();
@@ -405,6 +410,7 @@ fn input_checks_say_what_is_wrong() {
             &Wrenches {
                 base: Schedule::Constant(vec![0.0; 5]),
                 ee: Schedule::Zero,
+                wheel_torque: orbitflex::Schedule::Zero,
             },
         ),
         "base_wrench: expected length 6, given length 5",

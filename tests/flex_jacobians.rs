@@ -55,6 +55,7 @@ impl In {
         Inputs {
             u: &self.u,
             loads: Loads::from_slices(Some(&self.fb), Some(&self.f)).unwrap(),
+            wheel_torque: &[],
         }
     }
 }
@@ -113,6 +114,7 @@ fn check_step(arm: &FlexibleArm, seed: u64, dt: f64, label: &str) {
         let inputs = Inputs {
             u,
             loads: Loads::from_slices(Some(fb), Some(f)).unwrap(),
+            wheel_torque: &[],
         };
         arm.step(&mut ws, &mut y, dt, &inputs).unwrap();
         y

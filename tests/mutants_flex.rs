@@ -40,13 +40,13 @@ fn assert_close(actual: f64, expected: f64, relative: f64) {
 #[test]
 fn state_layout_is_never_empty() {
     // the base alone has 13 states
-    assert!(!StateLayout { n: 0 }.is_empty());
-    assert!(!StateLayout { n: 3 }.is_empty());
+    assert!(!StateLayout::new(0).is_empty());
+    assert!(!StateLayout::new(3).is_empty());
 }
 
 #[test]
 fn element_names_follow_the_layout() {
-    let names = StateLayout { n: 2 }.element_names(&["a", "b"]);
+    let names = StateLayout::new(2).element_names(&["a", "b"]);
     let expected = [
         "r_x",
         "r_y",
@@ -71,7 +71,7 @@ fn element_names_follow_the_layout() {
         "theta_dot[b]",
     ];
     assert_eq!(names, expected);
-    assert_eq!(names.len(), StateLayout { n: 2 }.len());
+    assert_eq!(names.len(), StateLayout::new(2).len());
 }
 
 #[test]
@@ -309,7 +309,7 @@ fn motor_pd_reports_its_joints_and_refuses_a_step_past_its_table() {
     )
     .unwrap();
     assert_eq!(pd.dof(), 3);
-    let x = vec![0.0; StateLayout { n: 3 }.len()];
+    let x = vec![0.0; StateLayout::new(3).len()];
     let mut u = [0.0; 3];
     // θ = 0: u = 2 θ_ref of row 1
     pd.output(1, 0.0, &x, &mut u).unwrap();
@@ -325,7 +325,7 @@ fn motor_pd_reports_its_joints_and_refuses_a_step_past_its_table() {
 
 /// Two rows of the two-joint layout: q, θ, q̇, θ̇ chosen so that every result is exact.
 fn two_rows() -> Vec<f64> {
-    let layout = StateLayout { n: 2 };
+    let layout = StateLayout::new(2);
     let mut x = vec![0.0; 2 * layout.len()];
     for (row, (q, theta, qd, theta_dot)) in [
         ([0.5, -0.25], [0.75, 0.25], [1.0, 2.0], [1.5, 1.0]),
@@ -348,7 +348,7 @@ fn two_rows() -> Vec<f64> {
 fn state_rows_count_and_deflection() {
     let x = two_rows();
     let rows = StateRows {
-        layout: StateLayout { n: 2 },
+        layout: StateLayout::new(2),
         x: &x,
     };
     assert_eq!(rows.len(), 2);
@@ -356,7 +356,7 @@ fn state_rows_count_and_deflection() {
     // θ − q
     assert_eq!(rows.deflection(), [0.25, 0.5, -0.5, 0.0]);
     let none = StateRows {
-        layout: StateLayout { n: 2 },
+        layout: StateLayout::new(2),
         x: &[],
     };
     assert_eq!(none.len(), 0);
@@ -492,7 +492,7 @@ fn simulate_stops_when_the_observer_says_so() {
 
 #[test]
 fn record_bytes_counts_times_states_and_inputs() {
-    let layout = StateLayout { n: 2 };
+    let layout = StateLayout::new(2);
     // 10 steps: 11 times, 11 states of 21 numbers, 10 inputs of 2, 8 bytes each
     assert_eq!(record_bytes(layout, 10), Some(8 * (11 + 11 * 21 + 10 * 2)));
     assert_eq!(record_bytes(layout, 0), Some(8 * 22));

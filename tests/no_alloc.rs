@@ -140,7 +140,11 @@ fn hot_paths_do_not_allocate() {
             ..StateSpec::default()
         })
         .unwrap();
-    let inputs = Inputs { u: &tau, loads };
+    let inputs = Inputs {
+        u: &tau,
+        loads,
+        wheel_torque: &[],
+    };
     let mut xdot = vec![0.0; x.len()];
     assert_eq!(
         allocations(|| arm.derivative(&mut ws, &x, &inputs, &mut xdot).unwrap()),
@@ -181,6 +185,7 @@ fn hot_paths_do_not_allocate() {
                 &Wrenches {
                     base: Schedule::Zero,
                     ee: Schedule::Constant(w.to_vec()),
+                    wheel_torque: orbitflex::Schedule::Zero,
                 },
             )
             .unwrap();
@@ -194,6 +199,7 @@ fn hot_paths_do_not_allocate() {
     let mut wrenches = Wrenches {
         base: Schedule::Zero,
         ee: Schedule::Constant(w.to_vec()),
+        wheel_torque: orbitflex::Schedule::Zero,
     };
     let mut rows = 0;
     let mut sink = Chunks::new(arm.layout(), 16, |chunk| {

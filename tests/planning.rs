@@ -68,8 +68,17 @@ fn forward(arm: &FlexibleArm, m: &[Vec<f64>; 5], out: &FlexibleInverse) -> [Vec<
     let loads = Loads::from_slices(Some(&out.base_wrench), None).unwrap();
     let mut xdot = vec![0.0; x.len()];
     let mut ws = arm.workspace();
-    arm.derivative(&mut ws, &x, &Inputs { u: &out.u, loads }, &mut xdot)
-        .unwrap();
+    arm.derivative(
+        &mut ws,
+        &x,
+        &Inputs {
+            u: &out.u,
+            loads,
+            wheel_torque: &[],
+        },
+        &mut xdot,
+    )
+    .unwrap();
     let layout = arm.layout();
     let twist_rate = &xdot[layout.base_twist()];
     let (w, v) = (&out.base_twist[..3], &out.base_twist[3..]);

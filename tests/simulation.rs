@@ -86,6 +86,7 @@ fn momentum_is_constant_when_free_floating_with_any_torques() {
             &Wrenches {
                 base: push,
                 ee: Schedule::Zero,
+                wheel_torque: orbitflex::Schedule::Zero,
             },
         )
         .unwrap();
@@ -161,8 +162,17 @@ fn power_balance_holds_pointwise_with_all_inputs() {
         );
         let mut xdot = vec![0.0; x.len()];
         let loads = Loads::from_slices(Some(&fb), Some(&f)).unwrap();
-        arm.derivative(&mut ws, &x, &Inputs { u: &u, loads }, &mut xdot)
-            .unwrap();
+        arm.derivative(
+            &mut ws,
+            &x,
+            &Inputs {
+                u: &u,
+                loads,
+                wheel_torque: &[],
+            },
+            &mut xdot,
+        )
+        .unwrap();
         let h = 1e-6;
         let shifted =
             |s: f64| -> Vec<f64> { x.iter().zip(&xdot).map(|(a, b)| a + s * h * b).collect() };
@@ -202,6 +212,7 @@ fn power_balance_integrates_along_a_run() {
                 &Wrenches {
                     base: Schedule::Constant(fb.clone()),
                     ee: Schedule::Constant(f.clone()),
+                    wheel_torque: orbitflex::Schedule::Zero,
                 },
             )
             .unwrap();

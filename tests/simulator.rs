@@ -97,6 +97,7 @@ fn steps_equal_simulate_with_tables() {
         let wrenches = Wrenches {
             base: table(&mut rng, steps, 6, 2.0),
             ee: table(&mut rng, steps, 6 * k, 1.0),
+            wheel_torque: Schedule::Zero,
         };
         let x0 = moving_state(&arm, seed);
         let dt = 2e-3;
@@ -135,6 +136,7 @@ fn held_inputs_equal_constant_schedules() {
             &Wrenches {
                 base: Schedule::Constant(base.to_vec()),
                 ee: Schedule::Zero,
+                wheel_torque: Schedule::Zero,
             },
         )
         .unwrap();
@@ -447,4 +449,63 @@ fn a_step_allocates_nothing() {
     });
     // the one allocation is the test's own `vec![0.2; 6 * k]`
     assert_eq!(count, 1);
+}
+
+/// With reaction wheels: held wheel-torque commands, saturated at the start of each step as a
+/// run saturates them, give bit for bit the run of `simulate` with the same constant commands
+/// (one command past the torque limit, so that saturation is exercised); the commands survive
+/// save and restore, and an arm without wheels refuses them.
+#[test]
+fn wheel_torques_are_held_and_saturated_as_in_a_run() {
+    use orbitflex::flex::{ReactionWheels, Wheel};
+    let wheels: Vec<Wheel> = (0..4)
+        .map(|w| {
+            let phi = std::f64::consts::FRAC_PI_2 * w as f64;
+            let (side, tilt) = ((2.0f64 / 3.0).sqrt(), (1.0f64 / 3.0).sqrt());
+            Wheel {
+                axis: [side * phi.cos(), side * phi.sin(), tilt],
+                position: [0.3 * phi.cos(), 0.3 * phi.sin(), -0.4],
+                mass: 4.0,
+                spin_inertia: 0.04,
+                transverse_inertia: 0.025,
+                max_torque: 0.2,
+                max_speed: 600.0,
+                friction: 1e-3,
+            }
+        })
+        .collect();
+    let plain = FlexibleArm::new(Robot::space_arm(), FlexibleJoints::space_arm()).unwrap();
+    let arm = plain
+        .clone()
+        .with_wheels(ReactionWheels::new(wheels).unwrap())
+        .unwrap();
+    let x0 = arm.rest_state();
+    let (u, commands) = ([2.0; 7], [0.1, -0.3, 0.05, 0.2]);
+    let run = arm
+        .simulate(
+            &x0,
+            1e-3,
+            200,
+            &mut Schedule::Constant(u.to_vec()),
+            &Wrenches {
+                wheel_torque: Schedule::Constant(commands.to_vec()),
+                ..Wrenches::ZERO
+            },
+        )
+        .unwrap();
+    let mut sim = Simulator::new(arm.clone(), &x0, 1e-3).unwrap();
+    sim.set_motor_torque(&u).unwrap();
+    sim.set_wheel_torque(&commands).unwrap();
+    sim.step(120).unwrap();
+    let blob = sim.save();
+    sim.set_wheel_torque(&[0.0; 4]).unwrap();
+    sim.restore(&blob).unwrap();
+    assert_eq!(sim.wheel_torque(), &commands);
+    sim.step(80).unwrap();
+    assert_eq!(sim.state(), &run.x[run.x.len() - x0.len()..]);
+    // the applied torques of the run: the −0.3 command clipped to −0.2
+    assert_eq!(&run.u[7..11], &[0.1, -0.2, 0.05, 0.2]);
+    let mut bare = Simulator::new(plain.clone(), &plain.rest_state(), 1e-3).unwrap();
+    let e = bare.set_wheel_torque(&[0.0; 4]).unwrap_err().to_string();
+    assert!(e.contains("no reaction wheels"), "{e}");
 }

@@ -530,8 +530,17 @@ fn dual_arm_power_balance_with_both_wrenches() {
     );
     let loads = Loads::from_slices(Some(&fb), Some(&f)).unwrap();
     let mut xdot = vec![0.0; x.len()];
-    arm.derivative(&mut ws, &x, &Inputs { u: &u, loads }, &mut xdot)
-        .unwrap();
+    arm.derivative(
+        &mut ws,
+        &x,
+        &Inputs {
+            u: &u,
+            loads,
+            wheel_torque: &[],
+        },
+        &mut xdot,
+    )
+    .unwrap();
     let h = 1e-6;
     let shifted =
         |s: f64| -> Vec<f64> { x.iter().zip(&xdot).map(|(a, b)| a + s * h * b).collect() };
@@ -575,6 +584,7 @@ fn dual_arm_runs_with_both_wrenches_and_both_methods() {
         ee: Schedule::Constant(vec![
             0.1, 0.0, -0.1, 1.0, 2.0, 0.0, 0.0, 0.2, 0.0, -1.0, 0.0, 3.0,
         ]),
+        wheel_torque: orbitflex::Schedule::Zero,
     };
     let traj = arm
         .simulate(&x0, 1e-3, 50, &mut Schedule::Zero, &wrenches)
@@ -590,6 +600,7 @@ fn dual_arm_runs_with_both_wrenches_and_both_methods() {
     let narrow = Wrenches {
         base: Schedule::Zero,
         ee: Schedule::Constant(vec![0.0; 6]),
+        wheel_torque: orbitflex::Schedule::Zero,
     };
     let err = arm
         .simulate(&x0, 1e-3, 5, &mut Schedule::Zero, &narrow)

@@ -102,7 +102,10 @@ pub fn capture(
     ee: Option<usize>,
 ) -> Result<Capture> {
     arm.check_state(x)?;
-    let robot = arm.robot();
+    // with reaction wheels the bus carries their locked parts (mass, transverse inertia); their
+    // free spin takes no impulse (no impulsive torque about a wheel's axis), so the grasp sees
+    // the augmented bus, and each wheel keeps its absolute axial rate a·ω_B + Ω
+    let robot = arm.rigid_model();
     let ee = robot.ee_choice(ee)?;
     let layout = arm.layout();
     let s = layout.split(x);
@@ -115,8 +118,8 @@ pub fn capture(
     let payload = Inertia::from_com(target.mass(), payload_com, payload_inertia);
 
     // V_rel = G ν − X W
-    algorithms::velocities_unchecked(robot, &mut data, &RigidState::new(s.q, s.base_twist, s.qd));
-    let relative_twist = to_ee.apply_motion(&data.v[body]) - x_et.apply_motion(target.twist());
+    let relative_twist =
+        ee_twist(robot, &mut data, x, &layout, ee) - x_et.apply_motion(target.twist());
 
     let (solves, lambda_inv) = unit_impulse_responses(robot, &mut data, s.q, ee)?;
     let y_inv = payload
@@ -143,6 +146,13 @@ pub fn capture(
     let nu_after = nu - &solves * DVector::from_column_slice(impulse.as_slice());
     after[layout.base_twist()].copy_from_slice(&nu_after.as_slice()[..6]);
     after[layout.qd()].copy_from_slice(&nu_after.as_slice()[6..]);
+    if let Some(wheels) = arm.wheels() {
+        let d_omega = Vec3::from_column_slice(&nu_after.as_slice()[..3])
+            - Vec3::from_column_slice(&s.base_twist[..3]);
+        for (speed, wheel) in after[layout.wheel_speed()].iter_mut().zip(wheels.wheels()) {
+            *speed -= Vec3::from(wheel.axis).dot(&d_omega);
+        }
+    }
 
     let s_after = layout.split(&after);
     algorithms::velocities_unchecked(
@@ -152,8 +162,14 @@ pub fn capture(
     );
     let target_twist = x_et.apply_motion_inverse(&to_ee.apply_motion(&data.v[body]));
 
-    let combined = FlexibleArm::new(robot.with_payload_at(payload, ee)?, arm.joints().clone())?
-        .with_method(arm.method());
+    let mut combined = FlexibleArm::new(
+        arm.robot().with_payload_at(payload, ee)?,
+        arm.joints().clone(),
+    )?
+    .with_method(arm.method());
+    if let Some(wheels) = arm.wheels() {
+        combined = combined.with_wheels(wheels.clone())?;
+    }
     Ok(Capture {
         arm: combined,
         x: after,
@@ -171,7 +187,7 @@ pub fn capture(
 /// `X = Φ_{e,t}`: motions from the target frame `t` to the frame of end-effector `ee`, from the
 /// inertial placements `E_e, o_e` (base pose and `Φ_{e,B}(q)`) and `E_t, o_t`:
 /// `R_{e,t} = E_eᵀ E_t`, `p_{t,e} = E_tᵀ (o_e − o_t)`.
-fn target_to_ee(
+pub(crate) fn target_to_ee(
     robot: &Robot,
     base_pose: &[f64],
     q: &[f64],
@@ -188,6 +204,20 @@ fn target_to_ee(
         ee_axes.tr_mul(&target_axes),
         target_axes.tr_mul(&(ee_origin - target_origin)),
     )
+}
+
+/// `V_e = G ν`: the twist of end-effector `ee` (EE frame) at the arm state `x`.
+pub(crate) fn ee_twist(
+    robot: &Robot,
+    data: &mut Data,
+    x: &[f64],
+    layout: &crate::state::StateLayout,
+    ee: usize,
+) -> Motion {
+    let s = layout.split(x);
+    algorithms::velocities_unchecked(robot, data, &RigidState::new(s.q, s.base_twist, s.qd));
+    let body = robot.end_effectors()[ee].body;
+    robot.frame_ee_transform(ee).apply_motion(&data.v[body])
 }
 
 /// The target's centre of mass `R_{e,t} (c − p_{t,e})` and its rotational inertia about it

@@ -81,9 +81,16 @@ impl Controller for MotorPD {
     fn output(&mut self, step: usize, _t: f64, x: &[f64], u: &mut [f64]) -> Result<()> {
         self.check_run("u", u.len(), step + 1)?;
         let n = self.n;
-        let layout = StateLayout { n };
-        crate::args::check_length("x (state)", x.len(), layout.len())?;
-        let s = layout.split(x);
+        // the arm's state, 13 + 4n, then any reaction-wheel speeds (which a motor PD ignores)
+        let arm = StateLayout::new(n).len();
+        if x.len() < arm {
+            return Err(Error::Dimension {
+                what: "x (state)".into(),
+                expected: format!("length 13 + 4n = {arm} (then any wheel speeds)"),
+                given: format!("length {}", x.len()),
+            });
+        }
+        let s = StateLayout::new(n).split(&x[..arm]);
         let (reference, rest) = self.scratch.split_at_mut(n);
         let (rate, ff) = rest.split_at_mut(n);
         self.theta_ref.write(step, reference);

@@ -1,4 +1,5 @@
-//! [`Wrenches`]: the external wrenches of a run as two [`Schedule`]s, base and end-effectors.
+//! [`Wrenches`]: the open-loop inputs of a run beside the motor torques, as [`Schedule`]s: the
+//! external wrenches (base and end-effectors) and the reaction-wheel torque commands.
 
 use super::schedule::Schedule;
 use crate::args::Loads;
@@ -9,13 +10,17 @@ use crate::spatial::Force;
 /// `f_B` (width 6, base frame, applied to the base by its actuators) and `ee` is
 /// `[f_1; …; f_k]` (width 6k, one wrench per end-effector in
 /// [`crate::Robot::ee_links`] order, each in its EE frame, exerted by the end-effector on its
-/// environment; width 6 on a chain).
+/// environment; width 6 on a chain); and `wheel_torque`, the torques commanded to the bus's
+/// reaction wheels (width k, `crate::flex::ReactionWheels`; zero on an arm without wheels),
+/// saturated once per step by the run.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Wrenches {
     /// `f_B` per step.
     pub base: Schedule,
     /// `[f_1; …; f_k]` per step.
     pub ee: Schedule,
+    /// Reaction-wheel torque commands per step (N·m).
+    pub wheel_torque: Schedule,
 }
 
 impl Default for Wrenches {
@@ -29,6 +34,7 @@ impl Wrenches {
     pub const ZERO: Wrenches = Wrenches {
         base: Schedule::Zero,
         ee: Schedule::Zero,
+        wheel_torque: Schedule::Zero,
     };
 
     /// Checks both schedules for `robot`: widths 6 and 6k, a table of exactly `steps` rows,

@@ -4,6 +4,7 @@
 use super::jacobians::{self, Jacobians, StepScratch};
 use super::joints::FlexibleJoints;
 use super::stability::{self, StabilityLimit};
+use super::wheels::ReactionWheels;
 use crate::algorithms::{self, Data};
 use crate::args::{check_base_pose, check_length, check_vector, Loads, RigidState};
 use crate::control::Controller;
@@ -36,9 +37,20 @@ pub struct FlexibleArm {
     robot: Robot,
     joints: FlexibleJoints,
     method: Method,
+    /// The reaction wheels and the rigid model they make, if any ([`FlexibleArm::with_wheels`]).
+    wheels: Option<Box<Mounted>>,
 }
 
-/// The inputs held over a step: motor torques `u` (n, link side, N·m) and the external [`Loads`].
+/// Reaction wheels mounted on the bus: the wheels, and the robot whose base inertia includes
+/// their locked parts ([`ReactionWheels::locked_inertia`]), built once.
+#[derive(Debug, Clone)]
+struct Mounted {
+    wheels: ReactionWheels,
+    robot: Robot,
+}
+
+/// The inputs held over a step: motor torques `u` (n, link side, N·m), the external [`Loads`]
+/// and the reaction-wheel torque commands.
 #[derive(Debug, Clone, Copy)]
 pub struct Inputs<'a> {
     /// Motor torques `u` (N·m), reflected to the link side.
@@ -46,6 +58,10 @@ pub struct Inputs<'a> {
     /// `f_B` (base frame) and `[f_1; …; f_k]` (each in its EE frame, exerted by the
     /// end-effector on its environment).
     pub loads: Loads<'a>,
+    /// Torques commanded to the reaction wheels (N·m, applied to each wheel about its axis; the
+    /// bus feels the opposite), one per wheel, or empty for none. Saturated once per step
+    /// ([`ReactionWheels::saturate`]).
+    pub wheel_torque: &'a [f64],
 }
 
 impl<'a> Inputs<'a> {
@@ -54,6 +70,7 @@ impl<'a> Inputs<'a> {
         Self {
             u,
             loads: Loads::ZERO,
+            wheel_torque: &[],
         }
     }
 
@@ -93,6 +110,8 @@ pub struct ModelWorkspace {
     pub(crate) tau: Vec<f64>,
     /// The step Jacobians' buffers, sized by their first call.
     pub(crate) jacobians: StepScratch,
+    /// The wheel torques applied over a step (k), after saturation.
+    pub(crate) wheel_torque: Vec<f64>,
 }
 
 impl ModelWorkspace {
@@ -102,6 +121,7 @@ impl ModelWorkspace {
             data: Data::new(&arm.robot),
             tau: vec![0.0; arm.robot.dof()],
             jacobians: StepScratch::default(),
+            wheel_torque: vec![0.0; arm.layout().wheels],
         }
     }
 
@@ -124,7 +144,67 @@ impl FlexibleArm {
             robot,
             joints,
             method: Method::Recursive,
+            wheels: None,
         })
+    }
+
+    /// This arm with reaction wheels on its bus (replacing any it had). The robot's base inertia
+    /// excludes the wheels: the model adds their masses and locked inertias to it once, here
+    /// ([`ReactionWheels::locked_inertia`]); [`robot`](Self::robot) stays the robot given. The
+    /// state gains the `k` wheel speeds at its end ([`StateLayout::wheel_speed`]).
+    pub fn with_wheels(mut self, wheels: ReactionWheels) -> Result<Self> {
+        let base = self.robot.inertias()[0].add(&wheels.locked_inertia());
+        let robot = self.robot.with_base_inertia(base)?;
+        self.wheels = Some(Box::new(Mounted { wheels, robot }));
+        Ok(self)
+    }
+
+    /// The reaction wheels on the bus, if any.
+    pub fn wheels(&self) -> Option<&ReactionWheels> {
+        self.wheels.as_ref().map(|m| &m.wheels)
+    }
+
+    /// The rigid model the dynamics run on: [`robot`](Self::robot), its base inertia augmented
+    /// by the wheels' locked parts when there are wheels.
+    #[inline]
+    pub fn rigid_model(&self) -> &Robot {
+        self.wheels.as_ref().map_or(&self.robot, |m| &m.robot)
+    }
+
+    /// Checks `inputs` for this arm: [`Inputs::check`], and wheel torques of length `k` (or
+    /// none), finite.
+    pub fn check_inputs(&self, inputs: &Inputs) -> Result<()> {
+        inputs.check(&self.robot)?;
+        match self.wheels() {
+            Some(wheels) => wheels.check_torque(inputs.wheel_torque),
+            None if inputs.wheel_torque.is_empty() => Ok(()),
+            None => Err(Error::Dimension {
+                what: "wheel_torque".into(),
+                expected: "none (the arm has no reaction wheels)".into(),
+                given: format!("length {}", inputs.wheel_torque.len()),
+            }),
+        }
+    }
+
+    /// The wheel torques applied over a step from `x` ([`ReactionWheels::saturate`] of the
+    /// commands in `inputs`) into `applied` (k; untouched without wheels).
+    #[inline]
+    pub(crate) fn saturate_wheels(&self, x: &[f64], inputs: &Inputs, applied: &mut [f64]) {
+        if let Some(m) = &self.wheels {
+            let speed = &x[self.layout().wheel_speed()];
+            m.wheels.saturate(inputs.wheel_torque, speed, applied);
+        }
+    }
+
+    /// An error for the calls not yet available with reaction wheels.
+    fn refuse_wheels(&self, call: &str) -> Result<()> {
+        match self.wheels {
+            Some(_) => Err(Error::InvalidArgument {
+                what: call.into(),
+                message: "not available yet for an arm with reaction wheels".into(),
+            }),
+            None => Ok(()),
+        }
     }
 
     /// Selects the rigid-body dynamics used by the derivative (default: recursive).
@@ -155,9 +235,10 @@ impl FlexibleArm {
 
     /// The layout of the state vector.
     pub fn layout(&self) -> StateLayout {
-        StateLayout {
-            n: self.robot.dof(),
-        }
+        StateLayout::with_wheels(
+            self.robot.dof(),
+            self.wheels().map_or(0, ReactionWheels::len),
+        )
     }
 
     /// Builds a state `x` (model §4) from the parts in `spec`. Defaults: zero angles and rates,
@@ -240,6 +321,9 @@ impl FlexibleArm {
     /// [α_B; q̈] = 𝓜⁻¹ ([f_B; τ] − [C_B; C_r] − [Φ_{n+1,B}ᵀ; Jᵀ] f)          (A.19)
     /// ω̇_B = α_B[0:3],  v̇_B = α_B[3:6] − ω_B × v_B,  θ̈ = (u − τ − β θ̇) / j
     /// ```
+    /// With reaction wheels ([`super::wheels`]) the rigid model is the augmented one, `f_B`
+    /// gains the wheels' moment `Σ n_w` (W2), and `Ω̇ = (u_w − c Ω)/J_s − a·ω̇_B` (W1), with the
+    /// wheel torques saturated at `x` as a step from `x` would apply them.
     pub fn derivative(
         &self,
         ws: &mut ModelWorkspace,
@@ -249,9 +333,14 @@ impl FlexibleArm {
     ) -> Result<()> {
         ws.check(self)?;
         self.check_state(x)?;
-        inputs.check(&self.robot)?;
+        self.check_inputs(inputs)?;
         check_length("xdot", xdot.len(), self.layout().len())?;
-        self.derivative_unchecked(&mut ws.data, &mut ws.tau, x, inputs, xdot)?;
+        self.saturate_wheels(x, inputs, &mut ws.wheel_torque);
+        let applied = Inputs {
+            wheel_torque: &ws.wheel_torque,
+            ..*inputs
+        };
+        self.derivative_unchecked(&mut ws.data, &mut ws.tau, x, &applied, xdot)?;
         let base_wrench = inputs.loads.base_wrench.to_array();
         self.check_overflow(
             "derivative",
@@ -261,7 +350,8 @@ impl FlexibleArm {
     }
 
     /// The derivative without argument checks; allocation-free on the recursive path. `tau`
-    /// receives the spring torques.
+    /// receives the spring torques. The wheel torques in `inputs` are applied as given (already
+    /// saturated).
     pub(crate) fn derivative_unchecked(
         &self,
         data: &mut Data,
@@ -274,6 +364,11 @@ impl FlexibleArm {
         let s = layout.split(x);
         self.spring_torque(x, tau);
         let rigid = RigidState::new(s.q, s.base_twist, s.qd);
+        if let Some(m) = &self.wheels {
+            return super::wheels::derivative_with_wheels(
+                self, &m.wheels, &m.robot, data, tau, x, inputs, xdot,
+            );
+        }
         self.method
             .forward_dynamics_unchecked(&self.robot, data, &rigid, tau, &inputs.loads)?;
         self.assemble_derivative(x, inputs, tau, data.ddq.as_slice(), xdot);
@@ -317,6 +412,7 @@ impl FlexibleArm {
         x: &[f64],
         inputs: &Inputs,
     ) -> Result<Jacobians> {
+        self.refuse_wheels("derivative_jacobians")?;
         ws.check(self)?;
         self.check_state(x)?;
         inputs.check(&self.robot)?;
@@ -342,6 +438,7 @@ impl FlexibleArm {
         dt: f64,
         inputs: &Inputs,
     ) -> Result<Jacobians> {
+        self.refuse_wheels("step_jacobians")?;
         crate::args::check_dt(dt)?;
         ws.check(self)?;
         self.check_state(x)?;
@@ -385,12 +482,18 @@ impl FlexibleArm {
     }
 
     /// Total energy (model §6.2): rigid kinetic energy `½ νᵀ 𝓜 ν`, motor kinetic energy
-    /// `½ θ̇ᵀ diag(j) θ̇` and spring energy `½ (θ − q)ᵀ diag(k) (θ − q)` (J).
+    /// `½ θ̇ᵀ diag(j) θ̇` and spring energy `½ (θ − q)ᵀ diag(k) (θ − q)` (J). With reaction
+    /// wheels, `𝓜` includes their locked parts and the spin energy `Σ ½ J_s (a·ω_B + Ω)²` is
+    /// added.
     pub fn energy(&self, ws: &mut ModelWorkspace, x: &[f64]) -> f64 {
         let s = self.layout().split(x);
         let rigid = RigidState::new(s.q, s.base_twist, s.qd);
-        algorithms::velocities_unchecked(&self.robot, &mut ws.data, &rigid);
-        let mut e = algorithms::kinetic_energy_from_velocities(&self.robot, &ws.data);
+        let robot = self.rigid_model();
+        algorithms::velocities_unchecked(robot, &mut ws.data, &rigid);
+        let mut e = algorithms::kinetic_energy_from_velocities(robot, &ws.data);
+        if let Some(wheels) = self.wheels() {
+            e += wheels.spin_energy(&s.omega(), s.wheel_speed);
+        }
         let p = &self.joints;
         for i in 0..self.dof() {
             let stretch = s.theta[i] - s.q[i];
@@ -401,14 +504,26 @@ impl FlexibleArm {
     }
 
     /// Total spatial momentum `[angular; linear]` of base and links in the inertial frame, about
-    /// the inertial origin (model §6.1). The motors' spin is not included (model §3).
+    /// the inertial origin (model §6.1). The motors' spin is not included (model §3). With
+    /// reaction wheels it includes them whole: their locked parts through the augmented base,
+    /// and their spin momentum `R_B Σ J_s (a·ω_B + Ω) a` (a free vector) in the angular part.
     pub fn momentum(&self, ws: &mut ModelWorkspace, x: &[f64]) -> [f64; 6] {
         let layout = self.layout();
         let s = layout.split(x);
         let rigid = RigidState::new(s.q, s.base_twist, s.qd);
-        algorithms::velocities_unchecked(&self.robot, &mut ws.data, &rigid);
-        let h = algorithms::momentum_from_velocities(&self.robot, &mut ws.data);
-        momentum_in_inertial_frame(&x[layout.base_pose()], &h)
+        let robot = self.rigid_model();
+        algorithms::velocities_unchecked(robot, &mut ws.data, &rigid);
+        let h = algorithms::momentum_from_velocities(robot, &mut ws.data);
+        let mut out = momentum_in_inertial_frame(&x[layout.base_pose()], &h);
+        if let Some(wheels) = self.wheels() {
+            let spin = quaternion_to_rotation(s.quaternion)
+                * wheels.spin_momentum(&s.omega(), s.wheel_speed);
+            out[..3]
+                .iter_mut()
+                .zip(spin.iter())
+                .for_each(|(o, v)| *o += v);
+        }
+        out
     }
 
     /// The pose `[position (m); quaternion (x, y, z, w), w ≥ 0]` of end-effector `ee` (an index
@@ -427,8 +542,27 @@ impl FlexibleArm {
 
     /// The largest stable RK4 step at state `x` for the closed loop of the joints, the arm and
     /// the controller `u` (its feedback, if it declares one): see [`stability`].
+    ///
+    /// With reaction wheels the limit is that of the arm on its augmented bus with the wheels
+    /// held at their speeds (the spin's gyroscopic coupling is left out), and at most the
+    /// wheels' friction limit `2.785 J_s / c` (RK4 on the pole `−c/J_s`).
     pub fn rk4_stability_limit(&self, x: &[f64], u: &dyn Controller) -> Result<StabilityLimit> {
-        stability::rk4_stability_limit(self, x, &u.feedback())
+        let Some(m) = &self.wheels else {
+            return stability::rk4_stability_limit(self, x, &u.feedback());
+        };
+        let locked = FlexibleArm {
+            robot: m.robot.clone(),
+            joints: self.joints.clone(),
+            method: self.method,
+            wheels: None,
+        };
+        self.check_state(x)?;
+        let mut limit =
+            stability::rk4_stability_limit(&locked, &x[..locked.layout().len()], &u.feedback())?;
+        for wheel in m.wheels.wheels() {
+            limit.dt = limit.dt.min(2.785 * wheel.spin_inertia / wheel.friction);
+        }
+        Ok(limit)
     }
 }
 

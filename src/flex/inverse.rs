@@ -400,12 +400,12 @@ impl FlexibleArm {
             (_, Some(delta)) => check_vector("deflection", delta, n)?,
             _ => {}
         }
-        let mut scratch = JetScratch::new(self.robot());
+        let mut scratch = JetScratch::new(self.rigid_model());
         for i in 0..n {
             let (q, qd) = motion.jets(i);
             scratch.set_joint(i, q, qd);
         }
-        let rigid = rigid_jets(self.robot(), &mut scratch, base)?;
+        let rigid = rigid_jets(self.rigid_model(), &mut scratch, base)?;
         let mut out = FlexibleInverse {
             theta: vec![0.0; n],
             theta_dot: vec![0.0; n],

@@ -749,6 +749,7 @@ mod tests {
             let inputs = Inputs {
                 u: &u,
                 loads: Loads::from_slices(Some(&fb), Some(&f)).unwrap(),
+                wheel_torque: &[],
             };
             let mut ws = ModelWorkspace::new(&arm);
             let (dense, _) = step_jacobians_with(&arm, &mut ws, &x, 2e-3, &inputs, true).unwrap();

@@ -16,7 +16,8 @@
 //! - [`arm`]: [`FlexibleArm`], its derivative, energy, momentum and EE pose;
 //! - [`jacobians`]: the Jacobians of the derivative and of one RK4 step, in tangent coordinates;
 //! - [`gains`]: motor PD gains from a bandwidth and a damping ratio;
-//! - [`stability`]: the closed-loop RK4 step limit.
+//! - [`stability`]: the closed-loop RK4 step limit;
+//! - [`wheels`]: reaction wheels on the bus ([`ReactionWheels`]), their equations and limits.
 
 pub mod arm;
 pub mod gains;
@@ -25,6 +26,7 @@ pub mod jacobians;
 pub mod jets;
 pub mod joints;
 pub mod stability;
+pub mod wheels;
 
 pub use arm::{FlexibleArm, Inputs, ModelWorkspace, StateSpec};
 pub use gains::MotorGains;
@@ -38,3 +40,4 @@ pub use crate::spatial::{
     normalise_quaternion, quaternion_exp, quaternion_log, quaternion_product, quaternion_rate,
 };
 pub use crate::state::{StateLayout, StateParts};
+pub use wheels::{saturated_torque, ReactionWheels, Wheel};

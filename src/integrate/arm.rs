@@ -79,11 +79,12 @@ impl FlexibleArm {
         u: &mut dyn Controller,
         wrenches: &Wrenches,
     ) -> std::result::Result<Trajectory, Box<SimulationFailure>> {
-        let (mut base, mut ee) = (&wrenches.base, &wrenches.ee);
+        let (mut base, mut ee, mut wheel) = (&wrenches.base, &wrenches.ee, &wrenches.wheel_torque);
         let mut drive = Drive {
             u,
             base_wrench: &mut base,
             ee_wrench: &mut ee,
+            wheel_torque: &mut wheel,
         };
         simulate::simulate(self, &Run::new(x0, dt, steps), &mut drive, &mut Unobserved)
     }

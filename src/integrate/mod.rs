@@ -46,8 +46,9 @@ pub use record::{is_recorded, recorded_rows, Chunk, Chunks, Recorder};
 pub use rk4::{OdeSystem, Rk4};
 pub use run::{Drive, Run};
 pub use simulate::{
-    simulate, simulate_into, stability_warning, step, Observer, SimulationFailure, Unobserved,
+    run_steps, simulate, simulate_into, stability_warning, step, Observer, SimulationFailure,
+    Unobserved,
 };
 pub use simulator::{arm_fingerprint, Outputs, Simulator, STATE_FORMAT_VERSION};
-pub use stepper::Stepper;
+pub use stepper::{ArmSteps, StepBody, Stepper};
 pub use trajectory::{StateRows, Trajectory};

@@ -70,8 +70,9 @@ pub fn check_record_every(every: usize) -> Result<()> {
 pub trait Recorder {
     /// A kept row: its time `t` (s) and state `x` (13 + 4n numbers).
     fn state(&mut self, t: f64, x: &[f64]) -> Result<()>;
-    /// The motor torques `u` (N·m, link side; n numbers) held during the step that starts at
-    /// the last kept row.
+    /// The inputs held during the step that starts at the last kept row: the motor torques `u`
+    /// (N·m, link side; n numbers), then the wheel torques applied (k numbers, after
+    /// saturation; none without wheels).
     fn input(&mut self, u: &[f64]) -> Result<()>;
     /// The run is over: deliver anything still buffered.
     fn finish(&mut self) -> Result<()> {
@@ -175,7 +176,7 @@ impl<F: FnMut(Chunk<'_>) -> Result<()>> Chunks<F> {
             what: "chunk_rows".into(),
             message: format!(
                 "a chunk of {capacity} rows of {} numbers does not fit in memory; give fewer rows",
-                layout.len() + 1 + layout.n
+                layout.len() + 1 + layout.inputs_len()
             ),
         };
         let mut t = Vec::new();
@@ -184,8 +185,12 @@ impl<F: FnMut(Chunk<'_>) -> Result<()>> Chunks<F> {
         t.try_reserve_exact(capacity).map_err(|_| too_big())?;
         x.try_reserve_exact(capacity.checked_mul(layout.len()).ok_or_else(too_big)?)
             .map_err(|_| too_big())?;
-        u.try_reserve_exact(capacity.checked_mul(layout.n).ok_or_else(too_big)?)
-            .map_err(|_| too_big())?;
+        u.try_reserve_exact(
+            capacity
+                .checked_mul(layout.inputs_len())
+                .ok_or_else(too_big)?,
+        )
+        .map_err(|_| too_big())?;
         Ok(Self {
             layout,
             capacity,

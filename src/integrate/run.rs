@@ -66,6 +66,16 @@ impl<'a> Run<'a> {
         drive
             .ee_wrench
             .check_run("ee_wrench", ee_width, self.steps)?;
+        if arm.wheels().is_none() && !drive.wheel_torque.is_zero() {
+            return Err(Error::InvalidArgument {
+                what: "wheel_torque".into(),
+                message: "the arm has no reaction wheels; give none (or build the arm with wheels)"
+                    .into(),
+            });
+        }
+        drive
+            .wheel_torque
+            .check_run("wheel_torque", arm.layout().wheels, self.steps)?;
         drive.u.check_run("u", arm.dof(), self.steps)
     }
 }
@@ -77,7 +87,10 @@ impl<'a> Run<'a> {
 /// - `base_wrench`: `f_B = [moment; force]` (6, base frame) applied to the base by its actuators;
 /// - `ee_wrench`: `[f_1; …; f_k]` (6k), one wrench per end-effector in
 ///   [`crate::Robot::ee_links`] order, each in its EE frame, exerted by the end-effector on its
-///   environment.
+///   environment;
+/// - `wheel_torque`: the torques commanded to the bus's reaction wheels (k, N·m, applied to each
+///   wheel about its axis; the bus feels the opposite), saturated by the run once per step
+///   ([`crate::flex::ReactionWheels::saturate`]); zero on an arm without wheels.
 ///
 /// A [`Schedule`](crate::control::Schedule) (owned, or a `&Schedule` lent by
 /// [`Wrenches`]), a [`MotorPD`](crate::control::MotorPD) or any other
@@ -89,15 +102,19 @@ pub struct Drive<'a> {
     pub base_wrench: &'a mut dyn Controller,
     /// The end-effector wrenches.
     pub ee_wrench: &'a mut dyn Controller,
+    /// The reaction-wheel torque commands.
+    pub wheel_torque: &'a mut dyn Controller,
 }
 
 impl<'a> Drive<'a> {
-    /// The motor torques from `u`, the wrenches from `wrenches`' two schedules.
+    /// The motor torques from `u`, the wrenches and the wheel torques from `wrenches`'
+    /// schedules.
     pub fn new(u: &'a mut dyn Controller, wrenches: &'a mut Wrenches) -> Self {
         Self {
             u,
             base_wrench: &mut wrenches.base,
             ee_wrench: &mut wrenches.ee,
+            wheel_torque: &mut wrenches.wheel_torque,
         }
     }
 }

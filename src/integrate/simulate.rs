@@ -5,13 +5,13 @@ use super::arm::ArmWorkspace;
 use super::record::{is_recorded, Recorder};
 use super::rk4::OdeSystem;
 use super::run::{Drive, Run};
-use super::stepper::Stepper;
+use super::stepper::{ArmSteps, StepBody, Stepper};
 use super::trajectory::Trajectory;
 use crate::algorithms::Data;
 use crate::args::check_dt;
 use crate::control::Controller;
 use crate::error::{Error, Result};
-use crate::flex::{FlexibleArm, Inputs, ModelWorkspace, StabilityLimit};
+use crate::flex::{FlexibleArm, Inputs, ModelWorkspace, StabilityLimit, StateLayout};
 use crate::spatial::normalise_quaternion;
 use crate::state::state_defect;
 
@@ -87,8 +87,17 @@ pub fn step(
     check_dt(dt)?;
     crate::algorithms::check_data(arm.robot(), &ws.data)?;
     arm.check_state(x)?;
-    inputs.check(arm.robot())?;
-    step_unchecked(arm, ws, x, dt, inputs)?;
+    arm.check_inputs(inputs)?;
+    // the wheel torques are saturated once, at the start of the step, and held over it
+    let mut applied = std::mem::take(&mut ws.wheel_torque);
+    arm.saturate_wheels(x, inputs, &mut applied);
+    let held = Inputs {
+        wheel_torque: &applied,
+        ..*inputs
+    };
+    let outcome = step_unchecked(arm, ws, x, dt, &held);
+    ws.wheel_torque = applied;
+    outcome?;
     match state_defect(&arm.layout(), x) {
         Some(defect) => Err(Error::Simulation {
             step: 0,
@@ -215,14 +224,31 @@ fn run_checked(
     observer: &mut dyn Observer,
     recorder: &mut dyn Recorder,
 ) -> Result<()> {
+    let mut body = ArmSteps {
+        arm,
+        stepper: Stepper::new(arm),
+    };
+    run_steps(&mut body, arm.layout(), run, drive, observer, recorder)
+}
+
+/// The loop of every run, after its checks ([`Run::check`]): `run.steps` steps of `body` from
+/// `run.x0` (its quaternion normalised first, at the offsets of `layout`), the rows kept by
+/// `run.record_every` handed to `recorder` through [`StepBody::record`], the observer asked as in
+/// [`simulate_into`], and on a failure the last good state as the final row.
+pub fn run_steps(
+    body: &mut impl StepBody,
+    layout: StateLayout,
+    run: &Run<'_>,
+    drive: &mut Drive<'_>,
+    observer: &mut dyn Observer,
+    recorder: &mut dyn Recorder,
+) -> Result<()> {
     let Run {
         x0,
         dt,
         steps,
         record_every,
     } = *run;
-    let layout = arm.layout();
-    let mut stepper = Stepper::new(arm);
     let mut x = x0.to_vec();
     normalise_quaternion(&mut x[layout.quaternion()]);
     let recording = |step: usize, e: Error| Error::Simulation {
@@ -230,7 +256,8 @@ fn run_checked(
         time: step as f64 * dt,
         message: format!("the recorder failed: {e}"),
     };
-    recorder.state(0.0, &x).map_err(|e| recording(0, e))?;
+    body.record(recorder, 0.0, &x)
+        .map_err(|e| recording(0, e))?;
     // the state before the step, kept when its row is not recorded: a failed run ends on it
     let mut last_good = if record_every > 1 {
         vec![0.0; x.len()]
@@ -250,23 +277,21 @@ fn run_checked(
                 message: "interrupted by the caller".into(),
             })
         } else {
-            stepper.step(arm, drive, &mut x, k, dt)
+            body.step(drive, &mut x, k, dt)
         };
         if let Err(error) = outcome {
             if !kept {
-                recorder
-                    .state(k as f64 * dt, &last_good)
+                body.record(recorder, k as f64 * dt, &last_good)
                     .map_err(|e| recording(k, e))?;
             }
             recorder.finish().map_err(|e| recording(k, e))?;
             return Err(error);
         }
         if kept {
-            recorder.input(stepper.u()).map_err(|e| recording(k, e))?;
+            recorder.input(body.inputs()).map_err(|e| recording(k, e))?;
         }
         if is_recorded(k + 1, steps, record_every) {
-            recorder
-                .state((k + 1) as f64 * dt, &x)
+            body.record(recorder, (k + 1) as f64 * dt, &x)
                 .map_err(|e| recording(k, e))?;
         }
     }

@@ -7,8 +7,8 @@
 //! on the same state, with the same checks after it. The step allocates nothing.
 //!
 //! Inputs are held (zero-order hold): each setter replaces one input, which then stays until it
-//! is set again. Reaction wheels do not exist yet; when they do, their torques will be one more
-//! held input beside these, and nothing here will be renamed.
+//! is set again. The reaction-wheel torque commands are one more held input; like a run, each
+//! step saturates them at the state it starts from (torque, then speed limits) and applies that.
 //!
 //! [`simulate`]: super::simulate()
 
@@ -64,6 +64,10 @@ pub struct Simulator {
     base_wrench: [f64; 6],
     /// Held `[f_1; …; f_k]`, or empty for none.
     ee_wrench: Vec<f64>,
+    /// Held reaction-wheel torque commands (k, N·m; empty without wheels).
+    wheel_torque: Vec<f64>,
+    /// The wheel torques applied over the step in progress (k, after saturation).
+    applied: Vec<f64>,
     /// [`arm_fingerprint`] of `arm`, written into saved states.
     fingerprint: u64,
 }
@@ -133,6 +137,8 @@ impl Simulator {
             u: vec![0.0; n],
             base_wrench: [0.0; 6],
             ee_wrench: Vec::new(),
+            wheel_torque: vec![0.0; arm.layout().wheels],
+            applied: vec![0.0; arm.layout().wheels],
             fingerprint: arm_fingerprint(&arm),
             arm,
         };
@@ -149,6 +155,7 @@ impl Simulator {
         self.u.fill(0.0);
         self.base_wrench = [0.0; 6];
         self.ee_wrench.clear();
+        self.wheel_torque.fill(0.0);
         Ok(())
     }
 
@@ -193,6 +200,26 @@ impl Simulator {
     /// The held end-effector wrenches `[f_1; …; f_k]` (empty: none).
     pub fn ee_wrench(&self) -> &[f64] {
         &self.ee_wrench
+    }
+
+    /// The held reaction-wheel torque commands (k, N·m; empty without wheels).
+    pub fn wheel_torque(&self) -> &[f64] {
+        &self.wheel_torque
+    }
+
+    /// Holds the reaction-wheel torque commands (k, N·m, applied to each wheel about its axis;
+    /// the bus feels the opposite) from the next step on; each step saturates them at its
+    /// start. An error on an arm without wheels.
+    pub fn set_wheel_torque(&mut self, wheel_torque: &[f64]) -> Result<()> {
+        if self.arm.wheels().is_none() {
+            return Err(Error::InvalidArgument {
+                what: "wheel_torque".into(),
+                message: "the arm has no reaction wheels; build it with wheels".into(),
+            });
+        }
+        check_vector("wheel_torque", wheel_torque, self.wheel_torque.len())?;
+        self.wheel_torque.copy_from_slice(wheel_torque);
+        Ok(())
     }
 
     /// Holds the motor torques `u` (n, N·m, link side) from the next step on.
@@ -253,15 +280,10 @@ impl Simulator {
             u,
             base_wrench,
             ee_wrench,
+            wheel_torque,
+            applied,
             ..
         } = self;
-        let inputs = Inputs {
-            u,
-            loads: Loads {
-                base_wrench: Force::from_slice(base_wrench),
-                ee_wrench,
-            },
-        };
         let layout = arm.layout();
         for i in 0..n {
             let stop = |message: String| Error::Simulation {
@@ -273,6 +295,17 @@ impl Simulator {
                 return Err(stop("interrupted by the caller".into()));
             }
             before.copy_from_slice(x);
+            if let Some(wheels) = arm.wheels() {
+                wheels.saturate(wheel_torque, &x[layout.wheel_speed()], applied);
+            }
+            let inputs = Inputs {
+                u,
+                loads: Loads {
+                    base_wrench: Force::from_slice(base_wrench),
+                    ee_wrench,
+                },
+                wheel_torque: applied,
+            };
             let outcome = match step_unchecked(arm, ws, x, *dt, &inputs) {
                 Err(e) => Some(format!("the state diverged during the step ({e})")),
                 Ok(()) => state_defect(&layout, x).map(|d| format!("the state diverged: {d}")),
@@ -323,7 +356,13 @@ impl Simulator {
     /// The length of a [`save`](Self::save) blob for this simulator (it changes only when EE
     /// wrenches start or stop being held).
     pub fn saved_len(&self) -> usize {
-        8 + 4 + 8 + 4 + 4 + 8 + 8 + 8 * (self.x.len() + self.u.len() + 6 + self.ee_wrench.len())
+        8 + 4
+            + 8
+            + 4
+            + 4
+            + 8
+            + 8
+            + 8 * (self.x.len() + self.u.len() + self.wheel_torque.len() + 6 + self.ee_wrench.len())
     }
 
     /// The simulator's state as bytes: the state, the step count, `dt` and the held inputs,
@@ -344,7 +383,13 @@ impl Simulator {
         blob.extend_from_slice(&(self.ee_wrench.len() as u32).to_le_bytes());
         blob.extend_from_slice(&self.dt.to_bits().to_le_bytes());
         blob.extend_from_slice(&self.k.to_le_bytes());
-        let numbers = self.x.iter().chain(&self.u).chain(&self.base_wrench);
+        // the wheel commands (none without wheels) after u
+        let numbers = self
+            .x
+            .iter()
+            .chain(&self.u)
+            .chain(&self.wheel_torque)
+            .chain(&self.base_wrench);
         for v in numbers.chain(&self.ee_wrench) {
             blob.extend_from_slice(&v.to_bits().to_le_bytes());
         }
@@ -397,7 +442,7 @@ impl Simulator {
             )));
         }
         let (len, ee) = (self.x.len(), ee as usize);
-        let expected = len + self.u.len() + 6 + ee;
+        let expected = len + self.u.len() + self.wheel_torque.len() + 6 + ee;
         let wrenches = 6 * self.arm.robot().end_effectors().len();
         if ee != 0 && ee != wrenches {
             return Err(bad(format!(
@@ -418,10 +463,12 @@ impl Simulator {
         let (x, rest) = numbers.split_at(len);
         self.arm.check_state(x).map_err(|e| bad(e.to_string()))?;
         let (u, rest) = rest.split_at(self.u.len());
+        let (wheel_torque, rest) = rest.split_at(self.wheel_torque.len());
         let (base_wrench, ee_wrench) = rest.split_at(6);
         self.x.copy_from_slice(x);
         self.k = k;
         self.u.copy_from_slice(u);
+        self.wheel_torque.copy_from_slice(wheel_torque);
         self.base_wrench.copy_from_slice(base_wrench);
         self.ee_wrench.clear();
         self.ee_wrench.extend_from_slice(ee_wrench);

@@ -1,10 +1,11 @@
 //! [`Stepper`]: the body of a run's step as a reusable value. Step `k` asks each channel of the
-//! [`Drive`] for its row, checks the motor torques, takes one RK4 step of the arm with the inputs
+//! [`Drive`] for its row, checks the motor torques, saturates the wheel torques, takes one RK4 step of the arm with the inputs
 //! held, and checks the new state. [`simulate_into`](super::simulate_into) loops over it; anything
 //! that steps the arm one step at a time with controllers (a co-simulation slave, say) uses the
 //! same value and is bit for bit the same run.
 
 use super::arm::ArmWorkspace;
+use super::record::Recorder;
 use super::run::Drive;
 use super::simulate::step_unchecked;
 use crate::args::{check_finite, Loads};
@@ -18,9 +19,13 @@ use crate::state::state_defect;
 #[derive(Debug, Clone)]
 pub struct Stepper {
     ws: ArmWorkspace,
-    u: Vec<f64>,
+    /// The held inputs of the last step as a record keeps them: the motor torques (n), then the
+    /// wheel torques applied (k, after saturation).
+    inputs: Vec<f64>,
     base_wrench: [f64; 6],
     ee_wrench: Vec<f64>,
+    /// The wheel torques commanded (k), before saturation.
+    wheel_command: Vec<f64>,
 }
 
 impl Stepper {
@@ -28,15 +33,33 @@ impl Stepper {
     pub fn new(arm: &FlexibleArm) -> Self {
         Self {
             ws: arm.workspace(),
-            u: vec![0.0; arm.dof()],
+            inputs: vec![0.0; arm.layout().inputs_len()],
             base_wrench: [0.0; 6],
             ee_wrench: vec![0.0; 6 * arm.robot().end_effectors().len()],
+            wheel_command: vec![0.0; arm.layout().wheels],
         }
     }
 
     /// The motor torques `u` (n, N·m) held during the last step (zeros before the first).
     pub fn u(&self) -> &[f64] {
-        &self.u
+        &self.inputs[..self.wheel_start()]
+    }
+
+    /// The wheel torques (k, N·m) applied during the last step, after saturation (zeros before
+    /// the first; empty without wheels).
+    pub fn wheel_torque(&self) -> &[f64] {
+        &self.inputs[self.wheel_start()..]
+    }
+
+    /// The inputs held during the last step as a record row keeps them: `u` (n), then the
+    /// applied wheel torques (k).
+    pub fn inputs(&self) -> &[f64] {
+        &self.inputs
+    }
+
+    #[inline]
+    fn wheel_start(&self) -> usize {
+        self.inputs.len() - self.wheel_command.len()
     }
 
     /// Step `k` (from `t = k dt` to `(k + 1) dt`) of `x` in place: the rows of the channels of
@@ -73,11 +96,22 @@ impl Stepper {
         dt: f64,
     ) -> std::result::Result<(), String> {
         let t = k as f64 * dt;
+        let wheels = self.wheel_start();
+        let (u, applied) = self.inputs.split_at_mut(wheels);
         drive
             .u
-            .output(k, t, x, &mut self.u)
+            .output(k, t, x, u)
             .map_err(|e| format!("the controller failed: {e}"))?;
-        check_finite("u", &self.u).map_err(|e| format!("the controller returned {e}"))?;
+        check_finite("u", u).map_err(|e| format!("the controller returned {e}"))?;
+        if let Some(wheels) = arm.wheels() {
+            // commanded at the start of the step, saturated there, held over it
+            wrench_row(
+                drive.wheel_torque.output(k, t, x, &mut self.wheel_command),
+                "wheel_torque",
+                &self.wheel_command,
+            )?;
+            wheels.saturate(&self.wheel_command, &x[arm.layout().wheel_speed()], applied);
+        }
         let ee_wrench: &[f64] = if drive.ee_wrench.is_zero() {
             &[]
         } else {
@@ -93,12 +127,14 @@ impl Stepper {
             "base_wrench",
             &self.base_wrench,
         )?;
+        let (u, wheel_torque) = self.inputs.split_at(wheels);
         let inputs = Inputs {
-            u: &self.u,
+            u,
             loads: Loads {
                 base_wrench: Force::from_slice(&self.base_wrench),
                 ee_wrench,
             },
+            wheel_torque,
         };
         step_unchecked(arm, &mut self.ws, x, dt, &inputs).map_err(|e| {
             format!(
@@ -115,7 +151,55 @@ impl Stepper {
     }
 }
 
-/// The message of a wrench channel whose controller failed or returned non-finite numbers.
+/// What [`simulate_into`](super::simulate_into)'s loop calls for each step: step `k` of `x` in
+/// place, the motor torques held over it, and how a kept row is handed to the recorder. The arm
+/// alone ([`ArmSteps`]) is every ordinary run; a run that carries more beside the arm (a target
+/// to capture, which may also change the arm mid-run) implements it around a [`Stepper`] and goes
+/// through the same loop ([`run_steps`](super::simulate::run_steps)), so observers, failures and
+/// the rows kept behave the same.
+pub trait StepBody {
+    /// Step `k` (from `t = k dt` to `(k + 1) dt`) of `x` in place; errors are an
+    /// [`Error::Simulation`] at step `k`.
+    fn step(&mut self, drive: &mut Drive<'_>, x: &mut [f64], k: usize, dt: f64) -> Result<()>;
+    /// The motor torques held during the last step.
+    fn u(&self) -> &[f64];
+    /// The inputs held during the last step as a record row keeps them: `u` (n), then the
+    /// applied reaction-wheel torques (k). The default: [`u`](Self::u) (an arm without wheels).
+    fn inputs(&self) -> &[f64] {
+        self.u()
+    }
+    /// Hands the kept row `(t, x)` to `recorder` (the default: [`Recorder::state`]).
+    fn record(&mut self, recorder: &mut dyn Recorder, t: f64, x: &[f64]) -> Result<()> {
+        recorder.state(t, x)
+    }
+}
+
+/// The arm alone, as a [`StepBody`]: [`Stepper::step`] on `arm`.
+#[derive(Debug)]
+pub struct ArmSteps<'a> {
+    /// The arm stepped.
+    pub arm: &'a FlexibleArm,
+    /// Its step's workspace.
+    pub stepper: Stepper,
+}
+
+impl StepBody for ArmSteps<'_> {
+    #[inline]
+    fn step(&mut self, drive: &mut Drive<'_>, x: &mut [f64], k: usize, dt: f64) -> Result<()> {
+        self.stepper.step(self.arm, drive, x, k, dt)
+    }
+    #[inline]
+    fn u(&self) -> &[f64] {
+        self.stepper.u()
+    }
+    #[inline]
+    fn inputs(&self) -> &[f64] {
+        self.stepper.inputs()
+    }
+}
+
+/// The message of a wrench or wheel-torque channel whose controller failed or returned
+/// non-finite numbers.
 #[inline]
 fn wrench_row(written: Result<()>, what: &str, row: &[f64]) -> std::result::Result<(), String> {
     written.map_err(|e| format!("the {what} controller failed: {e}"))?;

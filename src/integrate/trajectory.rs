@@ -21,13 +21,14 @@ use crate::flex::{FlexibleArm, StateLayout};
 pub(crate) fn rows_bytes(layout: StateLayout, rows: usize) -> Option<usize> {
     let values = rows
         .checked_mul(layout.len() + 1)?
-        .checked_add(rows.saturating_sub(1).checked_mul(layout.n)?)?;
+        .checked_add(rows.saturating_sub(1).checked_mul(layout.inputs_len())?)?;
     values.checked_mul(8)
 }
 
-/// The record of a run: times `t` (rows), states `x` (rows × (13+4n), row-major) and the motor
-/// torques `u` (N·m) held during the step that starts at each row but the last ((rows − 1) × n,
-/// row-major).
+/// The record of a run: times `t` (rows), states `x` (rows × (13+4n+k), row-major) and the
+/// inputs held during the step that starts at each row but the last ((rows − 1) × (n + k),
+/// row-major): the motor torques `u` (N·m), then, with `k` reaction wheels, the wheel torques
+/// applied (after saturation, N·m).
 ///
 /// A complete run of `steps` steps has `steps + 1` states and `steps` inputs; a run that failed at
 /// step `k` keeps the `k + 1` states before the failure and the `k` inputs that produced them.
@@ -39,7 +40,8 @@ pub struct Trajectory {
     pub t: Vec<f64>,
     /// States, one row per time.
     pub x: Vec<f64>,
-    /// Motor torques (N·m), one row per kept row but the last: those of the step starting there.
+    /// Held inputs, one row of `n + k` per kept row but the last: the motor torques, then the
+    /// applied wheel torques, of the step starting there.
     pub u: Vec<f64>,
     /// The state layout (number of joints).
     pub layout: StateLayout,
@@ -93,7 +95,7 @@ impl Trajectory {
             .try_reserve_exact(rows * layout.len())
             .map_err(|_| too_big())?;
         traj.u
-            .try_reserve_exact((rows - 1) * layout.n)
+            .try_reserve_exact((rows - 1) * layout.inputs_len())
             .map_err(|_| too_big())?;
         Ok(traj)
     }

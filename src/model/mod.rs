@@ -14,8 +14,9 @@ mod visual;
 pub use builder::{
     check_inertia, RobotBuilder, DEFAULT_BUS_SIDE, MAX_INERTIA, MAX_LENGTH, MAX_MASS, MIN_MASS,
 };
-pub(crate) use frames::JointFrames;
+pub(crate) use frames::{to_z, JointFrames};
 pub use robot::{EndEffector, JointLimits, JointModel, Robot};
+pub(crate) use urdf::write as urdf_write;
 pub use urdf::UrdfOptions;
 pub use visual::{
     check_mesh_bytes, check_mesh_file, Geometry, LinkFrame, MeshFormat, MeshSearch, Scene, Shape,

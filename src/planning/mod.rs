@@ -17,4 +17,6 @@ pub use slew::{
     Samples,
 };
 pub mod tracking;
+pub mod wheel_demand;
 pub use tracking::{Tracking, TrackingSetup};
+pub use wheel_demand::{WheelBinding, WheelDemand};

@@ -498,6 +498,24 @@ pub fn plan_slew_watched(
     waypoints: &[Vec<f64>],
     cancel: &AtomicBool,
 ) -> Result<Plan> {
+    // With reaction wheels the plan sees the bus with their locked parts (mass, transverse
+    // inertia; `rigid_model`). A held bus does not turn, so the wheels' spin does not enter and
+    // the plan and its holding wrench are exact (the wrench is what the wheels and thrusters
+    // must deliver; `Plan::wheel_demand`). A free bus with the wheels unpowered and at rest: each
+    // wheel keeps a·ω_B + Ω = 0, so its spin carries no momentum and the plan is exact too,
+    // unless friction couples the spin back to the bus.
+    if let Some(wheels) = arm.wheels() {
+        if base == BaseMode::Free && wheels.wheels().iter().any(|w| w.friction != 0.0) {
+            return Err(Error::InvalidArgument {
+                what: "plan_slew".into(),
+                message: "a free-floating plan on an arm whose reaction wheels have friction: \
+                          the unpowered wheels' friction turns the bus, which the plan does not \
+                          model; plan with base = \"held\" (the wheels then hold the bus), or \
+                          with frictionless wheels"
+                    .into(),
+            });
+        }
+    }
     let n = arm.dof();
     let limits = limits.for_joints(n)?;
     if base == BaseMode::Free && (limits.base_force.is_some() || limits.base_torque.is_some()) {
@@ -596,7 +614,7 @@ impl Plan {
             base_pose0: [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0],
             segments: Vec::new(),
         };
-        let mut scratch = JetScratch::new(plan.arm.robot());
+        let mut scratch = JetScratch::new(plan.arm.rigid_model());
         let mut t0 = 0.0;
         let mut deflection0 = vec![0.0; n];
         for k in 1..plan.stops.len() {
@@ -657,7 +675,7 @@ impl Plan {
                 [d * sig[1], d * sig[2], d * sig[3], d * sig[4]],
             );
         }
-        rigid_jets(self.arm.robot(), scratch, self.base)
+        rigid_jets(self.arm.rigid_model(), scratch, self.base)
     }
 
     /// Fills `p` for sample `j` of `seg` at duration `T = 1/w`. `previous` is the point at sample
@@ -1215,7 +1233,7 @@ impl Plan {
     pub fn evaluate(&self, t: f64) -> Result<PlanPoint> {
         crate::args::check_finite("t", &[t])?;
         let mut p = Point::new(self.arm.dof());
-        self.at(&mut JetScratch::new(self.arm.robot()), t, &mut p)?;
+        self.at(&mut JetScratch::new(self.arm.rigid_model()), t, &mut p)?;
         Ok(PlanPoint {
             t,
             q: p.q,
@@ -1266,7 +1284,7 @@ impl Plan {
         let mut r = Reference::reserved(dt, steps, n);
         let mut pose = self.base_pose0;
         let mut rk4 = Rk4::new(7);
-        let mut scratch = JetScratch::new(self.arm.robot());
+        let mut scratch = JetScratch::new(self.arm.rigid_model());
         // the plan's end, once: every instant after it is this point settled (as in `at`)
         let last = self.segments.last().expect("a plan has a segment");
         let end_time = last.t0 + last.duration;

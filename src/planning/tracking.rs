@@ -174,6 +174,7 @@ impl Plan {
                 BaseMode::Free => Schedule::Zero,
             },
             ee: Schedule::Zero,
+            wheel_torque: crate::integrate::Schedule::Zero,
         };
         Ok(Some(TrackingSetup {
             steps,

@@ -1,7 +1,8 @@
 //! `orbitflex.FlexibleArm`: state, derivative, step, diagnostics, ``simulate`` and the
 //! flexible-joint inverse dynamics.
 
-use super::control::{controller, schedule};
+use super::capture_run::{capture_releasing_gil, CaptureInfo, Capturing};
+use super::control::{base_wrench_controller, controller, schedule, wheel_controller};
 use super::convert::{array1, count, positive_count, real, try_array2, vector, vector_or};
 use super::errors::simulation_error;
 use super::errors::ModelError;
@@ -61,6 +62,7 @@ pub struct PyFlexibleArm {
     pub(crate) arm: FlexibleArm,
     robot: Py<PyRobot>,
     joints: Py<PyFlexibleJoints>,
+    wheels: Option<Py<super::wheels::PyReactionWheels>>,
     /// Workspaces, one lent to each call in flight (see `workspaces`).
     workspaces: Pool<ArmWorkspace>,
 }
@@ -87,6 +89,8 @@ struct InputArgs {
     base_wrench: Vec<f64>,
     /// `[f_1; …; f_k]`, or empty for none.
     ee_wrench: Vec<f64>,
+    /// Wheel torque commands (k), or empty for none.
+    wheel_torque: Vec<f64>,
 }
 
 impl InputArgs {
@@ -105,9 +109,23 @@ impl InputArgs {
                 Some(f) => vector(&f, "ee_wrench", Some(6 * k))?,
                 None => Vec::new(),
             },
+            wheel_torque: Vec::new(),
         };
         args.inputs().loads.check_for(robot)?;
         Ok(args)
+    }
+    /// With the wheel torque commands `wheel_torque` ((k,) or None), checked against `arm`.
+    fn wheels(
+        mut self,
+        arm: &FlexibleArm,
+        wheel_torque: Option<&Bound<'_, PyAny>>,
+    ) -> PyResult<Self> {
+        if let Some(w) = wheel_torque.filter(|o| !o.is_none()) {
+            let k = arm.layout().wheels;
+            self.wheel_torque = vector(w, "wheel_torque", (k > 0).then_some(k))?;
+            arm.check_inputs(&self.inputs())?;
+        }
+        Ok(self)
     }
     fn inputs(&self) -> Inputs<'_> {
         Inputs {
@@ -116,6 +134,7 @@ impl InputArgs {
                 base_wrench: crate::spatial::Force::from_slice(&self.base_wrench),
                 ee_wrench: &self.ee_wrench,
             },
+            wheel_torque: &self.wheel_torque,
         }
     }
 }
@@ -141,21 +160,32 @@ fn jacobians_dict<'py>(
 #[pymethods]
 impl PyFlexibleArm {
     #[new]
-    #[pyo3(signature = (robot, joints, method="recursive"))]
+    #[pyo3(signature = (robot, joints, method="recursive", wheels=None))]
     fn new(
         robot: Bound<'_, PyRobot>,
         joints: Bound<'_, PyFlexibleJoints>,
         method: &str,
+        wheels: Option<Bound<'_, super::wheels::PyReactionWheels>>,
     ) -> PyResult<Self> {
         let params = joints.get().resolve(robot.get().robot.dof())?;
-        let arm = FlexibleArm::new(robot.get().robot.clone(), params)?
+        let mut arm = FlexibleArm::new(robot.get().robot.clone(), params)?
             .with_method(super::convert::method(method)?);
+        if let Some(w) = &wheels {
+            arm = arm.with_wheels(w.get().wheels.clone())?;
+        }
         Ok(Self {
             workspaces: Pool::with(arm.workspace()),
             arm,
             robot: robot.unbind(),
             joints: joints.unbind(),
+            wheels: wheels.map(Bound::unbind),
         })
+    }
+
+    /// The ``ReactionWheels`` on the bus, or None.
+    #[getter]
+    fn wheels(&self, py: Python<'_>) -> Option<Py<super::wheels::PyReactionWheels>> {
+        self.wheels.as_ref().map(|w| w.clone_ref(py))
     }
 
     /// The rigid robot.
@@ -173,7 +203,7 @@ impl PyFlexibleArm {
     fn dof(&self) -> usize {
         self.n()
     }
-    /// Length of the state vector, 13 + 4n.
+    /// Length of the state vector, 13 + 4n + k (k reaction wheels, 0 without).
     #[getter]
     fn state_size(&self) -> usize {
         self.arm.layout().len()
@@ -185,7 +215,8 @@ impl PyFlexibleArm {
         self.arm.tangent_size()
     }
     /// Where each block of the state sits: a dict from ``"base_pose"``, ``"q"``, ``"theta"``,
-    /// ``"base_twist"``, ``"qd"``, ``"theta_dot"`` to a ``slice`` of ``x``.
+    /// ``"base_twist"``, ``"qd"``, ``"theta_dot"``, ``"wheel_speed"`` (empty without wheels) to
+    /// a ``slice`` of ``x``.
     #[getter]
     fn state_slices<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, pyo3::types::PyDict>> {
         let d = pyo3::types::PyDict::new(py);
@@ -217,8 +248,10 @@ impl PyFlexibleArm {
 
     /// The state ``x`` (13+4n,): ``[r_B | quat_B (x,y,z,w) | q | θ | ω_B | v_B | q̇ | θ̇]``.
     /// Defaults: zero angles and rates, base at the origin with identity attitude and at rest,
-    /// ``theta = q`` (relaxed springs). The quaternion is normalised.
-    #[pyo3(signature = (q=None, theta=None, qd=None, theta_dot=None, base_pose=None, base_twist=None))]
+    /// ``theta = q`` (relaxed springs). The quaternion is normalised. With reaction wheels the
+    /// state ends with their speeds ``wheel_speed`` (k,), rad/s relative to the bus (default 0).
+    #[pyo3(signature = (q=None, theta=None, qd=None, theta_dot=None, base_pose=None, base_twist=None, wheel_speed=None))]
+    #[allow(clippy::too_many_arguments)]
     fn state<'py>(
         &self,
         py: Python<'py>,
@@ -228,7 +261,9 @@ impl PyFlexibleArm {
         theta_dot: Option<&Bound<'py, PyAny>>,
         base_pose: Option<&Bound<'py, PyAny>>,
         base_twist: Option<&Bound<'py, PyAny>>,
+        wheel_speed: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        let layout = self.arm.layout();
         let n = self.n();
         let get = |o: Option<&Bound<'py, PyAny>>, what: &str, len: usize| {
             o.filter(|o| !o.is_none())
@@ -243,7 +278,15 @@ impl PyFlexibleArm {
             get(base_pose, "base_pose", 7)?,
             get(base_twist, "base_twist", 6)?,
         );
-        let x = self.arm.state(&StateSpec {
+        let wheel_speed = match (wheel_speed.filter(|o| !o.is_none()), layout.wheels) {
+            (Some(_), 0) => {
+                return Err(ModelError::new_err(
+                    "wheel_speed: the arm has no reaction wheels; give none",
+                ))
+            }
+            (w, k) => get(w, "wheel_speed", k)?,
+        };
+        let mut x = self.arm.state(&StateSpec {
             q: q.as_deref(),
             theta: theta.as_deref(),
             qd: qd.as_deref(),
@@ -251,12 +294,16 @@ impl PyFlexibleArm {
             base_pose: base_pose.as_deref(),
             base_twist: base_twist.as_deref(),
         })?;
+        if let Some(w) = wheel_speed {
+            x[layout.wheel_speed()].copy_from_slice(&w);
+        }
         Ok(array1(py, &x))
     }
 
-    /// ``ẋ`` (13+4n,) at state ``x`` with motor torques ``u`` (n,), base wrench and EE wrench
-    /// (6,), all defaulting to zero.
-    #[pyo3(signature = (x, u=None, base_wrench=None, ee_wrench=None))]
+    /// ``ẋ`` (13+4n+k,) at state ``x`` with motor torques ``u`` (n,), base wrench and EE wrench
+    /// (6,), and, with k reaction wheels, the wheel torque commands ``wheel_torque`` (k,), all
+    /// defaulting to zero. The wheel torques are saturated at ``x`` as a step would apply them.
+    #[pyo3(signature = (x, u=None, base_wrench=None, ee_wrench=None, wheel_torque=None))]
     fn derivative<'py>(
         &self,
         py: Python<'py>,
@@ -264,17 +311,21 @@ impl PyFlexibleArm {
         u: Option<&Bound<'py, PyAny>>,
         base_wrench: Option<&Bound<'py, PyAny>>,
         ee_wrench: Option<&Bound<'py, PyAny>>,
+        wheel_torque: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyArray1<f64>>> {
         let x = vector(x, "x", Some(self.arm.layout().len()))?;
-        let inputs = InputArgs::parse(self.arm.robot(), u, base_wrench, ee_wrench)?;
+        let inputs = InputArgs::parse(self.arm.robot(), u, base_wrench, ee_wrench)?
+            .wheels(&self.arm, wheel_torque)?;
         let mut xdot = vec![0.0; x.len()];
         self.arm
             .derivative(&mut self.ws(), &x, &inputs.inputs(), &mut xdot)?;
         Ok(array1(py, &xdot))
     }
 
-    /// One RK4 step of ``dt`` seconds from ``x``, inputs held; returns the new state.
-    #[pyo3(signature = (x, dt, u=None, base_wrench=None, ee_wrench=None))]
+    /// One RK4 step of ``dt`` seconds from ``x``, inputs held (the wheel torques saturated once,
+    /// at ``x``); returns the new state.
+    #[pyo3(signature = (x, dt, u=None, base_wrench=None, ee_wrench=None, wheel_torque=None))]
+    #[allow(clippy::too_many_arguments)]
     fn step<'py>(
         &self,
         py: Python<'py>,
@@ -283,10 +334,12 @@ impl PyFlexibleArm {
         u: Option<&Bound<'py, PyAny>>,
         base_wrench: Option<&Bound<'py, PyAny>>,
         ee_wrench: Option<&Bound<'py, PyAny>>,
+        wheel_torque: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyArray1<f64>>> {
         let mut x = vector(x, "x", Some(self.arm.layout().len()))?;
         let dt = real(dt, "dt")?;
-        let inputs = InputArgs::parse(self.arm.robot(), u, base_wrench, ee_wrench)?;
+        let inputs = InputArgs::parse(self.arm.robot(), u, base_wrench, ee_wrench)?
+            .wheels(&self.arm, wheel_torque)?;
         self.arm
             .step(&mut self.ws(), &mut x, dt, &inputs.inputs())?;
         Ok(array1(py, &x))
@@ -554,7 +607,12 @@ impl PyFlexibleArm {
     /// ``u(t, x) -> (n,)`` called once per step, or an ``orbitflex.MotorPD`` (runs in Rust
     /// without the GIL). ``base_wrench`` / ``ee_wrench``: None, (6,) or (steps, 6); with k
     /// end-effectors ``ee_wrench`` is (k, 6) or (steps, k, 6), or a dict from EE link name to
-    /// (6,) or (steps, 6). ``progress``:
+    /// (6,) or (steps, 6); ``base_wrench`` may also be a callable ``f(t, x) -> (6,)`` (thrusters,
+    /// a custom ACS closing a loop). ``wheel_torque`` (an arm with k reaction wheels): the
+    /// commands, None, (k,), (steps, k), a callable ``(t, x) -> (k,)`` or an
+    /// ``orbitflex.AttitudePD`` (in Rust without the GIL); saturated once per step, the applied
+    /// torques recorded in ``Trajectory.wheel_torque``. Every callable is called once per step
+    /// with the state at its start, its row held over the step. ``progress``:
     /// an optional callable ``progress(done, steps)`` called about every thousand steps and at
     /// the end.
     ///
@@ -579,7 +637,8 @@ impl PyFlexibleArm {
     /// non-finite or the controller raises or returns non-finite torques; its trajectory keeps
     /// the rows kept so far and ends on the last good state (with ``on_rows``: that state
     /// alone). Ctrl-C stops the run.
-    #[pyo3(signature = (x0, dt, steps, u=None, base_wrench=None, ee_wrench=None, *, progress=None, record_every=None, on_rows=None, chunk_rows=None))]
+    #[pyo3(signature = (x0, dt, steps, u=None, base_wrench=None, ee_wrench=None, *, wheel_torque=None, progress=None, record_every=None, on_rows=None, chunk_rows=None, target=None, capture=None, capture_ee=None))]
+    #[allow(clippy::too_many_arguments)]
     fn simulate<'py>(
         slf: &Bound<'py, Self>,
         x0: &Bound<'py, PyAny>,
@@ -588,10 +647,14 @@ impl PyFlexibleArm {
         u: Option<&Bound<'py, PyAny>>,
         base_wrench: Option<&Bound<'py, PyAny>>,
         ee_wrench: Option<&Bound<'py, PyAny>>,
+        wheel_torque: Option<&Bound<'py, PyAny>>,
         progress: Option<&Bound<'py, PyAny>>,
         record_every: Option<&Bound<'py, PyAny>>,
         on_rows: Option<&Bound<'py, PyAny>>,
         chunk_rows: Option<&Bound<'py, PyAny>>,
+        target: Option<&Bound<'py, PyAny>>,
+        capture: Option<&Bound<'py, PyAny>>,
+        capture_ee: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<PyTrajectory> {
         let py = slf.py();
         let me = slf.get();
@@ -605,6 +668,13 @@ impl PyFlexibleArm {
             None => 1,
         };
         let on_rows = on_rows.filter(|o| !o.is_none());
+        let capturing = Capturing::from_args(arm, target, capture, capture_ee)?;
+        if capturing.is_some() && on_rows.is_some() {
+            return Err(ModelError::new_err(
+                "on_rows: a run with a target keeps its rows in memory (the target's rows and \
+                 events are recorded with them); leave on_rows out, or use record_every",
+            ));
+        }
         if let Some(callback) = on_rows {
             if !callback.is_callable() {
                 return Err(ModelError::new_err(format!(
@@ -622,15 +692,17 @@ impl PyFlexibleArm {
                 )),
                 (None, _) => CHUNK_ROWS,
             };
-        let mut error = None;
+        // the first exception of a callable channel, one slot per channel
+        let (mut error, mut wheel_error, mut base_error) = (None, None, None);
         // read in this order (the first bad argument is the one reported)
         let mut channels = Channels {
-            base_wrench: schedule(base_wrench, "base_wrench", 6)?,
+            base_wrench: base_wrench_controller(base_wrench, &mut base_error)?,
             ee_wrench: schedule(
                 super::convert::ee_wrench_arg(arm.robot(), ee_wrench)?.as_ref(),
                 "ee_wrench",
                 6 * arm.robot().end_effectors().len(),
             )?,
+            wheel_torque: wheel_controller(wheel_torque, arm, &mut wheel_error)?,
             u: controller(u, arm.dof(), &mut error)?,
         };
         let run = Run::new(&x0, dt, steps).recording_every(record_every);
@@ -658,8 +730,26 @@ impl PyFlexibleArm {
         }
         let mut progress = Progress::new(progress.filter(|p| !p.is_none()).cloned());
         let recorder = sink.recorder();
-        let result = record_releasing_gil(py, arm, &run, &mut channels, &mut progress, recorder)?;
+        let (result, record) = match &capturing {
+            None => (
+                record_releasing_gil(py, arm, &run, &mut channels, &mut progress, recorder)?,
+                None,
+            ),
+            Some(capturing) => {
+                let (result, record) = capture_releasing_gil(
+                    py,
+                    arm,
+                    &run,
+                    &mut channels,
+                    &mut progress,
+                    recorder,
+                    capturing,
+                )?;
+                (result, Some(record))
+            }
+        };
         drop(channels);
+        let error = error.or(wheel_error).or(base_error);
         // a callable controller's exception: KeyboardInterrupt, SystemExit and other
         // non-Exception errors are not a controller failure: re-raise them as they are.
         let cause = match error {
@@ -674,16 +764,24 @@ impl PyFlexibleArm {
         if let Some(e) = stream_error {
             return Err(e);
         }
-        let arm_ref = slf.clone().unbind();
+        let record = |traj| -> PyResult<PyTrajectory> {
+            let traj = PyTrajectory::from_run(py, slf.clone().unbind(), traj)?;
+            Ok(match (record, &capturing) {
+                (Some(record), Some(c)) => {
+                    traj.with_capture(CaptureInfo::new(py, slf, record, &c.target)?)
+                }
+                _ => traj,
+            })
+        };
         match result {
             Ok(()) => {
                 progress.finish(py, steps, steps)?;
-                PyTrajectory::from_run(py, arm_ref, traj)
+                record(traj)
             }
             Err(error) => match error {
                 Error::Simulation { step, time, .. } => {
                     let message = error.to_string();
-                    let traj = PyTrajectory::from_run(py, arm_ref, traj)?;
+                    let traj = record(traj)?;
                     let traj = Py::new(py, traj)?.into_any();
                     Err(simulation_error(py, message, step, time, traj, cause)?)
                 }
@@ -696,7 +794,7 @@ impl PyFlexibleArm {
     fn __reduce__<'py>(slf: &Bound<'py, Self>) -> PyResult<(PyObject, PyObject)> {
         let py = slf.py();
         let me = slf.get();
-        let args = (me.robot(py), me.joints(py), me.method());
+        let args = (me.robot(py), me.joints(py), me.method(), me.wheels(py));
         Ok((
             slf.get_type().into_any().unbind(),
             args.into_pyobject(py)?.into_any().unbind(),

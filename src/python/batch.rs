@@ -249,7 +249,10 @@ fn stability_warning(dt: f64, runs: usize, unstable: &[(usize, f64)]) -> String 
 /// - ``base_wrench`` (base frame, applied to the base) and ``ee_wrench`` (EE frame, exerted by
 ///   the EE): as ``u`` with 6 (``[moment (N·m); force (N)]``) in place of n; with k
 ///   end-effectors, ``ee_wrench`` rows are (k, 6) (so (runs, k, 6), (runs, steps, k, 6), …), or a
-///   dict from EE link name to such arrays with 6 in place of (k, 6).
+///   dict from EE link name to such arrays with 6 in place of (k, 6);
+/// - ``wheel_torque`` (keyword; arms with w reaction wheels, all the same w): the wheel torque
+///   commands, as ``u`` with w in place of n; saturated once per step, and the applied torques
+///   recorded (``BatchTrajectory.wheel_torque``).
 ///
 /// ``threads=None`` uses every core (at most 1024 threads). ``record_every=k`` (None: 1) keeps rows 0, k, 2k, … and
 /// the final row. ``keep_rows=False`` keeps only the per-run summaries and final states (no rows), for
@@ -262,7 +265,8 @@ fn stability_warning(dt: f64, runs: usize, unstable: &[(usize, f64)]) -> String 
 /// ``KeyboardInterrupt``. Bad shapes raise ``ModelError`` naming the argument, the shapes
 /// accepted and the shape given (and the run, for a bad row).
 #[pyfunction]
-#[pyo3(name = "simulate_batch", signature = (arm_or_arms, x0s, dt, steps, u=None, base_wrench=None, ee_wrench=None, threads=None, record_every=None, *, keep_rows=true, progress=None))]
+#[pyo3(name = "simulate_batch", signature = (arm_or_arms, x0s, dt, steps, u=None, base_wrench=None, ee_wrench=None, threads=None, record_every=None, *, keep_rows=true, progress=None, wheel_torque=None))]
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn py_simulate_batch<'py>(
     py: Python<'py>,
     arm_or_arms: &Bound<'py, PyAny>,
@@ -276,6 +280,7 @@ pub(crate) fn py_simulate_batch<'py>(
     record_every: Option<&Bound<'py, PyAny>>,
     keep_rows: bool,
     progress: Option<&Bound<'py, PyAny>>,
+    wheel_torque: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<PyBatchTrajectory> {
     let dt = real(dt, "dt")?;
     let steps = count(steps, "steps")?;
@@ -298,6 +303,13 @@ pub(crate) fn py_simulate_batch<'py>(
     let k6 = 6 * ee_robot.end_effectors().len();
     let ee_wrench = super::convert::ee_wrench_arg(ee_robot, ee_wrench)?;
     let fee = optional(ee_wrench.as_ref(), "ee_wrench", k6)?;
+    let wheels = layout.wheels;
+    if wheels == 0 && wheel_torque.is_some_and(|w| !w.is_none()) {
+        return Err(ModelError::new_err(
+            "wheel_torque: the arms have no reaction wheels; give none",
+        ));
+    }
+    let fw = optional(wheel_torque, "wheel_torque", wheels)?;
     let shared_arm = arm_or_arms.is_instance_of::<PyFlexibleArm>();
     let runs = count_runs(&[
         ("arm_or_arms", (!shared_arm).then_some(arm_refs.len())),
@@ -312,6 +324,7 @@ pub(crate) fn py_simulate_batch<'py>(
         ),
         ("base_wrench", fb.as_ref().and_then(|a| a.runs(2))),
         ("ee_wrench", fee.as_ref().and_then(|a| a.runs(2))),
+        ("wheel_torque", fw.as_ref().and_then(|a| a.runs(2))),
     ])?;
     let all_arms: Vec<&FlexibleArm> = if arm_refs.len() == runs {
         arm_refs.clone()
@@ -342,6 +355,7 @@ pub(crate) fn py_simulate_batch<'py>(
         },
         base_wrench: input_or_zero(&fb, "base_wrench", runs, steps, 6)?,
         ee_wrench: input_or_zero(&fee, "ee_wrench", runs, steps, k6)?,
+        wheel_torque: input_or_zero(&fw, "wheel_torque", runs, steps, wheels)?,
     };
     let settings = BatchSettings {
         dt,
@@ -446,7 +460,11 @@ impl PyBatchTrajectory {
             status: record.status,
             t: t.unbind(),
             x: frozen3(py, (runs, rows, len), record.x)?,
-            u: frozen3(py, (runs, rows.saturating_sub(1), n), record.u)?,
+            u: frozen3(
+                py,
+                (runs, rows.saturating_sub(1), layout.inputs_len()),
+                record.u,
+            )?,
             final_state: frozen_rows(py, runs, len, record.final_state)?,
             peak_deflection: frozen_rows(py, runs, n, record.peak_deflection)?,
             peak_torque: frozen_rows(py, runs, n, record.peak_torque)?,
@@ -461,6 +479,17 @@ impl PyBatchTrajectory {
             [all.clone().into_any(), all.into_any(), columns.into_any()],
         )?;
         Ok(self.x.bind(py).get_item(key)?.unbind())
+    }
+
+    /// Columns `range` of the held inputs `[u | applied wheel torques]`, a view.
+    fn inputs_view(&self, py: Python<'_>, range: std::ops::Range<usize>) -> PyResult<PyObject> {
+        let columns = PySlice::new(py, range.start as isize, range.end as isize, 1);
+        let all = PySlice::full(py);
+        let key = PyTuple::new(
+            py,
+            [all.clone().into_any(), all.into_any(), columns.into_any()],
+        )?;
+        Ok(self.u.bind(py).get_item(key)?.unbind())
     }
 
     fn arm(&self, py: Python<'_>, run: usize) -> Py<PyFlexibleArm> {
@@ -498,8 +527,22 @@ impl PyBatchTrajectory {
     /// Motor torques (N·m, link side) held during the step starting at each row but the last,
     /// (B, rows − 1, n); NaN after a run's failure.
     #[getter]
-    fn u(&self, py: Python<'_>) -> Py<PyArray3<f64>> {
-        self.u.clone_ref(py)
+    fn u(&self, py: Python<'_>) -> PyResult<PyObject> {
+        if self.layout.wheels == 0 {
+            return Ok(self.u.clone_ref(py).into_any());
+        }
+        self.inputs_view(py, 0..self.layout.n)
+    }
+    /// Reaction-wheel torques applied (after saturation) during the step starting at each row
+    /// but the last, (B, rows − 1, w) (N·m); w = 0 without wheels.
+    #[getter]
+    fn wheel_torque(&self, py: Python<'_>) -> PyResult<PyObject> {
+        self.inputs_view(py, self.layout.n..self.layout.inputs_len())
+    }
+    /// Reaction-wheel speeds relative to the bus (rad/s), (B, rows, w); a view of ``x``.
+    #[getter]
+    fn wheel_speed(&self, py: Python<'_>) -> PyResult<PyObject> {
+        self.view(py, self.layout.wheel_speed())
     }
     /// ``[r_B (m); quat_B (x, y, z, w)]``, (B, rows, 7); a view of ``x``.
     #[getter]
@@ -615,7 +658,7 @@ impl PyBatchTrajectory {
                  states",
             ));
         }
-        let (len, n, rows) = (self.layout.len(), self.layout.n, self.rows);
+        let (len, n, rows) = (self.layout.len(), self.layout.inputs_len(), self.rows);
         let t = self.t.bind(py).readonly();
         let x = self.x.bind(py).readonly();
         let u = self.u.bind(py).readonly();

@@ -30,6 +30,7 @@ mod arm;
 mod batch;
 mod batched;
 mod capture;
+mod capture_run;
 mod control;
 mod convert;
 mod errors;
@@ -43,6 +44,7 @@ mod run;
 mod simulator;
 mod stability;
 mod trajectory;
+mod wheels;
 mod workspaces;
 
 use pyo3::prelude::*;
@@ -60,7 +62,10 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<robot::PyRobot>()?;
     m.add_class::<joints::PyFlexibleJoints>()?;
     m.add_class::<control::PyMotorPD>()?;
+    m.add_class::<control::PyAttitudePD>()?;
+    m.add_class::<control::PySampled>()?;
     m.add_class::<arm::PyFlexibleArm>()?;
+    m.add_class::<wheels::PyReactionWheels>()?;
     m.add_class::<trajectory::PyTrajectory>()?;
     m.add_class::<stability::PyStabilityLimit>()?;
     m.add_class::<plan::PyLimits>()?;
@@ -69,7 +74,11 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<simulator::PySimulator>()?;
     m.add_class::<capture::PyTarget>()?;
     m.add_class::<capture::PyCapture>()?;
+    m.add_class::<capture_run::PyCaptureWhen>()?;
+    m.add_class::<capture_run::PyCaptureEvent>()?;
     m.add_function(wrap_pyfunction!(capture::py_capture, m)?)?;
+    m.add_function(wrap_pyfunction!(capture_run::py_capture_scenario, m)?)?;
+    m.add_function(wrap_pyfunction!(capture_run::py_simulate_capture_batch, m)?)?;
     m.add_function(wrap_pyfunction!(plan::py_plan_slew, m)?)?;
     m.add_function(wrap_pyfunction!(batch::py_simulate_batch, m)?)?;
     m.add_function(wrap_pyfunction!(analysis::py_state_space, m)?)?;

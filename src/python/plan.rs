@@ -2,6 +2,7 @@
 //! slews under motor-torque, joint-speed and base-actuation limits, and their tracking.
 
 use super::arm::PyFlexibleArm;
+use super::control::wheel_controller;
 use super::convert::{array1, as_float_array, count, matrix, real, row_major, vector};
 use super::errors::{simulation_error, LimitWarning, ModelError};
 use super::joints::Param;
@@ -9,6 +10,7 @@ use super::robot::PyRobot;
 use super::run::{run_releasing_gil, watched, Channels, Progress};
 use super::trajectory::{freeze, PyTrajectory};
 use crate::args::number;
+use crate::control::Schedule;
 use crate::error::Error;
 use crate::integrate::Run;
 use crate::planning::{
@@ -649,8 +651,12 @@ impl PyPlan {
     /// start; see ``arm.rk4_stability_limit``), where the run would diverge or mean nothing;
     /// ``SimulationError`` (with the finite part in ``.trajectory``) if the run turns
     /// non-finite anyway. Ctrl-C stops the run with ``KeyboardInterrupt``. The held base is
-    /// held open loop, by the plan's own wrench.
-    #[pyo3(signature = (dt, kp, kd, settle=None), text_signature = "($self, dt, kp, kd, settle=2.0)")]
+    /// held open loop, by the plan's own wrench; or, on an arm with reaction wheels, by them:
+    /// ``wheel_torque`` (an ``AttitudePD``, a callable ``(t, x)``, a table or a ``Sampled``)
+    /// then drives the wheels and no wrench is applied, so the wheels hold the bus's attitude
+    /// while its position drifts as the system's centre of mass requires
+    /// (``"base_position_error"`` shows by how much).
+    #[pyo3(signature = (dt, kp, kd, settle=None, *, wheel_torque=None), text_signature = "($self, dt, kp, kd, settle=2.0, *, wheel_torque=None)")]
     fn track<'py>(
         &self,
         py: Python<'py>,
@@ -658,7 +664,9 @@ impl PyPlan {
         kp: &Bound<'py, PyAny>,
         kd: &Bound<'py, PyAny>,
         settle: Option<&Bound<'py, PyAny>>,
+        wheel_torque: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyDict>> {
+        let wheel_torque = wheel_torque.filter(|w| !w.is_none());
         let n = self.plan.arm().dof();
         let dt = real(dt, "dt")?;
         let settle = match settle.filter(|s| !s.is_none()) {
@@ -706,10 +714,21 @@ impl PyPlan {
             return Err(interrupt.expect("stopped only on a pending exception"));
         };
         let x0 = plan.initial_state();
-        let mut channels = Channels {
-            u: Box::new(pd),
-            base_wrench: wrenches.base,
-            ee_wrench: wrenches.ee,
+        let mut error = None;
+        let mut channels = match wheel_torque {
+            None => Channels {
+                u: Box::new(pd),
+                base_wrench: Box::new(wrenches.base),
+                ee_wrench: wrenches.ee,
+                wheel_torque: Box::new(wrenches.wheel_torque),
+            },
+            // the wheels hold the bus instead of the plan's wrench
+            Some(w) => Channels {
+                u: Box::new(pd),
+                base_wrench: Box::new(Schedule::Zero),
+                ee_wrench: wrenches.ee,
+                wheel_torque: wheel_controller(Some(w), plan.arm(), &mut error)?,
+            },
         };
         let run = run_releasing_gil(
             py,
@@ -718,6 +737,7 @@ impl PyPlan {
             &mut channels,
             &mut Progress::new(None),
         )?;
+        drop(channels);
         let trajectory = match run {
             Ok(trajectory) => trajectory,
             Err(failure) => {
@@ -729,7 +749,7 @@ impl PyPlan {
                 };
                 let traj = PyTrajectory::from_run(py, self.arm.clone_ref(py), failure.trajectory)?;
                 let traj = Py::new(py, traj)?.into_any();
-                return Err(simulation_error(py, message, step, time, traj, None)?);
+                return Err(simulation_error(py, message, step, time, traj, error)?);
             }
         };
         let Tracking {
@@ -754,6 +774,44 @@ impl PyPlan {
         d.set_item("residual_link_error", residual_link_error)?;
         d.set_item("base_position_error", base_position_error)?;
         d.set_item("base_attitude_error", base_attitude_error)?;
+        Ok(d)
+    }
+
+    /// What holding the bus through this held-base plan asks of reaction ``wheels``
+    /// (``orbitflex.ReactionWheels``; minimum-norm allocation of the plan's holding moment, the
+    /// wheels from rest; the force part is not theirs to give). Returns a dict: ``"t"`` (the
+    /// plan's samples, s), ``"torque"`` (samples, k) motor torques (N·m), ``"speed"`` (samples,
+    /// k) wheel speeds (rad/s), ``"momentum"`` (samples, 3) the stored spin momentum (N·m·s,
+    /// base frame), ``"peak_torque"`` and ``"peak_speed"`` (k,), ``"peak_momentum"`` (N·m·s),
+    /// and ``"binding"``: the limit closest to its bound (``limit`` ``"max_torque"`` or
+    /// ``"max_speed"``, ``wheel``, ``time``, ``value``, ``bound``, ``ratio``; a ratio above 1:
+    /// the wheels cannot hold the bus through this plan). ``ModelError`` for a free-floating
+    /// plan or axes that do not span three dimensions.
+    fn wheel_demand<'py>(
+        &self,
+        py: Python<'py>,
+        wheels: &Bound<'py, super::wheels::PyReactionWheels>,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let wheels = wheels.get().wheels.clone();
+        let demand = self.plan.wheel_demand(&wheels)?;
+        let k = wheels.len();
+        let rows = demand.t.len();
+        let d = PyDict::new(py);
+        d.set_item("t", array1(py, &demand.t))?;
+        d.set_item("torque", row_major(py, rows, k, demand.torque))?;
+        d.set_item("speed", row_major(py, rows, k, demand.speed))?;
+        d.set_item("momentum", row_major(py, rows, 3, demand.momentum))?;
+        d.set_item("peak_torque", array1(py, &demand.peak_torque))?;
+        d.set_item("peak_speed", array1(py, &demand.peak_speed))?;
+        d.set_item("peak_momentum", demand.peak_momentum)?;
+        let b = PyDict::new(py);
+        b.set_item("limit", demand.binding.limit)?;
+        b.set_item("wheel", demand.binding.wheel)?;
+        b.set_item("time", demand.binding.time)?;
+        b.set_item("value", demand.binding.value)?;
+        b.set_item("bound", demand.binding.bound)?;
+        b.set_item("ratio", demand.binding.ratio())?;
+        d.set_item("binding", b)?;
         Ok(d)
     }
 

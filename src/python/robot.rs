@@ -443,6 +443,15 @@ impl PyRobot {
         Ok(Self::wrap(self.robot.with_payload_at(payload, e)?))
     }
 
+    /// This model as URDF text: one link per body (links merged by fixed joints written as one,
+    /// with the merged inertia), one joint per degree of freedom (``revolute`` with its limits
+    /// where the model has position limits, ``continuous`` otherwise), and each end-effector
+    /// frame that is not a body's own as a massless link on a fixed joint. Visuals and the other
+    /// named frames are not written. Loading it again gives the same dynamics.
+    fn to_urdf(&self) -> String {
+        self.robot.to_urdf()
+    }
+
     /// Inertial poses ``[position (m); quaternion (x, y, z, w), w ≥ 0]`` of the base, of each
     /// body (the child link of each joint, after merging fixed links) and of the EE frame, shape
     /// (n+2, 7) (n+1+k rows with k end-effectors: every EE frame in ``ee_links`` order), for the

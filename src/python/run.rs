@@ -53,14 +53,14 @@ impl Progress {
 /// Looks for signals every [`SIGNAL_CHECK`] and reports progress every [`EVERY`] steps, taking
 /// the GIL back for it; the first Python error (a `KeyboardInterrupt`, or an exception from the
 /// progress callback) stops the run.
-struct Watch<'a> {
+pub(crate) struct Watch<'a> {
     progress: &'a Progress,
-    error: Option<PyErr>,
+    pub(crate) error: Option<PyErr>,
     last: Instant,
 }
 
 impl<'a> Watch<'a> {
-    fn new(progress: &'a Progress) -> Self {
+    pub(crate) fn new(progress: &'a Progress) -> Self {
         Self {
             progress,
             error: None,
@@ -149,9 +149,11 @@ pub(crate) struct Channels<'a> {
     /// The motor torques.
     pub u: Box<dyn Controller + Send + 'a>,
     /// The base wrench.
-    pub base_wrench: Schedule,
+    pub base_wrench: Box<dyn Controller + Send + 'a>,
     /// The end-effector wrenches.
     pub ee_wrench: Schedule,
+    /// The reaction-wheel torque commands.
+    pub wheel_torque: Box<dyn Controller + Send + 'a>,
 }
 
 impl Channels<'_> {
@@ -159,8 +161,9 @@ impl Channels<'_> {
     pub fn drive(&mut self) -> Drive<'_> {
         Drive {
             u: &mut *self.u,
-            base_wrench: &mut self.base_wrench,
+            base_wrench: &mut *self.base_wrench,
             ee_wrench: &mut self.ee_wrench,
+            wheel_torque: &mut *self.wheel_torque,
         }
     }
 }
@@ -214,7 +217,7 @@ pub(crate) fn deliver(
         let layout = chunk.layout;
         let t = PyArray1::from_slice(py, chunk.t);
         let x = row_major(py, chunk.len(), layout.len(), chunk.x.to_vec());
-        let u = row_major(py, chunk.inputs, layout.n, chunk.u.to_vec());
+        let u = row_major(py, chunk.inputs, layout.inputs_len(), chunk.u.to_vec());
         callback.call1(py, (t, x, u)).map(drop)
     })
     .map_err(|e| {

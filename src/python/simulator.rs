@@ -37,8 +37,9 @@ const CLOCK_EVERY: usize = 16;
 /// step on; an input left ``None`` keeps its held value. ``u``: motor torques (n, N·m, link
 /// side); ``base_wrench``: ``[moment; force]`` applied to the base, base frame;
 /// ``ee_wrench``: 6 per end-effector (each in its EE frame, exerted by the EE on its
-/// environment; a dict keyed by EE link names works too). ``wheel_torque`` is reserved for
-/// reaction wheels, which are not modelled yet: it must be ``None``.
+/// environment; a dict keyed by EE link names works too); ``wheel_torque``: the reaction-wheel
+/// torque commands (k, N·m) of an arm with wheels, saturated at the start of each step as a run
+/// saturates them.
 ///
 /// A sequence of ``step`` calls gives, bit for bit, the states of ``arm.simulate`` with the same
 /// inputs. A step that diverges is undone and raises ``SimulationError`` (``step``, ``time``;
@@ -132,18 +133,24 @@ impl PySimulator {
         wheel_torque: Option<&Bound<'_, PyAny>>,
         n: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<()> {
-        if wheel_torque.is_some_and(|w| !w.is_none()) {
-            return Err(ModelError::new_err(
-                "wheel_torque: this arm has no reaction wheels (they are not modelled yet); \
-                 pass None",
-            ));
-        }
         let n = match n {
             Some(n) => positive_count(n, "n")?,
             None => 1,
         };
         let arm = self.arm.bind(py).get();
         let robot = arm.arm.robot();
+        let wheel_torque =
+            match (
+                wheel_torque.filter(|o| !o.is_none()),
+                arm.arm.layout().wheels,
+            ) {
+                (None, _) => None,
+                (Some(_), 0) => return Err(ModelError::new_err(
+                    "wheel_torque: the arm has no reaction wheels; pass None (or build the arm \
+                     with wheels=)",
+                )),
+                (Some(w), k) => Some(vector(w, "wheel_torque", Some(k))?),
+            };
         let inputs = StepInputs {
             u: match u.filter(|o| !o.is_none()) {
                 Some(u) => Some(vector(u, "u", Some(robot.dof()))?),
@@ -170,6 +177,9 @@ impl PySimulator {
         }
         if let Some(f) = &inputs.ee_wrench {
             sim.set_ee_wrench(Some(f))?;
+        }
+        if let Some(w) = &wheel_torque {
+            sim.set_wheel_torque(w)?;
         }
         let mut signals = Signals {
             error: None,

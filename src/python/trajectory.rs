@@ -38,6 +38,8 @@ pub struct PyTrajectory {
     momentum: GILOnceCell<Py<PyArray2<f64>>>,
     energy: GILOnceCell<Py<PyArray1<f64>>>,
     ee_pose: GILOnceCell<Py<PyArray2<f64>>>,
+    /// A run with a target: its rows, events and combined arm.
+    capture: Option<super::capture_run::CaptureInfo>,
 }
 
 /// A read-only 2-D array that takes over `values` (no copy).
@@ -74,18 +76,41 @@ impl PyTrajectory {
         let steps = traj
             .u
             .len()
-            .checked_div(layout.n)
+            .checked_div(layout.inputs_len())
             .unwrap_or(rows.saturating_sub(1));
         Ok(Self {
             arm,
             t: t.unbind(),
             x: frozen_rows(py, rows, layout.len(), traj.x)?,
-            u: frozen_rows(py, steps, layout.n, traj.u)?,
+            u: frozen_rows(py, steps, layout.inputs_len(), traj.u)?,
             layout,
             momentum: GILOnceCell::new(),
             energy: GILOnceCell::new(),
             ee_pose: GILOnceCell::new(),
+            capture: None,
         })
+    }
+
+    /// The record of a run with a target: its target rows, events and combined arm.
+    pub(crate) fn with_capture(mut self, info: super::capture_run::CaptureInfo) -> Self {
+        self.capture = Some(info);
+        self
+    }
+
+    /// The total momentum (6 per row) or energy (1 per row) of a run with a target, `None`
+    /// for a run without one.
+    fn with_target(&self, py: Python<'_>, momentum: bool) -> PyResult<Option<Vec<f64>>> {
+        let Some(info) = &self.capture else {
+            return Ok(None);
+        };
+        let t = self.t.bind(py).readonly();
+        let x = self.x.bind(py).readonly();
+        let (t, x) = (t.as_slice()?, x.as_slice()?);
+        let arm = &self.arm.get().arm;
+        Ok(Some(py.allow_threads(|| match momentum {
+            true => info.record.momentum(arm, t, x),
+            false => info.record.energy(arm, t, x),
+        })))
     }
 
     /// A diagnostic of `per_row` numbers per stored row, computed without the GIL by `f` over
@@ -149,25 +174,62 @@ impl PyTrajectory {
     fn rows(&self, py: Python<'_>) -> usize {
         self.t.bind(py).len()
     }
+
+    /// Columns `range` of the held inputs `[u | applied wheel torques]`, a view.
+    fn inputs_view(&self, py: Python<'_>, range: std::ops::Range<usize>) -> PyResult<PyObject> {
+        let columns = PySlice::new(py, range.start as isize, range.end as isize, 1);
+        let key = PyTuple::new(py, [PySlice::full(py).into_any(), columns.into_any()])?;
+        Ok(self.u.bind(py).get_item(key)?.unbind())
+    }
 }
 
 #[pymethods]
 impl PyTrajectory {
-    /// Rebuilds a record from its arrays (as pickling does): ``t`` (k,), ``x`` (k, 13+4n) and
-    /// ``u`` (k-1, n). The arrays are copied, and checked: finite numbers, and each row of ``x`` a
-    /// valid state (a quaternion of non-zero norm).
+    /// Rebuilds a record from its arrays (as pickling does): ``t`` (k,), ``x`` (k, 13+4n+w),
+    /// ``u`` (k-1, n) and, for an arm with w reaction wheels, ``wheel_torque`` (k-1, w). The
+    /// arrays are copied, and checked: finite numbers, and each row of ``x`` a valid state (a
+    /// quaternion of non-zero norm).
     #[new]
+    #[pyo3(signature = (arm, t, x, u, wheel_torque=None))]
     fn new(
         py: Python<'_>,
         arm: Py<PyFlexibleArm>,
         t: &Bound<'_, PyAny>,
         x: &Bound<'_, PyAny>,
         u: &Bound<'_, PyAny>,
+        wheel_torque: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Self> {
         let layout = arm.get().arm.layout();
         let t = vector(t, "t", None)?;
         let (rows, x) = matrix(x, "x", layout.len())?;
-        let (steps, u) = matrix(u, "u", layout.n)?;
+        let (steps, mut u) = matrix(u, "u", layout.n)?;
+        match (wheel_torque.filter(|o| !o.is_none()), layout.wheels) {
+            (None, 0) => {}
+            (Some(_), 0) => {
+                return Err(ModelError::new_err(
+                    "wheel_torque: the arm has no reaction wheels; give none",
+                ))
+            }
+            (None, k) => {
+                return Err(ModelError::new_err(format!(
+                    "wheel_torque: the arm has {k} reaction wheels; give their applied torques \
+                     (k-1, {k})"
+                )))
+            }
+            (Some(w), k) => {
+                let (wheel_steps, w) = matrix(w, "wheel_torque", k)?;
+                if wheel_steps != steps {
+                    return Err(ModelError::new_err(format!(
+                        "wheel_torque: expected {steps} rows (as u), given {wheel_steps}"
+                    )));
+                }
+                let n = layout.n;
+                u = (0..steps)
+                    .flat_map(|r| u[r * n..(r + 1) * n].iter().chain(&w[r * k..(r + 1) * k]))
+                    .copied()
+                    .collect();
+            }
+        }
         if rows != t.len() || steps != rows.saturating_sub(1) {
             return Err(ModelError::new_err(format!(
                 "Trajectory: expected t (k,), x (k, {}) and u (k-1, {}), given {} times, {rows} \
@@ -192,6 +254,35 @@ impl PyTrajectory {
     fn arm(&self, py: Python<'_>) -> Py<PyFlexibleArm> {
         self.arm.clone_ref(py)
     }
+    /// The target's state ``[r_t; quat_t (x, y, z, w); ω; v]`` at each row, (k, 13), in a run
+    /// with a target (``None`` otherwise): the free body before the capture, then the body
+    /// welded to the end-effector.
+    #[getter]
+    fn target(&self, py: Python<'_>) -> Option<Py<PyArray2<f64>>> {
+        self.capture.as_ref().map(|c| c.target.clone_ref(py))
+    }
+    /// What happened in the run: a list of :class:`CaptureEvent` (empty for a run without one).
+    #[getter]
+    fn events<'py>(&self, py: Python<'py>) -> Bound<'py, pyo3::types::PyList> {
+        match &self.capture {
+            Some(c) => c.events.bind(py).clone(),
+            None => pyo3::types::PyList::empty(py),
+        }
+    }
+    /// The run's :class:`Target` at ``t = 0`` (mass, inertia, handle) in a run with a target,
+    /// ``None`` otherwise.
+    #[getter]
+    fn target_body(&self, py: Python<'_>) -> Option<Py<super::capture::PyTarget>> {
+        self.capture.as_ref().map(|c| c.body.clone_ref(py))
+    }
+    /// The combined arm (the target a payload of the EE) after a capture; ``None`` before or
+    /// without one. The rows after the capture are states of this arm.
+    #[getter]
+    fn arm_after(&self, py: Python<'_>) -> Option<Py<PyFlexibleArm>> {
+        self.capture
+            .as_ref()
+            .and_then(|c| c.arm_after.as_ref().map(|a| a.clone_ref(py)))
+    }
     /// Times (s), shape (k,).
     #[getter]
     fn t(&self, py: Python<'_>) -> Py<PyArray1<f64>> {
@@ -204,8 +295,22 @@ impl PyTrajectory {
     }
     /// Motor torques (N·m, link side) held during each step, shape (k-1, n).
     #[getter]
-    fn u(&self, py: Python<'_>) -> Py<PyArray2<f64>> {
-        self.u.clone_ref(py)
+    fn u(&self, py: Python<'_>) -> PyResult<PyObject> {
+        if self.layout.wheels == 0 {
+            return Ok(self.u.clone_ref(py).into_any());
+        }
+        self.inputs_view(py, 0..self.layout.n)
+    }
+    /// Reaction-wheel torques applied during each step, after saturation (N·m, on each wheel
+    /// about its axis), shape (k-1, w); (k-1, 0) without wheels.
+    #[getter]
+    fn wheel_torque(&self, py: Python<'_>) -> PyResult<PyObject> {
+        self.inputs_view(py, self.layout.n..self.layout.inputs_len())
+    }
+    /// Reaction-wheel speeds relative to the bus (rad/s), (k, w); a view of ``x``.
+    #[getter]
+    fn wheel_speed(&self, py: Python<'_>) -> PyResult<PyObject> {
+        self.view(py, self.layout.wheel_speed())
     }
     /// ``[r_B (m); quat_B (x, y, z, w)]`` per state, (k, 7); a view of ``x``.
     #[getter]
@@ -250,22 +355,30 @@ impl PyTrajectory {
         Ok(row_major(py, self.rows(py), self.layout.n, values))
     }
     /// Total momentum ``[angular (N·m·s); linear (N·s)]`` of base and links, inertial frame,
-    /// about the inertial origin, (k, 6).
+    /// about the inertial origin, (k, 6). In a run with a target, the target's is included: the
+    /// free target's before the capture, the combined arm's after it.
     #[getter]
     fn momentum(&self, py: Python<'_>) -> PyResult<Py<PyArray2<f64>>> {
         self.momentum
             .get_or_try_init(py, || {
-                let values = self.along(py, 6, |arm, rows| rows.momentum(arm))?;
+                let values = match self.with_target(py, true)? {
+                    Some(values) => values,
+                    None => self.along(py, 6, |arm, rows| rows.momentum(arm))?,
+                };
                 frozen_rows(py, self.rows(py), 6, values)
             })
             .map(|a| a.clone_ref(py))
     }
-    /// Total energy (J): rigid kinetic + motor kinetic + spring, (k,).
+    /// Total energy (J): rigid kinetic + motor kinetic + spring, (k,). In a run with a target,
+    /// plus the free target's kinetic energy before the capture (the combined arm's after).
     #[getter]
     fn energy(&self, py: Python<'_>) -> PyResult<Py<PyArray1<f64>>> {
         self.energy
             .get_or_try_init(py, || {
-                let values = self.along(py, 1, |arm, rows| rows.energy(arm))?;
+                let values = match self.with_target(py, false)? {
+                    Some(values) => values,
+                    None => self.along(py, 1, |arm, rows| rows.energy(arm))?,
+                };
                 let array = PyArray1::from_vec(py, values);
                 freeze(array.as_any())?;
                 Ok::<_, PyErr>(array.unbind())
@@ -381,19 +494,23 @@ impl PyTrajectory {
     }
 
     /// Writes ``t``, ``x``, ``u``, ``columns`` (the names of ``x``'s columns), ``momentum``,
-    /// ``energy``, ``ee_pose``, ``spring_torque`` and ``deflection`` to a ``.npz`` file.
+    /// ``energy``, ``ee_pose``, ``spring_torque``, ``deflection``, ``wheel_speed`` and
+    /// ``wheel_torque`` (the applied torques; both with 0 columns without wheels) to a ``.npz``
+    /// file.
     fn save_npz(&self, py: Python<'_>, path: &Bound<'_, PyAny>) -> PyResult<()> {
         let np = py.import("numpy")?;
         let kwargs = PyDict::new(py);
         kwargs.set_item("t", self.t(py))?;
         kwargs.set_item("x", self.x(py))?;
-        kwargs.set_item("u", self.u(py))?;
+        kwargs.set_item("u", self.u(py)?)?;
         kwargs.set_item("columns", np.call_method1("array", (self.column_names(),))?)?;
         kwargs.set_item("momentum", self.momentum(py)?)?;
         kwargs.set_item("energy", self.energy(py)?)?;
         kwargs.set_item("ee_pose", self.ee_pose(py)?)?;
         kwargs.set_item("spring_torque", self.spring_torque(py)?)?;
         kwargs.set_item("deflection", self.deflection(py)?)?;
+        kwargs.set_item("wheel_speed", self.wheel_speed(py)?)?;
+        kwargs.set_item("wheel_torque", self.wheel_torque(py)?)?;
         np.call_method("savez", (path,), Some(&kwargs))?;
         Ok(())
     }
@@ -428,7 +545,15 @@ impl PyTrajectory {
     fn __reduce__<'py>(slf: &Bound<'py, Self>) -> PyResult<(PyObject, PyObject)> {
         let py = slf.py();
         let me = slf.get();
-        let args = (me.arm(py), me.t(py), me.x(py), me.u(py));
+        let args = (
+            me.arm(py),
+            me.t(py),
+            me.x(py),
+            me.u(py)?,
+            (me.layout.wheels > 0)
+                .then(|| me.wheel_torque(py))
+                .transpose()?,
+        );
         Ok((
             slf.get_type().into_any().unbind(),
             args.into_pyobject(py)?.into_any().unbind(),

@@ -31,7 +31,7 @@ PNGS = {
     "momentum_drift.png",
 }
 # the demo adds its planned slew beside the rigid-joint plan (tests/python/test_planning.py)
-DEMO_PNGS = PNGS | {"plan_vs_rigid.png", "plan_motor_torque.png", "plan_joint_speed.png"}
+DEMO_PNGS = PNGS | {"plan_vs_rigid.png", "plan_motor_torque.png", "plan_joint_speed.png", "wheels.png"}
 
 URDF = """<?xml version="1.0"?>
 <robot name="two_link_sat">
@@ -137,6 +137,33 @@ def test_demo_exits_zero_and_prints_summary(demo_run):
         assert line in out, f"summary lacks {line!r}:\n{out}"
     assert "space_arm" in out
     assert "500 RK4 steps" in out
+
+
+def test_demo_prints_the_first_three_closed_loop_modes_of_its_arm(demo_run):
+    # the demo's line and summary.json hold what orbitflex.analysis computes for the same arm,
+    # controller and start state (the demo's PD at the default gains, free floating)
+    import json
+
+    import orbitflex
+    from orbitflex import analysis, models
+
+    result, out = demo_run
+    assert result.returncode == 0, result.stderr[-2000:]
+    line = next(l for l in result.stdout.splitlines() if l.startswith("first closed-loop modes"))
+    summary = json.loads((out / "summary.json").read_text())
+    saved = summary["closed_loop_modes"]
+    assert len(saved) == 3
+    arm = orbitflex.FlexibleArm(models.space_arm(), models.space_arm_joints())
+    # the PD's reference does not enter the linearisation: only its gains do
+    pd = orbitflex.MotorPD(summary["controller"]["kp"], summary["controller"]["kd"], np.zeros(arm.dof))
+    modes, expected = analysis.closed_loop_modes(arm, arm.state(), pd, count=3)
+    assert line == expected
+    for i, m in enumerate(saved):
+        assert m["frequency_hz"] == pytest.approx(modes.frequency_hz[i], rel=1e-9)
+        assert m["damping_ratio"] == pytest.approx(modes.damping_ratio[i], rel=1e-9, abs=1e-12)
+        assert m["dominant_joint"] == modes.dominant_joints[i]
+    # ascending, structural (not rigid-body) modes
+    assert 0 < saved[0]["frequency_hz"] <= saved[1]["frequency_hz"] <= saved[2]["frequency_hz"]
 
 
 def test_demo_writes_trajectory_summary_and_plots(demo_run):
@@ -712,8 +739,11 @@ def test_diverged_run_summary_describes_the_finite_part(tmp_path):
     text = result.stdout
     assert "FAILED" in text and f"step {step} (t = {time:g} s)" in text
     assert "RK4 truncation" not in text  # the drift of a diverging run is no truncation error
-    # the outputs of the finite part are written all the same
-    assert {p.name for p in out.iterdir()} == DEMO_PNGS | {"trajectory.npz", "summary.json", "animation.html"}
+    # the outputs of the finite part are written all the same (not the wheel case, which is
+    # compared with a run that failed)
+    assert {p.name for p in out.iterdir()} == (DEMO_PNGS - {"wheels.png"}) | {"trajectory.npz", "summary.json",
+                                                                             "animation.html"}
+    assert "the wheel case is not run" in result.stderr
     with np.load(out / "trajectory.npz") as data:
         assert len(data["t"]) == step + 1 and np.isfinite(data["x"]).all()
 

@@ -12,6 +12,8 @@ import subprocess
 import warnings
 from pathlib import Path
 
+import json
+
 import numpy as np
 import pytest
 
@@ -520,3 +522,50 @@ def test_dual_arm_page_draws_a_trail_per_end_effector(tmp_path):
     assert 300 < changed.sum() < 0.5 * changed.size, changed.sum()
     # (the time label is written after both trails are extended: it reads t = 2.00 s only if
     # the second trail exists as a line, above)
+
+
+def test_the_target_box_has_the_targets_mass_and_moments():
+    # a uniform box of sides a, b, c: I_x = m/12 (b² + c²), ...; the view draws the box back
+    m, sides = 200.0, np.array([1.0, 1.2, 1.4])
+    a2, b2, c2 = sides**2
+    inertia = np.diag([m / 12 * (b2 + c2), m / 12 * (a2 + c2), m / 12 * (a2 + b2)])
+    from orbitflex.viz.animation import target_box
+
+    np.testing.assert_allclose(target_box(m, inertia), sides, rtol=1e-14)
+
+
+def _capture_page(tmp_path, duration):
+    s = orbitflex.models.capture_scenario(meet=1.0)
+    traj = s.run(duration, record_every=10)
+    return traj, traj.animate(tmp_path / "capture.html")
+
+
+def test_a_capture_run_draws_the_target_as_a_box(tmp_path):
+    traj, page = _capture_page(tmp_path, 1.5)
+    import re
+
+    def names(html):
+        return json.loads(re.search(r'"names": (\[[^\]]*\])', html).group(1))
+
+    # the target is one more body of the scene, beside the robot's frames
+    robot_frames = traj.arm.robot.frame_names
+    assert names(page.read_text("utf-8")) == [*robot_frames, "target"]
+    plain = short_run(steps=10).animate(tmp_path / "plain.html").read_text("utf-8")
+    assert "target" not in names(plain)
+    assert len(traj.events) == 1
+
+
+@needs_chromium
+def test_the_target_box_renders_before_and_after_the_capture(tmp_path):
+    traj, page = _capture_page(tmp_path, 1.5)
+    url = page.resolve().as_uri()
+    assert "ready" in _dom(url).split("</title>")[0]
+    event = traj.events[0].time
+    before = _pixels(_render(f"{url}#t={event - 0.4:.2f}", tmp_path, "before"))
+    after = _pixels(_render(f"{url}#t={traj.t[-1]:.2f}", tmp_path, "after"))
+    scene = (slice(60, 520), slice(0, 900))
+    # the target's orange box is on the screen both before and after the capture
+    for image in (before, after):
+        r, g, b = image[scene][..., 0], image[scene][..., 1], image[scene][..., 2]
+        orange = (r > 150) & (g > 70) & (g < 170) & (b < 90)
+        assert orange.sum() > 500, orange.sum()

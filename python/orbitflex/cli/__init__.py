@@ -16,6 +16,8 @@ and as if they were rigid, runs both plans on the flexible arm and compares them
 limits, plans it again as if the joints were rigid, tracks both on the flexible arm, and writes
 the plans, the comparison, ``plan_summary.json`` and plots.
 
+``capture`` runs the built-in capture of a tumbling target (:mod:`orbitflex.cli.capture`).
+
 ``modes`` prints the structural modes of an arm and draws them (:mod:`orbitflex.cli.modes`).
 ``fmu`` writes an FMI co-simulation FMU of an arm (:mod:`orbitflex.cli.fmu`).
 
@@ -251,6 +253,10 @@ def main(argv: Optional[List[str]] = None) -> int:
             from . import fmu
 
             return fmu.command(args)
+        if args.command == "capture":
+            from . import capture
+
+            return capture.command(args)
         if args.dt > args.duration:
             raise CliError("--dt", f"expected at most --duration ({args.duration:g} s), given {args.dt:g}")
         job = demo_job(args) if args.command == "demo" else simulate_job(args)

@@ -36,6 +36,10 @@ def common_options(p: argparse.ArgumentParser, duration: float) -> None:
     pd.add_argument("--force", action="store_true",
                     help="run even when --dt is past the RK4 stability limit of the closed loop "
                          "(refused otherwise); the run then warns and most likely diverges")
+    p.add_argument("--wheels", metavar="TOML", default=None,
+                   help="reaction wheels on the bus and the AttitudePD holding it (keys: "
+                        "examples/wheels.toml): the slew is run again with them; the demo does so "
+                        "with orbitflex.models.pyramid_wheels() when not given")
     p.add_argument("--out", metavar="DIR", default="orbitflex_out",
                    help="output folder, created if missing (default %(default)s)")
     p.add_argument("--csv", action="store_true", help="also write trajectory.csv (t and x, named columns)")
@@ -122,7 +126,7 @@ def build_parser() -> Parser:
     parser = Parser(prog="orbitflex", description="Flexible-joint space manipulator simulation: a "
                     "free-floating slew of an arm on a spacecraft bus.")
     parser.add_argument("--version", action="version", version=f"orbitflex {__version__}")
-    sub = parser.add_subparsers(dest="command", metavar="{demo,simulate,plan,campaign,modes,fmu}")
+    sub = parser.add_subparsers(dest="command", metavar="{demo,simulate,plan,campaign,modes,fmu,capture}")
     demo = sub.add_parser("demo", help="simulate the built-in space arm (bus + 7-joint arm), free floating",
                           description="Simulates the built-in space arm (a 500 kg bus with a 7-joint arm) "
                                       "slewing free-floating, and writes the trajectory, a summary and plots.")
@@ -170,6 +174,9 @@ def build_parser() -> Parser:
     from . import fmu  # `orbitflex fmu` too
 
     fmu.add_parser(sub)
+    from . import capture  # `orbitflex capture` too
+
+    capture.add_parser(sub)
     return parser
 
 

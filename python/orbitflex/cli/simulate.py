@@ -28,6 +28,7 @@ from .plots import Figures, plot
 from .robots import BUS_SIDE, DEFAULTS_SCALING, load_arm
 from .slew import SPACE_ARM_SLEW, check_step, choose_gains, per_joint, slew_controller
 from .summary import divergence_onset, gain_text, print_summary, summarise
+from .wheels import WHEELS_OUTPUTS, plot_wheel_case, print_wheel_case, run_wheel_case, wheels_for
 
 if TYPE_CHECKING:
     from .plan import Comparison
@@ -119,20 +120,43 @@ def run(job: Job, args: argparse.Namespace) -> int:
           f"dt = {args.dt:g} s (RK4 limit of the closed loop at rest: {limit:.3g} s)")
     if job.note:
         print(job.note)
+    modes = None
+    if job.compare_plans:  # the demo: the structural modes its controller closes (docs/modes.md)
+        from ..analysis import closed_loop_modes
+
+        modes, line = closed_loop_modes(job.arm, job.arm.state(), pd, count=3, base="free")
+        print(line)
     outcome = simulate(job.arm, pd, steps, args.dt, progress=not args.quiet, record_every=args.record_every)
+    wheels = wheels_for(args, demo=job.compare_plans)
+    wheel_case = None
+    if wheels is not None and outcome.failure is None:
+        wheel_case = run_wheel_case(job, wheels, pd, steps, args.dt, outcome.meaningful(), args.record_every)
+    elif wheels is not None:
+        print("orbitflex: the wheel case is not run: the free-floating run it is compared with failed",
+              file=sys.stderr)
     comparison, note = demo_comparison(job.arm, job.name, args.dt) if job.compare_plans else (None, None)
     with np.errstate(all="ignore"):  # a diverged run's finite part may overflow in the summary
         summary = summarise(job.name, outcome, steps)
         summary["controller"] = {**gains.as_dict(), "rk4_stability_limit_s": limit}
+        if modes is not None:
+            summary["closed_loop_modes"] = [
+                {"frequency_hz": float(f), "damping_ratio": float(z), "dominant_joint": str(j)}
+                for f, z, j in zip(modes.frequency_hz[:3], modes.damping_ratio[:3], modes.dominant_joints[:3])]
         if comparison is not None:
             summary["planned_slew"] = {"goal_rad": DEMO_PLAN_GOAL.tolist(), "base": comparison.plan.base,
                                        "limits": limits_dict(comparison.plan.limits),
                                        **comparison_summary(comparison)}
+        if wheel_case is not None:
+            summary["wheels"] = wheel_case.summary()
         files = write_outputs(job, outcome, summary, out, args, comparison)
+        if wheel_case is not None and not args.no_plots:
+            files += plot_wheel_case(wheel_case, job, args.dt, out)
     print_summary(summary, job.arm.dof)
+    if wheel_case is not None:
+        print_wheel_case(wheel_case)
     if comparison is not None:
         print_demo_comparison(comparison, note)
-    descriptions = {**OUTPUTS, **PLAN_OUTPUTS}
+    descriptions = {**OUTPUTS, **PLAN_OUTPUTS, **WHEELS_OUTPUTS}
     width = max(len(str(f)) for f in files)
     print(f"\nwrote {len(files)} files:")
     for f in files:

@@ -308,6 +308,7 @@ def _scene(
     ghost: bool,
     share: bool = False,
     extra: Sequence[Dict[str, Any]] = (),
+    extra_frames: Sequence[str] = (),
 ) -> _Scene:
     """Set-object commands drawing every shape of ``robot`` under the path ``robot`` and, with
     ``ghost``, its stick figure under ``ghost`` in translucent blue. Bad meshes warn and get a
@@ -319,7 +320,8 @@ def _scene(
     if ghost:
         roots.append(("ghost", robot.scene(skeleton=True)[0], _GHOST))
     names: List[str] = []
-    for name in robot.frame_names:
+    frame_names = list(robot.frame_names) + list(extra_frames)  # bodies beside the robot (a target)
+    for name in frame_names:
         safe = _safe(name)
         while safe in names:
             safe += "_"
@@ -332,7 +334,7 @@ def _scene(
         count: Dict[int, int] = {}
         for shape in drawn:
             rgba = override if override is not None else shape["color"]
-            link = robot.frame_names[shape["frame"]]
+            link = frame_names[shape["frame"]]
             # a mesh drawn again in the same colour is a copy of its first drawing (the copy's
             # matrix carries its own scale), embedded once
             key = (shape["path"], tuple(rgba or ())) if shape["kind"] == "mesh" else None

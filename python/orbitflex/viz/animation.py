@@ -11,7 +11,7 @@ import json
 import math
 import re
 from pathlib import Path
-from typing import Any, Dict, Mapping, Optional, Sequence, Union
+from typing import Any, Dict, List, Mapping, Optional, Sequence, Union
 
 import numpy as np
 
@@ -65,6 +65,34 @@ def _f32(a: _Array) -> str:
     return base64.b64encode(np.ascontiguousarray(a, dtype="<f4").tobytes()).decode("ascii")
 
 
+TARGET_COLOR = [0.85, 0.55, 0.15, 0.9]
+HANDLE_COLOR = [0.9, 0.1, 0.1, 1.0]
+
+
+def target_box(mass: float, inertia: _Array) -> _Array:
+    """The sides (m) of the uniform box with ``mass`` and the principal moments on the diagonal
+    of ``inertia`` (about its centre, body axes): ``a² = 6 (I_y + I_z − I_x) / m``, and the same
+    for ``b``, ``c``. The box stands for the target in the view; off-diagonal terms are not
+    drawn (its axes are the body axes)."""
+    ix, iy, iz = np.diag(np.asarray(inertia, dtype=float))
+    squares = 6.0 / mass * np.array([iy + iz - ix, ix + iz - iy, ix + iy - iz])
+    return np.sqrt(np.maximum(squares, 1e-6))
+
+
+def target_shapes(traj: "_core.Trajectory", frame: int) -> List[Dict[str, Any]]:
+    """The shapes of a run's target on the extra frame ``frame``: its equivalent box
+    (:func:`target_box`) at its centre of mass, and its handle (a 5 cm sphere)."""
+    target = traj.target_body
+    if target is None:
+        return []
+    com = list(np.asarray(target.com, dtype=float))
+    box = {"kind": "box", "frame": frame, "size": target_box(target.mass, target.inertia).tolist(),
+           "origin": com + [0.0, 0.0, 0.0, 1.0], "color": TARGET_COLOR, "stand_in": False}
+    handle = {"kind": "sphere", "frame": frame, "radius": 0.05, "origin": list(np.asarray(target.grasp, dtype=float)),
+              "color": HANDLE_COLOR, "stand_in": False}
+    return [box, handle]
+
+
 def animation_html(
     traj: "_core.Trajectory",
     fps: float = DEFAULT_FPS,
@@ -87,8 +115,15 @@ def animation_html(
         if not (math.isfinite(scale) and scale > 0):
             raise ValueError(f"ghost: expected True, False or a positive factor, given {ghost!r}")
     extra = [_checked_shape(shape, k, len(robot.frame_names)) for k, shape in enumerate(shapes)]
-    scene = _scene(robot, packages, ghost=scale is not None, share=True, extra=extra)
     poses = traj.frame_poses(rows=rows.tolist())
+    extra_frames: List[str] = []
+    if traj.target is not None:
+        # the target as one more body: its box, and its handle as a small sphere
+        frame = poses.shape[1]
+        poses = np.concatenate([poses, np.asarray(traj.target)[rows, None, :7]], axis=1)
+        extra_frames.append("target")
+        extra += target_shapes(traj, frame)
+    scene = _scene(robot, packages, ghost=scale is not None, share=True, extra=extra, extra_frames=extra_frames)
     ghost_poses = traj.frame_poses(motor_side=scale, rows=rows.tolist()) if scale is not None else None
     # one trail per end-effector (every arm of a tree)
     trails = [poses[:, robot.frame_names.index(link), :3] for link in robot.ee_links]

@@ -186,6 +186,7 @@ impl RunInputs<'_> {
             u: self.control.controller(),
             base_wrench: &mut self.wrenches.base,
             ee_wrench: &mut self.wrenches.ee,
+            wheel_torque: &mut self.wrenches.wheel_torque,
         }
     }
 }
@@ -202,6 +203,7 @@ impl<'a> Batch<'a> {
             wrenches: Wrenches {
                 base: self.base_wrench.schedule(run, steps),
                 ee: self.ee_wrench.schedule(run, steps),
+                wheel_torque: self.wheel_torque.schedule(run, steps),
             },
         }
     }
@@ -280,6 +282,20 @@ impl<'a> Batch<'a> {
             }
         }
         let width = self.arms.get(0).layout().len();
+        let wheels = self.arms.get(0).layout().wheels;
+        if let PerRun::Each(arms) = &self.arms {
+            if let Some((run, arm)) = arms
+                .iter()
+                .enumerate()
+                .find(|(_, a)| a.layout().wheels != wheels)
+            {
+                return Err(Error::Dimension {
+                    what: format!("arms[{run}]"),
+                    expected: format!("an arm with {wheels} reaction wheels (as run 0's)"),
+                    given: format!("one with {}", arm.layout().wheels),
+                });
+            }
+        }
         for (what, input, w) in [
             ("x0s", &self.x0, width),
             ("base_wrench", &self.base_wrench, 6),
@@ -288,6 +304,7 @@ impl<'a> Batch<'a> {
                 &self.ee_wrench,
                 6 * self.arms.get(0).robot().end_effectors().len(),
             ),
+            ("wheel_torque", &self.wheel_torque, wheels),
         ] {
             input.check(what, w, self.runs, settings.steps)?;
         }

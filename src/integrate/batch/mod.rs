@@ -43,6 +43,7 @@
 //!     u: BatchControl::Open(BatchInput::new("u", &u, &[3, 7], 3, Some(100), 7)?),
 //!     base_wrench: BatchInput::zero(6),
 //!     ee_wrench: BatchInput::zero(6),
+//!     wheel_torque: BatchInput::zero(0),
 //! };
 //! let settings = BatchSettings { dt: 1e-3, steps: 100, record_every: 10, keep_rows: true, threads: Some(2) };
 //! let record = simulate_batch(&batch, &settings, &BatchWatch::default())?;
@@ -59,7 +60,7 @@ mod pool;
 mod record;
 
 pub use input::BatchInput;
-pub use pool::MAX_THREADS;
+pub use pool::{in_pool, Cancel, MAX_THREADS};
 pub use record::{BatchRecord, RunRecord, RunStatus};
 
 use super::record::{is_recorded, recorded_rows, Recorder};
@@ -68,7 +69,6 @@ use super::simulate::simulate_into;
 use crate::control::MotorPD;
 use crate::error::{Error, Result};
 use crate::flex::FlexibleArm;
-use pool::{in_pool, Cancel};
 use rayon::prelude::*;
 use record::{buffer, per_run, Slot, SlotRecorder};
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
@@ -131,6 +131,9 @@ pub struct Batch<'a> {
     pub base_wrench: BatchInput<'a>,
     /// `f` (EE frame, exerted by the EE on its environment), width 6.
     pub ee_wrench: BatchInput<'a>,
+    /// Reaction-wheel torque commands (N·m), width `k` (every arm must have `k` wheels); zero
+    /// for arms without wheels.
+    pub wheel_torque: BatchInput<'a>,
 }
 
 /// How a batch runs.
@@ -180,10 +183,10 @@ pub fn simulate_batch(
     } else {
         0
     };
-    let (len, n) = (layout.len(), layout.n);
+    let (len, n, inputs) = (layout.len(), layout.n, layout.inputs_len());
     let numbers = rows
         .checked_mul(len)
-        .and_then(|x| x.checked_add(rows.saturating_sub(1).checked_mul(n)?))
+        .and_then(|x| x.checked_add(rows.saturating_sub(1).checked_mul(inputs)?))
         .and_then(|per_run| per_run.checked_add(len + 2 * n))
         .and_then(|per_run| per_run.checked_mul(runs));
     let bytes = numbers.and_then(|v| v.checked_mul(8));
@@ -202,13 +205,13 @@ pub fn simulate_batch(
         _ => {}
     }
     let mut x = buffer(runs * rows * len, f64::NAN, &too_big)?;
-    let mut u = buffer(runs * rows.saturating_sub(1) * n, f64::NAN, &too_big)?;
+    let mut u = buffer(runs * rows.saturating_sub(1) * inputs, f64::NAN, &too_big)?;
     let mut final_state = buffer(runs * len, f64::NAN, &too_big)?;
     let mut peak_deflection = buffer(runs * n, 0.0, &too_big)?;
     let mut peak_torque = buffer(runs * n, 0.0, &too_big)?;
     let slots: Vec<Slot<'_>> = per_run(&mut x, runs, rows * len)
         .into_iter()
-        .zip(per_run(&mut u, runs, rows.saturating_sub(1) * n))
+        .zip(per_run(&mut u, runs, rows.saturating_sub(1) * inputs))
         .zip(per_run(&mut final_state, runs, len))
         .zip(per_run(&mut peak_deflection, runs, n))
         .zip(per_run(&mut peak_torque, runs, n))
@@ -393,6 +396,7 @@ mod tests {
             u: BatchControl::Open(BatchInput::zero(7)),
             base_wrench: BatchInput::zero(6),
             ee_wrench: BatchInput::zero(6),
+            wheel_torque: BatchInput::zero(0),
         };
         let settings = BatchSettings {
             dt: 1e-3,

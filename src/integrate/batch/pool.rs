@@ -9,10 +9,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 pub const MAX_THREADS: usize = 1024;
 
 /// Runs `work` on a pool of `threads` threads (`None`: every core; at most [`MAX_THREADS`]).
-pub(super) fn in_pool<R: Send>(
-    threads: Option<usize>,
-    work: impl FnOnce() -> R + Send,
-) -> Result<R> {
+pub fn in_pool<R: Send>(threads: Option<usize>, work: impl FnOnce() -> R + Send) -> Result<R> {
     let threads = threads.unwrap_or_else(|| {
         std::thread::available_parallelism()
             .map(|n| n.get())
@@ -49,7 +46,8 @@ pub(super) fn interrupted(cancel: &AtomicBool, what: &str) -> Result<()> {
 }
 
 /// Stops a run when the batch is cancelled.
-pub(super) struct Cancel<'a>(pub(super) &'a AtomicBool);
+/// An observer that stops a run once its flag is set (checked every 16 steps).
+pub struct Cancel<'a>(pub &'a AtomicBool);
 
 impl Observer for Cancel<'_> {
     /// An atomic load every few steps, so that a run of a large model (a millisecond a step)

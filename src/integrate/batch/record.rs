@@ -72,7 +72,7 @@ impl BatchRecord {
         if self.rows == 0 || run >= self.runs {
             return None;
         }
-        let (len, n) = (self.layout.len(), self.layout.n);
+        let (len, n) = (self.layout.len(), self.layout.inputs_len());
         let record = RunRecord {
             layout: self.layout,
             record_every: self.record_every,
@@ -97,7 +97,7 @@ pub struct RunRecord<'a> {
     pub t: &'a [f64],
     /// The run's rows, `(rows, 13 + 4n)`.
     pub x: &'a [f64],
-    /// The run's inputs, `(rows − 1, n)`.
+    /// The run's inputs, `(rows − 1, n + k)`: motor torques, then applied wheel torques.
     pub u: &'a [f64],
     /// Its final state.
     pub final_state: &'a [f64],
@@ -111,7 +111,11 @@ impl RunRecord<'_> {
     /// [`SimulationFailure`](crate::integrate::SimulationFailure): the rows kept up to the failing step,
     /// ending on the last good state.
     pub fn to_trajectory(&self) -> Trajectory {
-        let (len, n, every) = (self.layout.len(), self.layout.n, self.record_every);
+        let (len, n, every) = (
+            self.layout.len(),
+            self.layout.inputs_len(),
+            self.record_every,
+        );
         let mut traj = Trajectory::empty(self.layout);
         match self.status {
             RunStatus::Finished => {

@@ -20,6 +20,7 @@ mod frames;
 mod merge;
 mod parse;
 mod tree;
+pub(crate) mod write;
 
 use super::{Robot, RobotBuilder};
 use crate::error::Result;
