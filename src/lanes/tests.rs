@@ -104,6 +104,7 @@ fn scalar(arm: &FlexibleArm, run: &Run, dt: f64, steps: usize) -> (Vec<f64>, Opt
             values: run.ee.clone(),
             width: run.ee.len() / steps,
         },
+        wheel_torque: Schedule::Zero,
     };
     match arm.simulate(&run.x0, dt, steps, &mut pd, &wrenches) {
         Ok(traj) => (traj.x, None),
