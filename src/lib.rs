@@ -18,6 +18,7 @@ pub mod flex;
 pub mod fmu;
 pub mod integrate;
 pub mod io;
+pub mod lanes;
 pub mod linalg;
 pub mod model;
 pub mod operators;

@@ -13,7 +13,7 @@ const FLOORS: &[(&str, &[&str])] = &[
     ("state", &["state"]),
     ("control", &["control"]),
     ("flex", &["flex"]),
-    ("integrate", &["integrate"]),
+    ("integrate", &["integrate", "lanes"]),
     ("capture", &["capture"]),
     ("planning", &["planning"]),
     ("analysis", &["analysis"]),

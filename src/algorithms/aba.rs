@@ -1,7 +1,7 @@
 //! Floating-base articulated-body forward dynamics in the paper's conventions, O(n).
 
 use super::data::{check_data, Data};
-use super::kinematics::{body_bias, body_velocity};
+use super::kinematics::{body_bias, body_rates};
 use crate::args::{check_vector, Loads, RigidState};
 use crate::error::{Error, Result};
 use crate::model::Robot;
@@ -69,7 +69,7 @@ pub(crate) fn aba_kernel(
     data.ia[0] = articulated[0];
     data.pa[0] = body_bias(robot, data, 0);
     for i in 1..=n {
-        body_velocity(robot, data, i, state);
+        body_rates(robot, data, i, state);
         data.ia[i] = articulated[i];
         data.pa[i] = body_bias(robot, data, i);
     }

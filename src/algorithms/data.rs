@@ -21,7 +21,11 @@ pub struct Data {
     /// `Φ'_{i,λ(i)}(q)` (A.5) between joint frames, from the parent `λ(i)` to body `i`; entry 0 is
     /// unused.
     pub x: Vec<Transform>,
-    /// Body velocities `V_i` (A.4), joint frames.
+    /// Body velocities `V_i` (A.4), joint frames. [`crate::algorithms::velocities`] (and
+    /// `momentum`, `kinetic_energy`) fill them whole. The classical-acceleration recursions
+    /// ([`crate::algorithms::aba`], [`crate::algorithms::rnea`], `bias_forces`) need only the
+    /// angular parts (the Coriolis terms `a_i` and the bias forces `b_i` depend on `ω` alone) and
+    /// leave NaN in the linear parts of the links (entry 0 holds the base twist whole).
     pub v: Vec<Motion>,
     /// Coriolis terms `a_i` (A.7); entry 0 is zero (`a_B = 0`).
     pub c: Vec<Motion>,

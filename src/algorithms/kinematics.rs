@@ -29,19 +29,33 @@ pub(crate) fn velocities_unchecked(robot: &Robot, data: &mut Data, state: &Rigid
 /// of `a_i` is `q̇_i (R ω_λ) × e_z`.
 #[inline(always)]
 pub(crate) fn body_velocity(robot: &Robot, data: &mut Data, i: usize, state: &RigidState) {
+    let parent = data.v[robot.parents()[i]];
+    let w_cross_p = body_rates(robot, data, i, state);
+    data.v[i].linear = data.x[i].rotation * (parent.linear + w_cross_p);
+}
+
+/// The part of [`body_velocity`] that the classical-acceleration recursions (ABA, RNEA) use:
+/// `x[i]`, the angular velocity `ω_i` and `c[i] = a_i` (A.7), which depend on the angular
+/// velocities alone (and so do the bias forces `b_i`, A.10). The linear part of `v[i]` is set
+/// to NaN, not computed: nothing downstream of these recursions reads it, and a stale value
+/// would be a silent error for a caller reading [`Data::v`] afterwards. Returns `ω_λ × p` for
+/// [`body_velocity`].
+#[inline(always)]
+pub(crate) fn body_rates(robot: &Robot, data: &mut Data, i: usize, state: &RigidState) -> Vec3 {
     let x = robot.joint_transform(i, state.q[i - 1]);
     let qd = state.qd[i - 1];
-    let parent = data.v[robot.parents()[i]];
-    let w_rotated = x.rotation * parent.angular;
-    let w_cross_p = parent.angular.cross(&x.translation);
+    let parent = data.v[robot.parents()[i]].angular;
+    let w_rotated = x.rotation * parent;
+    let w_cross_p = parent.cross(&x.translation);
     let mut omega = w_rotated;
     omega.z += qd;
-    data.v[i] = Motion::new(omega, x.rotation * (parent.linear + w_cross_p));
+    data.v[i] = Motion::new(omega, Vec3::repeat(f64::NAN));
     data.c[i] = Motion::new(
         Vec3::new(qd * w_rotated.y, -qd * w_rotated.x, 0.0),
-        x.rotation * parent.angular.cross(&w_cross_p),
+        x.rotation * parent.cross(&w_cross_p),
     );
     data.x[i] = x;
+    w_cross_p
 }
 
 /// Fills `data.jacobian = J_e` (6×n, column `k` is `Φ_{e,k} H_k` for the joints that move the

@@ -1,7 +1,7 @@
 //! Recursive Newton–Euler inverse dynamics (A.6, A.8, A.12), O(n).
 
 use super::data::{check_data, Data};
-use super::kinematics::{body_bias, body_velocity};
+use super::kinematics::{body_bias, body_rates};
 use crate::args::{check_vector, RigidState};
 use crate::error::Result;
 use crate::model::Robot;
@@ -85,7 +85,7 @@ pub(crate) fn rnea_kernel(
     data.acc[0] = base_acc;
     data.f[0] = inertias[0].apply(&base_acc) + body_bias(robot, data, 0);
     for i in 1..=n {
-        body_velocity(robot, data, i, state);
+        body_rates(robot, data, i, state);
         // (A.6) α_i = Φ_{i,λ} α_λ + H_i q̈_i + a_i
         let mut acc = data.x[i].apply_motion(&data.acc[parents[i]]) + data.c[i];
         if let Some(qdd) = qdd {

@@ -171,6 +171,14 @@ impl Robot {
         joint_transform(&self.frames.origins[i - 1], &self.frames.tilts[i - 1], q)
     }
 
+    /// The constant parts of joint `i ≥ 1`'s transform ([`joint_transform`]): the origin
+    /// `Φ'_0` and the tilt `(γ, cos α, sin α)` of a tilted joint. For the lane kernels
+    /// (`crate::lanes`), which build the transforms of many runs at once.
+    #[inline(always)]
+    pub(crate) fn joint_frame(&self, i: usize) -> (&Transform, Option<(f64, f64, f64)>) {
+        (&self.frames.origins[i - 1], self.frames.tilts[i - 1])
+    }
+
     /// Whether joint `i ≥ 1` is tilted ([`JointFrames::new`]), so that
     /// [`ArticulatedInertia::tilted_to_parent`](crate::spatial::ArticulatedInertia::tilted_to_parent)
     /// applies to its transform.
