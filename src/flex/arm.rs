@@ -44,9 +44,9 @@ pub struct FlexibleArm {
 /// Reaction wheels mounted on the bus: the wheels, and the robot whose base inertia includes
 /// their locked parts ([`ReactionWheels::locked_inertia`]), built once.
 #[derive(Debug, Clone)]
-struct Mounted {
-    wheels: ReactionWheels,
-    robot: Robot,
+pub(super) struct Mounted {
+    pub(super) wheels: ReactionWheels,
+    pub(super) robot: Robot,
 }
 
 /// The inputs held over a step: motor torques `u` (n, link side, N·m), the external [`Loads`]
@@ -101,9 +101,9 @@ pub struct StateSpec<'a> {
 
 /// Scratch memory of the model's calls on one [`FlexibleArm`]: the rigid-body [`Data`], the
 /// spring torques and, from the first [`FlexibleArm::step_jacobians`] on, that call's O(n²)
-/// buffers (reused by the next calls). One per thread. The integrator's
-/// [`ArmWorkspace`](crate::integrate::ArmWorkspace) (made by `FlexibleArm::workspace`) holds one
-/// and the RK4 stages, and stands in for it wherever a `&mut ModelWorkspace` is asked for.
+/// buffers (reused by the next calls). One per thread. The integrator's `ArmWorkspace` (made by
+/// `FlexibleArm::workspace`) holds one and the RK4 stages, and stands in for it wherever a
+/// `&mut ModelWorkspace` is asked for.
 #[derive(Debug, Clone)]
 pub struct ModelWorkspace {
     pub(crate) data: Data,
@@ -365,9 +365,7 @@ impl FlexibleArm {
         self.spring_torque(x, tau);
         let rigid = RigidState::new(s.q, s.base_twist, s.qd);
         if let Some(m) = &self.wheels {
-            return super::wheels::derivative_with_wheels(
-                self, &m.wheels, &m.robot, data, tau, x, inputs, xdot,
-            );
+            return super::wheels::derivative_with_wheels(self, m, data, tau, x, inputs, xdot);
         }
         self.method
             .forward_dynamics_unchecked(&self.robot, data, &rigid, tau, &inputs.loads)?;

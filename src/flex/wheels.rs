@@ -405,19 +405,19 @@ pub fn saturated_torque(wheel: &Wheel, command: f64, speed: f64) -> f64 {
 /// [`FlexibleArm::derivative`](super::FlexibleArm::derivative) of an arm with wheels, `tau`
 /// holding the spring torques: the arm's forward dynamics on the augmented `robot` with the
 /// wheels' moment `Σ n_w` (W2) added to `f_B`, then `Ω̇` (W1) from the bus's `ω̇`. The wheel
-/// torques in `inputs` are applied as given (already saturated).
-#[allow(clippy::too_many_arguments)]
+/// torques in `inputs` are applied as given (already saturated); `mounted` holds the wheels and
+/// the augmented robot.
 #[inline]
-pub(crate) fn derivative_with_wheels(
+pub(super) fn derivative_with_wheels(
     arm: &super::FlexibleArm,
-    wheels: &ReactionWheels,
-    robot: &Robot,
+    mounted: &super::arm::Mounted,
     data: &mut crate::algorithms::Data,
     tau: &[f64],
     x: &[f64],
     inputs: &super::Inputs,
     xdot: &mut [f64],
 ) -> Result<()> {
+    let (wheels, robot) = (&mounted.wheels, &mounted.robot);
     let layout = arm.layout();
     let s = layout.split(x);
     let mut loads = inputs.loads;

@@ -251,7 +251,6 @@ impl PyFlexibleArm {
     /// ``theta = q`` (relaxed springs). The quaternion is normalised. With reaction wheels the
     /// state ends with their speeds ``wheel_speed`` (k,), rad/s relative to the bus (default 0).
     #[pyo3(signature = (q=None, theta=None, qd=None, theta_dot=None, base_pose=None, base_twist=None, wheel_speed=None))]
-    #[allow(clippy::too_many_arguments)]
     fn state<'py>(
         &self,
         py: Python<'py>,
@@ -325,7 +324,6 @@ impl PyFlexibleArm {
     /// One RK4 step of ``dt`` seconds from ``x``, inputs held (the wheel torques saturated once,
     /// at ``x``); returns the new state.
     #[pyo3(signature = (x, dt, u=None, base_wrench=None, ee_wrench=None, wheel_torque=None))]
-    #[allow(clippy::too_many_arguments)]
     fn step<'py>(
         &self,
         py: Python<'py>,
@@ -638,7 +636,6 @@ impl PyFlexibleArm {
     /// the rows kept so far and ends on the last good state (with ``on_rows``: that state
     /// alone). Ctrl-C stops the run.
     #[pyo3(signature = (x0, dt, steps, u=None, base_wrench=None, ee_wrench=None, *, wheel_torque=None, progress=None, record_every=None, on_rows=None, chunk_rows=None, target=None, capture=None, capture_ee=None))]
-    #[allow(clippy::too_many_arguments)]
     fn simulate<'py>(
         slf: &Bound<'py, Self>,
         x0: &Bound<'py, PyAny>,

@@ -266,7 +266,6 @@ fn stability_warning(dt: f64, runs: usize, unstable: &[(usize, f64)]) -> String 
 /// accepted and the shape given (and the run, for a bad row).
 #[pyfunction]
 #[pyo3(name = "simulate_batch", signature = (arm_or_arms, x0s, dt, steps, u=None, base_wrench=None, ee_wrench=None, threads=None, record_every=None, *, keep_rows=true, progress=None, wheel_torque=None))]
-#[allow(clippy::too_many_arguments)]
 pub(crate) fn py_simulate_batch<'py>(
     py: Python<'py>,
     arm_or_arms: &Bound<'py, PyAny>,

@@ -403,7 +403,6 @@ fn per_run<'py, T: pyo3::PyClass>(
 /// (what it computed) and ``.trajectories`` (every run's). Ctrl-C stops the runs.
 #[pyfunction]
 #[pyo3(name = "simulate_capture_batch", signature = (arms, x0s, dt, steps, controllers, targets, capture, *, capture_ee=None, record_every=None, threads=None))]
-#[allow(clippy::too_many_arguments)]
 pub fn py_simulate_capture_batch<'py>(
     py: Python<'py>,
     arms: &Bound<'py, PyAny>,

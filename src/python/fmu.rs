@@ -14,7 +14,6 @@ use pyo3::types::PyBytes;
 /// FMI ``fmi`` (2 or 3); the binary is not among them.
 #[pyfunction]
 #[pyo3(name = "_fmu_files", signature = (urdf, arm, ee_links, locked_joints, dt, model_identifier, fmi))]
-#[allow(clippy::too_many_arguments)]
 pub fn py_fmu_files<'py>(
     py: Python<'py>,
     urdf: &str,

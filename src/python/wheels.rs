@@ -75,7 +75,6 @@ fn triples(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<Vec<[f64; 3]>> {
 impl PyReactionWheels {
     #[new]
     #[pyo3(signature = (axes, positions, mass, spin_inertia, transverse_inertia, max_torque, max_speed, friction=None))]
-    #[allow(clippy::too_many_arguments)]
     fn new(
         axes: &Bound<'_, PyAny>,
         positions: &Bound<'_, PyAny>,
