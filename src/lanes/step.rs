@@ -100,7 +100,7 @@ impl<const W: usize> LaneGroup<W> {
     }
 
     /// Puts state `x` (of the arm's layout, checked by the caller) in lane `k`, its quaternion
-    /// normalised as [`crate::integrate::simulate`] does with `x0`.
+    /// normalised as [`crate::integrate::simulate()`] does with `x0`.
     pub fn set_state(&mut self, k: usize, x: &[f64]) {
         for (lane, v) in self.x.iter_mut().zip(x) {
             lane.0[k] = *v;
