@@ -40,21 +40,13 @@ examples:
 
 def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     """Adds ``modes`` to the CLI's subparsers."""
+    from .robots import add_robot_arguments
     from .errors import finite, non_negative, positive
 
     p: argparse.ArgumentParser = subparsers.add_parser(
         "modes", help="structural modes, frequency response and Campbell diagram of an arm",
         description=DESCRIPTION, epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("urdf", metavar="URDF", nargs="?", default=None,
-                   help="path to the URDF; the root link is the floating base (default: the built-in space arm)")
-    p.add_argument("--params", metavar="TOML", default=None,
-                   help="joint parameters keyed by joint name, as for 'orbitflex simulate' (default: "
-                        "the built-in arm's, or scaled to the links)")
-    p.add_argument("--ee-link", metavar="LINK", default=None, help="the one end-effector link")
-    p.add_argument("--ee-links", metavar="LINKS", action="append", default=None,
-                   help="end-effector links of a tree: a comma-separated list; repeatable")
-    p.add_argument("--locked-joints", metavar="NAMES", action="append", default=None,
-                   help="joints held at zero: a comma-separated list; repeatable")
+    add_robot_arguments(p)
     p.add_argument("--base-mass", metavar="KG", type=positive, default=None,
                    help="mount the arm on a bus of this mass (as for 'orbitflex simulate')")
     p.add_argument("--base-inertia", metavar=("IXX", "IYY", "IZZ"), type=finite, nargs=3, default=None,

@@ -95,3 +95,19 @@ def load_arm(args: argparse.Namespace) -> Tuple[FlexibleArm, float, Array, Optio
     except (ValueError, OSError) as e:
         raise CliError("--params", cli_words(str(e))) from None
     return arm, side, com, note
+
+
+def add_robot_arguments(p: argparse.ArgumentParser) -> None:
+    """The arm a command reads (``modes``, ``fmu``): an optional URDF (default: the built-in space
+    arm), ``--params``, ``--ee-link``/``--ee-links`` and ``--locked-joints``, read by
+    :func:`load_robot` and :func:`joint_list`."""
+    p.add_argument("urdf", metavar="URDF", nargs="?", default=None,
+                   help="path to the URDF; the root link is the floating base (default: the built-in space arm)")
+    p.add_argument("--params", metavar="TOML", default=None,
+                   help="joint parameters keyed by joint name, as for 'orbitflex simulate' (default: "
+                        "the built-in arm's, or scaled to the links)")
+    p.add_argument("--ee-link", metavar="LINK", default=None, help="the one end-effector link")
+    p.add_argument("--ee-links", metavar="LINKS", action="append", default=None,
+                   help="end-effector links of a tree: a comma-separated list; repeatable")
+    p.add_argument("--locked-joints", metavar="NAMES", action="append", default=None,
+                   help="joints held at zero: a comma-separated list; repeatable")
