@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Runs every fuzz target for SECONDS (default 60) with cargo-fuzz on the nightly toolchain:
 #
-#   bash fuzz/run.sh [SECONDS]
+#   bash fuzz/run.sh [SECONDS]     (0: skip)
 #
 # Targets: urdf (bytes -> the URDF loader -> the dynamics), urdf_structured (a generator of
 # trees, cycles, absurd numbers and deep nesting), toml (the joint-parameter reader). Seeds are
@@ -11,6 +11,15 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 seconds=${1:-60}
+# libFuzzer reads -max_total_time=0 as "no limit": 0 seconds means no fuzzing at all.
+if ! [[ "$seconds" =~ ^[0-9]+$ ]]; then
+  echo "fuzz: SECONDS must be a whole number of seconds, given '$seconds'" >&2
+  exit 2
+fi
+if [ "$seconds" -eq 0 ]; then
+  echo "fuzz: skipped: 0 s asked"
+  exit 0
+fi
 if ! rustup toolchain list 2>/dev/null | grep -q '^nightly'; then
   echo "fuzz: skipped: no nightly toolchain (rustup toolchain install nightly, then bash fuzz/run.sh)"
   exit 0

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import orbitflex
-from orbitflex import FlexibleArm, Limits, ModelError, cli, plan_slew
+from orbitflex import FlexibleArm, LimitWarning, Limits, ModelError, cli, plan_slew
 
 ARM = FlexibleArm(orbitflex.models.space_arm(), orbitflex.models.space_arm_joints())
 # the same arm on continuous joints: no position limits, which would refuse a goal of 1e100 rad
@@ -31,20 +31,21 @@ def test_limits_that_need_more_than_1e9_s_are_refused():
 def test_limits_too_loose_to_bind_are_not_reported_as_binding():
     # Limits(1e300) reported motor_torque "binding" at 3.9e32 of 1e300, when the 1 ns floor
     # of the search was what set the duration
-    with pytest.raises(ModelError) as e:
+    with pytest.raises(ModelError) as e, pytest.warns(LimitWarning, match="motor_torque"):
         plan_slew(ARM, GOAL, limits=Limits(1e300, 1e300))
     message = str(e.value)
     assert message.startswith("limits: every limit holds even at 1e-9 s, the shortest segment duration planned, "
                               "so none of them binds (at 1e-9 s motor_torque["), message
     assert message.endswith("against its limit of 1e300); give the hardware's limits")
     # a huge speed limit with a real torque limit still plans: the torque binds
-    assert plan_slew(ARM, GOAL, limits=Limits(50.0, 1e300)).binding["limit"] == "motor_torque"
+    with pytest.warns(LimitWarning, match="joint_speed"):
+        assert plan_slew(ARM, GOAL, limits=Limits(50.0, 1e300)).binding["limit"] == "motor_torque"
 
 
 @pytest.mark.parametrize("waypoints,frm", [(None, "q_start"), ([np.full(7, 0.2)], "waypoints[0]")])
 def test_a_goal_too_large_for_floating_point_is_named(waypoints, frm):
     # a goal of 1e100 said "motor_torque[0] still needs NaN"
-    with pytest.raises(ModelError) as e:
+    with pytest.raises(ModelError) as e, pytest.warns(LimitWarning, match="joint_speed"):
         plan_slew(FREE_ARM, np.full(7, 1e100), limits=Limits(50.0, 1.0), waypoints=waypoints)
     assert str(e.value) == (f"q_goal: too large for floating point: the slew from {frm} to it, 1e100 rad on joint "
                             "6, makes the inverse dynamics overflow at every duration up to 1e9 s")
