@@ -124,6 +124,20 @@ impl ReactionWheels {
         Ok(Self { wheels })
     }
 
+    /// Wheels read back from a file written from [`wheels`](Self::wheels) (an FMU's
+    /// resources): checked as [`new`](Self::new) checks them, but the axes, already normalised
+    /// once, are kept bit for bit (normalising again could move them by a rounding, and the
+    /// dynamics with them).
+    pub(crate) fn normalised(wheels: Vec<Wheel>) -> Result<Self> {
+        if wheels.is_empty() {
+            return Self::new(wheels);
+        }
+        for (w, wheel) in wheels.iter().enumerate() {
+            check_wheel(w, wheel)?;
+        }
+        Ok(Self { wheels })
+    }
+
     /// Number of wheels `k`.
     pub fn len(&self) -> usize {
         self.wheels.len()
