@@ -35,6 +35,14 @@ static void print_hex(const char *name, const double *v, size_t n) {
 
 enum { N = 7, W = 4, STEPS = 300 };
 
+/* The commands of step `step`: up to +-70 N m (beyond the 60 N m limit), switching sign every
+ * 25 steps; wheel 2 always pushed faster (70 N m). Exact arithmetic, as in the Python twin. */
+static void commands(int step, double command[W]) {
+    double sign = (step % 50 < 25) ? 1.0 : -1.0;
+    for (int i = 0; i < W; i++) command[i] = sign * 70.0 * (i + 1) / 4.0;
+    command[2] = 70.0;
+}
+
 int main(void) {
     /* the pyramid of examples/wheels.toml: axes (+-1, +-1, 1)/sqrt(3), centres 0.45 m out */
     const double a = 0.5773502691896258, p = 0.3181980515339464;
@@ -65,10 +73,7 @@ int main(void) {
     unsigned char blob[4096];
     size_t written = 0;
     for (int step = 0; step < STEPS; step++) {
-        /* +-70 N m (beyond the 60 N m limit) switching every 25 steps; wheel 2 pushed faster */
-        double sign = (step % 50 < 25) ? 1.0 : -1.0;
-        for (int i = 0; i < W; i++) command[i] = sign * 70.0 * (i + 1) / 4.0;
-        command[2] = 70.0;
+        commands(step, command);
         CHECK(ofx_simulator_set_wheel_torque(sim, command, W));
         CHECK(ofx_simulator_step(sim, 1));
         if (step == 199) CHECK(ofx_simulator_save(sim, blob, sizeof blob, &written));
@@ -87,9 +92,7 @@ int main(void) {
     /* restore the state after step 200 and replay the last 100 steps: bit for bit */
     CHECK(ofx_simulator_restore(sim, blob, written));
     for (int step = 200; step < STEPS; step++) {
-        double sign = (step % 50 < 25) ? 1.0 : -1.0;
-        for (int i = 0; i < W; i++) command[i] = sign * 70.0 * (i + 1) / 4.0;
-        command[2] = 70.0;
+        commands(step, command);
         CHECK(ofx_simulator_set_wheel_torque(sim, command, W));
         CHECK(ofx_simulator_step(sim, 1));
     }

@@ -59,8 +59,10 @@ use crate::spatial::{Inertia, Mat3, Transform, Vec3};
 /// not meant to be unit is refused, not silently rescaled.
 pub const AXIS_TOLERANCE: f64 = 1e-5;
 
-/// One reaction wheel, in base-frame components: the values a data sheet gives.
-#[derive(Debug, Clone, Copy, PartialEq)]
+/// One reaction wheel, in base-frame components: the values a data sheet gives. (Serialised by
+/// an FMU's `fmu.toml`, with these field names.)
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct Wheel {
     /// Unit spin axis `a`, fixed in the bus (base frame).
     pub axis: [f64; 3],

@@ -14,5 +14,5 @@ pub mod variables;
 
 pub use description::model_description;
 pub use instance::{FmuInstance, Initial, Mode};
-pub use model::{BaseConfig, FmiVersion, FmuConfig, FmuModel, WheelConfig};
+pub use model::{BaseConfig, FmiVersion, FmuConfig, FmuModel};
 pub use variables::{Causality, Parameter, Quantity, Slot, Variable, VariableTable};

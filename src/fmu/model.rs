@@ -63,9 +63,10 @@ pub struct FmuConfig {
     /// the URDF's).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub base: Option<BaseConfig>,
-    /// The reaction wheels on the bus, in order (none: an arm without wheels).
+    /// The reaction wheels on the bus, in order, their axes as the arm holds them (normalised)
+    /// and limits `inf` for none (none: an arm without wheels).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
-    pub wheels: Vec<WheelConfig>,
+    pub wheels: Vec<Wheel>,
 }
 
 fn recursive() -> String {
@@ -101,59 +102,6 @@ impl BaseConfig {
             mass: self.mass,
             com: Vec3::from(self.com),
             rotational: Mat3::from_row_slice(&self.rotational),
-        }
-    }
-}
-
-/// One reaction wheel ([`Wheel`]; base frame, SI units, limits `inf` for none), its axis as the
-/// arm holds it (normalised).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct WheelConfig {
-    /// Unit spin axis.
-    pub axis: [f64; 3],
-    /// Centre (m).
-    pub position: [f64; 3],
-    /// Mass (kg).
-    pub mass: f64,
-    /// Inertia about the spin axis (kg·m²).
-    pub spin_inertia: f64,
-    /// Inertia about a transverse axis through the centre (kg·m²).
-    pub transverse_inertia: f64,
-    /// Motor torque limit (N·m).
-    pub max_torque: f64,
-    /// Speed limit relative to the bus (rad/s).
-    pub max_speed: f64,
-    /// Viscous friction (N·m·s/rad).
-    pub friction: f64,
-}
-
-impl From<&Wheel> for WheelConfig {
-    fn from(w: &Wheel) -> Self {
-        Self {
-            axis: w.axis,
-            position: w.position,
-            mass: w.mass,
-            spin_inertia: w.spin_inertia,
-            transverse_inertia: w.transverse_inertia,
-            max_torque: w.max_torque,
-            max_speed: w.max_speed,
-            friction: w.friction,
-        }
-    }
-}
-
-impl From<&WheelConfig> for Wheel {
-    fn from(w: &WheelConfig) -> Self {
-        Self {
-            axis: w.axis,
-            position: w.position,
-            mass: w.mass,
-            spin_inertia: w.spin_inertia,
-            transverse_inertia: w.transverse_inertia,
-            max_torque: w.max_torque,
-            max_speed: w.max_speed,
-            friction: w.friction,
         }
     }
 }
@@ -248,9 +196,7 @@ impl FmuModel {
             method: arm.method().name().into(),
             variables: table.names(),
             base: base.as_ref().map(BaseConfig::of),
-            wheels: arm.wheels().map_or(Vec::new(), |w| {
-                w.wheels().iter().map(WheelConfig::from).collect()
-            }),
+            wheels: arm.wheels().map_or(Vec::new(), |w| w.wheels().to_vec()),
         };
         let joints = arm.joints();
         let joints_toml = joints_toml(&robot.joint_names(), joints);
@@ -315,8 +261,8 @@ impl FmuModel {
         let method = Method::from_name(&config.method).map_err(|e| malformed(e.to_string()))?;
         let mut arm = FlexibleArm::new(robot, joints)?.with_method(method);
         if !config.wheels.is_empty() {
-            let wheels = config.wheels.iter().map(Wheel::from).collect();
-            arm = arm.with_wheels(ReactionWheels::normalised(wheels)?)?;
+            let wheels = ReactionWheels::normalised(config.wheels.clone())?;
+            arm = arm.with_wheels(wheels)?;
         }
         let model = Self::of_arm(&urdf, &options, &arm, config.dt, &config.model_identifier)?;
         if model.config.variables != config.variables {
