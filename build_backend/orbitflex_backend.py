@@ -34,17 +34,50 @@ def build_runtime() -> None:
     if os.environ.get("ORBITFLEX_SKIP_RUNTIME"):
         return
     cargo = os.environ.get("CARGO", "cargo")
+    restore_capi_member(cargo)
     print("orbitflex: building the C runtime (cargo build --release -p orbitflex-capi)", file=sys.stderr)
     subprocess.run([cargo, "build", "--release", "-p", "orbitflex-capi"], cwd=ROOT, check=True)
-    meta = subprocess.run([cargo, "metadata", "--format-version", "1", "--no-deps"], cwd=ROOT,
-                          check=True, capture_output=True, text=True)
-    target = Path(json.loads(meta.stdout)["target_directory"]) / "release"
+    target = Path(cargo_metadata(cargo)["target_directory"]) / "release"
     RUNTIME_DIR.mkdir(parents=True, exist_ok=True)
     for name in NAMES:
         if (target / name).exists():
             shutil.copy2(target / name, RUNTIME_DIR / name)
             return
     raise RuntimeError(f"cargo built orbitflex-capi but none of {NAMES} is in {target}")
+
+
+def cargo_metadata(cargo: str) -> Dict[str, Any]:
+    meta = subprocess.run([cargo, "metadata", "--format-version", "1", "--no-deps"], cwd=ROOT,
+                          check=True, capture_output=True, text=True)
+    data: Dict[str, Any] = json.loads(meta.stdout)
+    return data
+
+
+def restore_capi_member(cargo: str) -> None:
+    """Puts ``capi`` back among the workspace members when building from the sdist.
+
+    maturin's sdist rewrites the root ``Cargo.toml`` and keeps only the workspace members the
+    Python crate depends on, so ``capi/`` is in the archive but no longer a member, and
+    ``cargo build -p orbitflex-capi`` would find no such package. In a git checkout this
+    changes nothing."""
+    if not (ROOT / "capi" / "Cargo.toml").is_file():
+        return
+    packages = {p["name"] for p in cargo_metadata(cargo)["packages"]}
+    if "orbitflex-capi" in packages:
+        return
+    manifest = ROOT / "Cargo.toml"
+    text = manifest.read_text(encoding="utf-8")
+    lines = text.splitlines(keepends=True)
+    for i, line in enumerate(lines):
+        if line.strip() == "[workspace]":
+            if any(after.strip().startswith("members") for after in lines[i + 1:i + 5]):
+                raise RuntimeError(f"{manifest}: the workspace lists members but not capi; add \"capi\"")
+            lines.insert(i + 1, 'members = ["capi"]  # restored by the build backend (the sdist drops it)\n')
+            manifest.write_text("".join(lines), encoding="utf-8")
+            print("orbitflex: capi restored as a workspace member (the sdist's Cargo.toml lacks it)",
+                  file=sys.stderr)
+            return
+    raise RuntimeError(f"{manifest} has no [workspace] table: cannot build the C runtime (capi/)")
 
 
 def build_wheel(wheel_directory: str, config_settings: Optional[Dict[str, Any]] = None,

@@ -70,7 +70,9 @@ typedef enum {
 
 /**
  * The output quantities `ofx_simulator_output` reads (pass the value as `uint32_t`). Every
- * quantity in SI units, angles in rad; `n` is the number of joints, `k` of end-effectors.
+ * quantity in SI units, angles in rad; `n` is the number of joints, `k` of end-effectors, `w`
+ * of reaction wheels (`ofx_arm_wheel_count`; 0 without wheels, and the wheel outputs are
+ * then empty: length 0).
  */
 typedef enum {
   /**
@@ -120,6 +122,15 @@ typedef enum {
    * Total energy (1, J).
    */
   OFX_OUTPUT_ENERGY = 10,
+  /**
+   * Reaction-wheel speeds relative to the bus (w, rad/s).
+   */
+  OFX_OUTPUT_WHEEL_SPEED = 11,
+  /**
+   * The torques the wheel motors applied over the last step (w, N m): the held commands
+   * after the torque and speed limits, at that step's start; zero before the first step.
+   */
+  OFX_OUTPUT_APPLIED_WHEEL_TORQUE = 12,
 } OfxOutput;
 
 /**
@@ -141,6 +152,47 @@ typedef struct OfxRobot OfxRobot;
  * `ofx_simulator_free`.
  */
 typedef struct OfxSimulator OfxSimulator;
+
+/**
+ * One reaction wheel fixed in the bus, base-frame components, SI units (see docs/model.md,
+ * "Reaction wheels"). The motor applies its torque to the wheel about `axis`; the bus feels
+ * the opposite.
+ */
+typedef struct {
+  /**
+   * Unit spin axis (norm 1 within 1e-5; normalised).
+   */
+  double axis[3];
+  /**
+   * Centre of the wheel (m).
+   */
+  double position[3];
+  /**
+   * Mass (kg), > 0.
+   */
+  double mass;
+  /**
+   * Inertia about the spin axis (kg m^2), > 0.
+   */
+  double spin_inertia;
+  /**
+   * Inertia about any axis through the centre normal to the spin axis (kg m^2),
+   * >= spin_inertia / 2.
+   */
+  double transverse_inertia;
+  /**
+   * Motor torque limit (N m), > 0; `INFINITY` for none.
+   */
+  double max_torque;
+  /**
+   * Speed limit relative to the bus (rad/s), > 0; `INFINITY` for none.
+   */
+  double max_speed;
+  /**
+   * Viscous friction on the wheel speed (N m s/rad), >= 0.
+   */
+  double friction;
+} OfxWheel;
 
 #ifdef __cplusplus
 extern "C" {
@@ -276,6 +328,29 @@ OfxStatus ofx_arm_from_toml_string(const OfxRobot *robot, const char *toml, OfxA
 OfxStatus ofx_arm_builtin(const char *name, OfxArm **out);
 
 /**
+ * A new arm: `arm` (copied) with the `count` reaction wheels `wheels` on its bus (replacing
+ * any it had). The bus's inertia is the robot's base plus the wheels' masses and their
+ * inertias locked to it; the state gains the `count` wheel speeds at its end, and simulators
+ * of the new arm take wheel torque commands (`ofx_simulator_set_wheel_torque`). An invalid
+ * wheel is refused, naming it (`spin_inertia[2]: expected ...`).
+ *
+ * # Safety
+ * `arm` from `ofx_arm_*`; `wheels` readable for `count` `OfxWheel`s; `out` writable.
+ */
+OfxStatus ofx_arm_with_wheels(const OfxArm *arm,
+                              const OfxWheel *wheels,
+                              size_t count,
+                              OfxArm **out);
+
+/**
+ * The number of reaction wheels of `arm` (0 without) into `*out`.
+ *
+ * # Safety
+ * `arm` from `ofx_arm_*`; `out` writable.
+ */
+OfxStatus ofx_arm_wheel_count(const OfxArm *arm, size_t *out);
+
+/**
  * The number of joints `n` of `arm` into `*out`.
  *
  * # Safety
@@ -284,10 +359,10 @@ OfxStatus ofx_arm_builtin(const char *name, OfxArm **out);
 OfxStatus ofx_arm_dof(const OfxArm *arm, size_t *out);
 
 /**
- * The length of `arm`'s state, `13 + 4 n`, into `*out`. The state is
- * `[r_B (3, m, inertial); quat_B (4: x, y, z, w, base to inertial); q (n, rad);
- * theta (n, rad, link side); omega_B (3, rad/s, base frame); v_B (3, m/s, base frame);
- * dq (n, rad/s); dtheta (n, rad/s)]`.
+ * The length of `arm`'s state, `13 + 4 n + w` (`w` reaction wheels, 0 without), into
+ * `*out`. The state is `[r_B (3, m, inertial); quat_B (4: x, y, z, w, base to inertial);
+ * q (n, rad); theta (n, rad, link side); omega_B (3, rad/s, base frame); v_B (3, m/s, base
+ * frame); dq (n, rad/s); dtheta (n, rad/s); wheel speeds (w, rad/s, relative to the bus)]`.
  *
  * # Safety
  * `arm` from `ofx_arm_*`; `out` writable.
@@ -295,8 +370,9 @@ OfxStatus ofx_arm_dof(const OfxArm *arm, size_t *out);
 OfxStatus ofx_arm_state_len(const OfxArm *arm, size_t *out);
 
 /**
- * A state at rest into `x` (`len` = 13 + 4 n): the base at the origin with identity attitude,
- * link angles `q` (n numbers, or NULL for zero), motors at the same angles (springs relaxed).
+ * A state at rest into `x` (`len` = `ofx_arm_state_len`): the base at the origin with identity
+ * attitude, link angles `q` (n numbers, or NULL for zero), motors at the same angles (springs
+ * relaxed), the wheels (if any) still relative to the bus.
  *
  * # Safety
  * `arm` from `ofx_arm_*`; `q` readable for n numbers or NULL; `x` writable for `len` numbers.
@@ -312,8 +388,8 @@ OfxStatus ofx_arm_rest_state(const OfxArm *arm, const double *q, double *x, size
 void ofx_arm_free(OfxArm *arm);
 
 /**
- * A simulator of `arm` (copied) at state `x0` (`len` = 13 + 4 n; the quaternion is
- * normalised), time 0, RK4 step `dt` (s, finite and > 0), every input zero.
+ * A simulator of `arm` (copied) at state `x0` (`len` = `ofx_arm_state_len`; the quaternion
+ * is normalised), time 0, RK4 step `dt` (s, finite and > 0), every input zero.
  *
  * A sequence of `ofx_simulator_step` calls computes, bit for bit, the states of orbitflex's
  * `simulate` (Rust and Python) with the same inputs held over the same steps.
@@ -343,6 +419,18 @@ OfxStatus ofx_simulator_set_motor_torque(OfxSimulator *sim, const double *u, siz
  * `sim` from `ofx_simulator_new`; `wrench` readable for `len` numbers.
  */
 OfxStatus ofx_simulator_set_base_wrench(OfxSimulator *sim, const double *wrench, size_t len);
+
+/**
+ * Holds the reaction-wheel torque commands (`w` numbers, N m, each applied to its wheel about
+ * its axis; the bus feels the opposite) from the next step on. Each step clips them, at its
+ * start, to the wheel's `max_torque` and, for a wheel at or beyond `max_speed`, to none that
+ * would speed it up (as orbitflex's `simulate` does); `OFX_OUTPUT_APPLIED_WHEEL_TORQUE`
+ * gives what was applied. An arm without wheels refuses any command.
+ *
+ * # Safety
+ * `sim` from `ofx_simulator_new`; `torque` readable for `w` numbers.
+ */
+OfxStatus ofx_simulator_set_wheel_torque(OfxSimulator *sim, const double *torque, size_t w);
 
 /**
  * Holds the end-effector wrenches (6 k numbers: per end-effector `[moment (N m); force (N)]`
@@ -381,7 +469,7 @@ OfxStatus ofx_simulator_time(OfxSimulator *sim, double *t);
 OfxStatus ofx_simulator_steps(OfxSimulator *sim, uint64_t *steps);
 
 /**
- * The state (13 + 4 n numbers; layout in `ofx_arm_state_len`) into `x` (`len` numbers).
+ * The state (`ofx_arm_state_len` numbers; layout there) into `x` (`len` numbers).
  *
  * # Safety
  * `sim` from `ofx_simulator_new`; `x` writable for `len` numbers.
@@ -437,7 +525,7 @@ OfxStatus ofx_simulator_save(OfxSimulator *sim, uint8_t *buf, size_t len, size_t
 OfxStatus ofx_simulator_restore(OfxSimulator *sim, const uint8_t *buf, size_t len);
 
 /**
- * Back to time 0 at state `x0` (`len` = 13 + 4 n), every input zero.
+ * Back to time 0 at state `x0` (`len` = `ofx_arm_state_len`), every input zero.
  *
  * # Safety
  * `sim` from `ofx_simulator_new`; `x0` readable for `len` numbers.

@@ -563,3 +563,149 @@ fn the_description_escapes_names_and_declares_starts_and_units() {
         assert_eq!(unit("rad"), some(&["", "", "", "1"]));
     }
 }
+
+/// The built-in arm on a heavier bus (its centre of mass off the base origin) with four wheels
+/// whose axes are not unit to the last bit before `ReactionWheels::new` normalises them.
+fn wheel_arm(method: orbitflex::Method) -> FlexibleArm {
+    use orbitflex::flex::{ReactionWheels, Wheel};
+    use orbitflex::spatial::{Inertia, Mat3, Vec3};
+    let bus = Inertia::from_com(
+        812.5,
+        Vec3::new(0.01, -0.02, -0.7),
+        Mat3::from_diagonal(&Vec3::new(301.0, 295.0, 280.0)),
+    );
+    let robot = Robot::space_arm().with_base_inertia(bus).unwrap();
+    let wheels = (0..4)
+        .map(|w| {
+            let phi = 0.3 + std::f64::consts::FRAC_PI_2 * w as f64;
+            Wheel {
+                axis: [0.8165 * phi.cos(), 0.8165 * phi.sin(), 0.57735],
+                position: [0.3 * phi.cos(), 0.3 * phi.sin(), -0.4],
+                mass: 4.0,
+                spin_inertia: 0.04,
+                transverse_inertia: 0.025,
+                max_torque: 0.2,
+                max_speed: if w == 3 { f64::INFINITY } else { 600.0 },
+                friction: if w == 2 { 1e-3 } else { 0.0 },
+            }
+        })
+        .collect();
+    FlexibleArm::new(robot, FlexibleJoints::space_arm())
+        .unwrap()
+        .with_method(method)
+        .with_wheels(ReactionWheels::new(wheels).unwrap())
+        .unwrap()
+}
+
+/// An FMU of an arm on a bus with reaction wheels: the resources carry the bus, the wheels (axes
+/// bit for bit, an infinite limit) and the method; the wheel variables sit where the table says;
+/// an instance steps bit for bit as a `Simulator` of the arm, wheel commands saturated; a URDF
+/// that does not make the arm's robot is refused.
+#[test]
+fn a_bus_with_wheels_travels_in_the_resources_and_steps_as_the_arm() {
+    for method in [orbitflex::Method::Recursive, orbitflex::Method::Operator] {
+        let arm = wheel_arm(method);
+        let options = UrdfOptions::default();
+        let m = FmuModel::of_arm(SPACE_ARM_URDF, &options, &arm, 1e-3, "bus").unwrap();
+        assert_eq!(m.config.wheels.len(), 4);
+        assert!(m.config.base.is_some());
+        assert_eq!(
+            orbitflex::integrate::arm_fingerprint(&m.arm),
+            orbitflex::integrate::arm_fingerprint(&arm)
+        );
+        let files = m.files(FmiVersion::V2);
+        let text = |name: &str| {
+            let (_, bytes) = files.iter().find(|(p, _)| p.ends_with(name)).unwrap();
+            String::from_utf8(bytes.clone()).unwrap()
+        };
+        let config = text("fmu.toml");
+        assert!(config.contains("max_speed = inf"), "{config}");
+        let back =
+            FmuModel::from_texts(text("model.urdf"), text("joints.toml"), &config, "fmu.toml")
+                .unwrap();
+        assert_eq!(back.token(), m.token());
+        assert_eq!(
+            orbitflex::integrate::arm_fingerprint(&back.arm),
+            orbitflex::integrate::arm_fingerprint(&arm),
+            "bus, wheels and method bit for bit"
+        );
+        let names = m.table.names();
+        let at = |name: &str| names.iter().position(|n| n == name).unwrap();
+        assert!(at("wheel_speed0.3") < at("motor_torque.shoulder_yaw"));
+        assert!(at("base_force.z") < at("wheel_torque.0"));
+        assert!(at("wheel_torque.3") < at("q.shoulder_yaw"));
+        assert_eq!(at("applied_wheel_torque.3"), names.len() - 1);
+        assert_eq!(at("wheel_speed.0"), at("energy") + 1);
+
+        let mut fmu = FmuInstance::new(back.clone());
+        fmu.enter_initialization(0.0).unwrap();
+        fmu.set(&[vr(&m, "wheel_speed0.1")], &[599.99]).unwrap();
+        fmu.exit_initialization().unwrap();
+        let mut x0 = arm.rest_state();
+        x0[42] = 599.99;
+        let mut sim = Simulator::new(arm.clone(), &x0, 1e-3).unwrap();
+        let torque: Vec<u32> = (0..4)
+            .map(|w| vr(&m, &format!("wheel_torque.{w}")))
+            .collect();
+        let speed: Vec<u32> = (0..4)
+            .map(|w| vr(&m, &format!("wheel_speed.{w}")))
+            .collect();
+        let applied: Vec<u32> = (0..4)
+            .map(|w| vr(&m, &format!("applied_wheel_torque.{w}")))
+            .collect();
+        let (mut got, mut held) = (vec![0.0; 4], vec![0.0; 4]);
+        for k in 0..30 {
+            // beyond ±0.2 N·m half the time; wheel 1 pushed past its max_speed
+            let w: Vec<f64> = (0..4).map(|i| 0.3 * ((k * 4 + i) as f64).cos()).collect();
+            let w = [w[0], 0.25, w[2], w[3]];
+            fmu.set(&torque, &w).unwrap();
+            fmu.do_step(fmu.time(), 3e-3).unwrap();
+            sim.set_wheel_torque(&w).unwrap();
+            sim.step(3).unwrap();
+            fmu.get(&speed, &mut got).unwrap();
+            assert_eq!(bits(&got), bits(&sim.state()[41..45]), "step {k}");
+            fmu.get(&applied, &mut got).unwrap();
+            assert_eq!(bits(&got), bits(sim.applied_wheel_torque()), "step {k}");
+            fmu.get(&torque, &mut held).unwrap();
+            assert_eq!(held, w);
+        }
+        assert!(sim.state()[42] >= 600.0 && sim.applied_wheel_torque()[1] == 0.0);
+        let mut all = vec![0.0; m.table.variables.len()];
+        let every: Vec<u32> = (0..all.len() as u32).collect();
+        fmu.get(&every, &mut all).unwrap();
+        assert_eq!(all[vr(&m, "energy") as usize], sim.outputs().energy);
+
+        // a URDF that makes another robot (a joint locked) is not this arm's
+        let locked = UrdfOptions {
+            locked_joints: vec!["wrist_roll".into()],
+            ..UrdfOptions::default()
+        };
+        let e = FmuModel::of_arm(SPACE_ARM_URDF, &locked, &arm, 1e-3, "bus")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("does not make the arm's robot"), "{e}");
+    }
+}
+
+/// A version-1 `fmu.toml` (no method, bus or wheels) still reads; a newer version is refused,
+/// saying which versions the runtime reads.
+#[test]
+fn configuration_versions() {
+    let m = model();
+    let files = m.files(FmiVersion::V3);
+    let text = |name: &str| {
+        let (_, bytes) = files.iter().find(|(p, _)| p.ends_with(name)).unwrap();
+        String::from_utf8(bytes.clone()).unwrap()
+    };
+    let config = text("fmu.toml");
+    let v1 = config
+        .replace("version = 2", "version = 1")
+        .replace("method = \"recursive\"\n", "");
+    let back = FmuModel::from_texts(text("model.urdf"), text("joints.toml"), &v1, "fmu.toml");
+    assert_eq!(back.unwrap().table, m.table);
+    let v3 = config.replace("version = 2", "version = 3");
+    let e = FmuModel::from_texts(text("model.urdf"), text("joints.toml"), &v3, "fmu.toml")
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("reads versions 1 to 2"), "{e}");
+}

@@ -303,7 +303,11 @@ fn foreign_or_damaged_blobs_are_refused() {
     let mut version = blob.clone();
     version[8..12].copy_from_slice(&(STATE_FORMAT_VERSION + 1).to_le_bytes());
     let message = refusal(&mut sim, &version);
-    assert!(message.contains("format version 2"), "{message}");
+    let expected = format!(
+        "format version {}; this orbitflex reads version {STATE_FORMAT_VERSION}",
+        STATE_FORMAT_VERSION + 1
+    );
+    assert!(message.contains(&expected), "{message}");
     for cut in [10, 20, 40, blob.len() - 1] {
         let message = refusal(&mut sim, &blob[..cut]);
         assert!(
@@ -322,7 +326,7 @@ fn foreign_or_damaged_blobs_are_refused() {
     // a zero quaternion is no state
     let mut zero_quaternion = blob.clone();
     for i in 3..7 {
-        let at = 44 + 8 * i; // the header is 44 bytes
+        let at = 48 + 8 * i; // the header is 48 bytes
         zero_quaternion[at..at + 8].copy_from_slice(&0f64.to_bits().to_le_bytes());
     }
     refusal(&mut sim, &zero_quaternion);
@@ -503,9 +507,54 @@ fn wheel_torques_are_held_and_saturated_as_in_a_run() {
     assert_eq!(sim.wheel_torque(), &commands);
     sim.step(80).unwrap();
     assert_eq!(sim.state(), &run.x[run.x.len() - x0.len()..]);
-    // the applied torques of the run: the −0.3 command clipped to −0.2
+    // the applied torques of the run: the −0.3 command clipped to −0.2; the simulator reports
+    // those of its last step, as the run's last row of applied torques
     assert_eq!(&run.u[7..11], &[0.1, -0.2, 0.05, 0.2]);
+    let last = &run.u[run.u.len() - 11..];
+    assert_eq!(sim.applied_wheel_torque(), &last[7..]);
+    let out = sim.outputs();
+    assert_eq!(out.applied_wheel_torque, &last[7..]);
+    assert_eq!(out.wheel_speed, &sim.state()[41..45]);
+    // a saved state of the arm without wheels, or of three wheels, is refused, saying so
     let mut bare = Simulator::new(plain.clone(), &plain.rest_state(), 1e-3).unwrap();
+    let message = refusal(&mut sim, &bare.save());
+    assert!(
+        message.contains(
+            "saved from an arm with no reaction wheels; this simulator's arm has 4 reaction \
+             wheels"
+        ),
+        "{message}"
+    );
+    let message = refusal(&mut bare, &blob);
+    assert!(
+        message.contains("saved from an arm with 4 reaction wheels; this simulator's arm has no"),
+        "{message}"
+    );
+    let three = plain
+        .clone()
+        .with_wheels(ReactionWheels::new(arm.wheels().unwrap().wheels()[..3].to_vec()).unwrap())
+        .unwrap();
+    let mut other = Simulator::new(three.clone(), &three.rest_state(), 1e-3).unwrap();
+    let message = refusal(&mut other, &blob);
+    assert!(message.contains("has 3 reaction wheels"), "{message}");
+    // other wheels of the same count make another arm
+    let mut heavier = arm.wheels().unwrap().wheels().to_vec();
+    heavier[1].mass *= 2.0;
+    let heavier = plain
+        .clone()
+        .with_wheels(ReactionWheels::new(heavier).unwrap())
+        .unwrap();
+    let mut other = Simulator::new(heavier.clone(), &heavier.rest_state(), 1e-3).unwrap();
+    let message = refusal(&mut other, &blob);
+    assert!(message.contains("saved from another arm"), "{message}");
+    // a failed step puts the applied torques back with the state
+    let before = sim.applied_wheel_torque().to_vec();
+    sim.set_motor_torque(&[1e300; 7]).unwrap();
+    sim.set_wheel_torque(&[-0.1, 0.1, -0.1, 0.1]).unwrap();
+    assert!(sim.step(3).is_err());
+    assert_eq!(sim.applied_wheel_torque(), before.as_slice());
+    sim.reset(&x0).unwrap();
+    assert_eq!(sim.applied_wheel_torque(), &[0.0; 4]);
     let e = bare.set_wheel_torque(&[0.0; 4]).unwrap_err().to_string();
     assert!(e.contains("no reaction wheels"), "{e}");
 }

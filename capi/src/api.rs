@@ -1,6 +1,7 @@
 //! The `ofx_*` C API. cbindgen turns this file's documentation into `include/orbitflex.h`, so
 //! it is written for C programmers.
 
+use orbitflex::flex::{ReactionWheels, Wheel};
 use orbitflex::integrate::Outputs;
 use orbitflex::{Error, FlexibleArm, FlexibleJoints, Robot, Simulator, StateSpec, UrdfOptions};
 use std::cell::RefCell;
@@ -33,7 +34,9 @@ pub enum OfxStatus {
 }
 
 /// The output quantities `ofx_simulator_output` reads (pass the value as `uint32_t`). Every
-/// quantity in SI units, angles in rad; `n` is the number of joints, `k` of end-effectors.
+/// quantity in SI units, angles in rad; `n` is the number of joints, `k` of end-effectors, `w`
+/// of reaction wheels (`ofx_arm_wheel_count`; 0 without wheels, and the wheel outputs are
+/// then empty: length 0).
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum OfxOutput {
@@ -62,6 +65,36 @@ pub enum OfxOutput {
     Momentum = 9,
     /// Total energy (1, J).
     Energy = 10,
+    /// Reaction-wheel speeds relative to the bus (w, rad/s).
+    WheelSpeed = 11,
+    /// The torques the wheel motors applied over the last step (w, N m): the held commands
+    /// after the torque and speed limits, at that step's start; zero before the first step.
+    AppliedWheelTorque = 12,
+}
+
+/// One reaction wheel fixed in the bus, base-frame components, SI units (see docs/model.md,
+/// "Reaction wheels"). The motor applies its torque to the wheel about `axis`; the bus feels
+/// the opposite.
+#[repr(C)]
+#[derive(Debug, Clone, Copy)]
+pub struct OfxWheel {
+    /// Unit spin axis (norm 1 within 1e-5; normalised).
+    pub axis: [f64; 3],
+    /// Centre of the wheel (m).
+    pub position: [f64; 3],
+    /// Mass (kg), > 0.
+    pub mass: f64,
+    /// Inertia about the spin axis (kg m^2), > 0.
+    pub spin_inertia: f64,
+    /// Inertia about any axis through the centre normal to the spin axis (kg m^2),
+    /// >= spin_inertia / 2.
+    pub transverse_inertia: f64,
+    /// Motor torque limit (N m), > 0; `INFINITY` for none.
+    pub max_torque: f64,
+    /// Speed limit relative to the bus (rad/s), > 0; `INFINITY` for none.
+    pub max_speed: f64,
+    /// Viscous friction on the wheel speed (N m s/rad), >= 0.
+    pub friction: f64,
 }
 
 /// A robot model (the rigid multibody: links, joints, end-effectors). Opaque. Immutable once
@@ -504,6 +537,68 @@ pub unsafe extern "C" fn ofx_arm_builtin(name: *const c_char, out: *mut *mut Ofx
     })
 }
 
+/// A new arm: `arm` (copied) with the `count` reaction wheels `wheels` on its bus (replacing
+/// any it had). The bus's inertia is the robot's base plus the wheels' masses and their
+/// inertias locked to it; the state gains the `count` wheel speeds at its end, and simulators
+/// of the new arm take wheel torque commands (`ofx_simulator_set_wheel_torque`). An invalid
+/// wheel is refused, naming it (`spin_inertia[2]: expected ...`).
+///
+/// # Safety
+/// `arm` from `ofx_arm_*`; `wheels` readable for `count` `OfxWheel`s; `out` writable.
+#[no_mangle]
+pub unsafe extern "C" fn ofx_arm_with_wheels(
+    arm: *const OfxArm,
+    wheels: *const OfxWheel,
+    count: usize,
+    out: *mut *mut OfxArm,
+) -> OfxStatus {
+    guard("ofx_arm_with_wheels", || {
+        let arm = &reference(arm, "arm")?.arm;
+        if count == 0 {
+            return Err(invalid(
+                "count: expected at least one wheel, given 0 (an arm without wheels needs no \
+                 call)"
+                    .into(),
+            ));
+        }
+        if wheels.is_null() {
+            return Err(invalid("wheels is NULL".into()));
+        }
+        let given = std::slice::from_raw_parts(wheels, count);
+        let wheels = given
+            .iter()
+            .map(|w| Wheel {
+                axis: w.axis,
+                position: w.position,
+                mass: w.mass,
+                spin_inertia: w.spin_inertia,
+                transverse_inertia: w.transverse_inertia,
+                max_torque: w.max_torque,
+                max_speed: w.max_speed,
+                friction: w.friction,
+            })
+            .collect();
+        let wheels = ReactionWheels::new(wheels).map_err(|e| invalid(e.to_string()))?;
+        give(
+            out,
+            OfxArm {
+                arm: arm.clone().with_wheels(wheels)?,
+            },
+        )
+    })
+}
+
+/// The number of reaction wheels of `arm` (0 without) into `*out`.
+///
+/// # Safety
+/// `arm` from `ofx_arm_*`; `out` writable.
+#[no_mangle]
+pub unsafe extern "C" fn ofx_arm_wheel_count(arm: *const OfxArm, out: *mut usize) -> OfxStatus {
+    guard("ofx_arm_wheel_count", || {
+        write(out, reference(arm, "arm")?.arm.layout().wheels)
+    })
+}
+
 /// The number of joints `n` of `arm` into `*out`.
 ///
 /// # Safety
@@ -515,10 +610,10 @@ pub unsafe extern "C" fn ofx_arm_dof(arm: *const OfxArm, out: *mut usize) -> Ofx
     })
 }
 
-/// The length of `arm`'s state, `13 + 4 n`, into `*out`. The state is
-/// `[r_B (3, m, inertial); quat_B (4: x, y, z, w, base to inertial); q (n, rad);
-/// theta (n, rad, link side); omega_B (3, rad/s, base frame); v_B (3, m/s, base frame);
-/// dq (n, rad/s); dtheta (n, rad/s)]`.
+/// The length of `arm`'s state, `13 + 4 n + w` (`w` reaction wheels, 0 without), into
+/// `*out`. The state is `[r_B (3, m, inertial); quat_B (4: x, y, z, w, base to inertial);
+/// q (n, rad); theta (n, rad, link side); omega_B (3, rad/s, base frame); v_B (3, m/s, base
+/// frame); dq (n, rad/s); dtheta (n, rad/s); wheel speeds (w, rad/s, relative to the bus)]`.
 ///
 /// # Safety
 /// `arm` from `ofx_arm_*`; `out` writable.
@@ -529,8 +624,9 @@ pub unsafe extern "C" fn ofx_arm_state_len(arm: *const OfxArm, out: *mut usize) 
     })
 }
 
-/// A state at rest into `x` (`len` = 13 + 4 n): the base at the origin with identity attitude,
-/// link angles `q` (n numbers, or NULL for zero), motors at the same angles (springs relaxed).
+/// A state at rest into `x` (`len` = `ofx_arm_state_len`): the base at the origin with identity
+/// attitude, link angles `q` (n numbers, or NULL for zero), motors at the same angles (springs
+/// relaxed), the wheels (if any) still relative to the bus.
 ///
 /// # Safety
 /// `arm` from `ofx_arm_*`; `q` readable for n numbers or NULL; `x` writable for `len` numbers.
@@ -568,8 +664,8 @@ pub unsafe extern "C" fn ofx_arm_free(arm: *mut OfxArm) {
     }
 }
 
-/// A simulator of `arm` (copied) at state `x0` (`len` = 13 + 4 n; the quaternion is
-/// normalised), time 0, RK4 step `dt` (s, finite and > 0), every input zero.
+/// A simulator of `arm` (copied) at state `x0` (`len` = `ofx_arm_state_len`; the quaternion
+/// is normalised), time 0, RK4 step `dt` (s, finite and > 0), every input zero.
 ///
 /// A sequence of `ofx_simulator_step` calls computes, bit for bit, the states of orbitflex's
 /// `simulate` (Rust and Python) with the same inputs held over the same steps.
@@ -660,6 +756,32 @@ pub unsafe extern "C" fn ofx_simulator_set_base_wrench(
     })
 }
 
+/// Holds the reaction-wheel torque commands (`w` numbers, N m, each applied to its wheel about
+/// its axis; the bus feels the opposite) from the next step on. Each step clips them, at its
+/// start, to the wheel's `max_torque` and, for a wheel at or beyond `max_speed`, to none that
+/// would speed it up (as orbitflex's `simulate` does); `OFX_OUTPUT_APPLIED_WHEEL_TORQUE`
+/// gives what was applied. An arm without wheels refuses any command.
+///
+/// # Safety
+/// `sim` from `ofx_simulator_new`; `torque` readable for `w` numbers.
+#[no_mangle]
+pub unsafe extern "C" fn ofx_simulator_set_wheel_torque(
+    sim: *mut OfxSimulator,
+    torque: *const f64,
+    w: usize,
+) -> OfxStatus {
+    with_sim("ofx_simulator_set_wheel_torque", sim, |s| {
+        let k = s.sim.arm().layout().wheels;
+        if k == 0 {
+            return Err(invalid(
+                "the arm has no reaction wheels (add them with ofx_arm_with_wheels)".into(),
+            ));
+        }
+        let torque = numbers(torque, w, Some(k), "torque")?;
+        Ok(s.sim.set_wheel_torque(torque)?)
+    })
+}
+
 /// Holds the end-effector wrenches (6 k numbers: per end-effector `[moment (N m); force (N)]`
 /// in its EE frame, exerted by the end-effector on its environment) from the next step on;
 /// `len` 0 (with `wrench` NULL) holds none.
@@ -717,7 +839,7 @@ pub unsafe extern "C" fn ofx_simulator_steps(sim: *mut OfxSimulator, steps: *mut
     with_sim("ofx_simulator_steps", sim, |s| write(steps, s.sim.steps()))
 }
 
-/// The state (13 + 4 n numbers; layout in `ofx_arm_state_len`) into `x` (`len` numbers).
+/// The state (`ofx_arm_state_len` numbers; layout there) into `x` (`len` numbers).
 ///
 /// # Safety
 /// `sim` from `ofx_simulator_new`; `x` writable for `len` numbers.
@@ -747,9 +869,11 @@ fn output_slice(out: &Outputs, which: u32) -> Result<&[f64], Failure> {
         8 => &out.ee_poses,
         9 => &out.momentum,
         10 => std::slice::from_ref(&out.energy),
+        11 => &out.wheel_speed,
+        12 => &out.applied_wheel_torque,
         _ => {
             return Err(invalid(format!(
-                "unknown output {which} (expected an OfxOutput, 0 to 10)"
+                "unknown output {which} (expected an OfxOutput, 0 to 12)"
             )))
         }
     })
@@ -797,10 +921,15 @@ pub unsafe extern "C" fn ofx_simulator_output(
             3 => Some(layout.theta_dot()),
             6 => Some(layout.base_pose()),
             7 => Some(layout.base_twist()),
+            11 => Some(layout.wheel_speed()),
             _ => None,
         };
         if let Some(range) = part {
             buf.copy_from_slice(&x[range]);
+            return Ok(());
+        }
+        if which == 12 {
+            buf.copy_from_slice(s.sim.applied_wheel_torque());
             return Ok(());
         }
         if which == 4 {
@@ -890,7 +1019,7 @@ pub unsafe extern "C" fn ofx_simulator_restore(
     })
 }
 
-/// Back to time 0 at state `x0` (`len` = 13 + 4 n), every input zero.
+/// Back to time 0 at state `x0` (`len` = `ofx_arm_state_len`), every input zero.
 ///
 /// # Safety
 /// `sim` from `ofx_simulator_new`; `x0` readable for `len` numbers.

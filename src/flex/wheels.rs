@@ -59,8 +59,10 @@ use crate::spatial::{Inertia, Mat3, Transform, Vec3};
 /// not meant to be unit is refused, not silently rescaled.
 pub const AXIS_TOLERANCE: f64 = 1e-5;
 
-/// One reaction wheel, in base-frame components: the values a data sheet gives.
-#[derive(Debug, Clone, Copy, PartialEq)]
+/// One reaction wheel, in base-frame components: the values a data sheet gives. (Serialised by
+/// an FMU's `fmu.toml`, with these field names.)
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct Wheel {
     /// Unit spin axis `a`, fixed in the bus (base frame).
     pub axis: [f64; 3],
@@ -120,6 +122,20 @@ impl ReactionWheels {
             check_wheel(w, wheel)?;
             let norm = Vec3::from(wheel.axis).norm();
             wheel.axis = wheel.axis.map(|v| v / norm);
+        }
+        Ok(Self { wheels })
+    }
+
+    /// Wheels read back from a file written from [`wheels`](Self::wheels) (an FMU's
+    /// resources): checked as [`new`](Self::new) checks them, but the axes, already normalised
+    /// once, are kept bit for bit (normalising again could move them by a rounding, and the
+    /// dynamics with them).
+    pub(crate) fn normalised(wheels: Vec<Wheel>) -> Result<Self> {
+        if wheels.is_empty() {
+            return Self::new(wheels);
+        }
+        for (w, wheel) in wheels.iter().enumerate() {
+            check_wheel(w, wheel)?;
         }
         Ok(Self { wheels })
     }

@@ -22,8 +22,13 @@ pub fn model_description(model: &FmuModel, version: FmiVersion) -> String {
     let c = &model.config;
     let v3 = version == FmiVersion::V3;
     let mut x = String::from("<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n");
+    let wheels = match model.arm.layout().wheels {
+        0 => String::new(),
+        1 => ", 1 reaction wheel".into(),
+        k => format!(", {k} reaction wheels"),
+    };
     let description = format!(
-        "{}: floating-base arm with {} Spong flexible joints, RK4 at dt = {} s (orbitflex)",
+        "{}: floating-base arm with {} Spong flexible joints{wheels}, RK4 at dt = {} s (orbitflex)",
         c.model_name,
         model.arm.dof(),
         number(c.dt)
@@ -85,11 +90,11 @@ pub fn model_description(model: &FmuModel, version: FmiVersion) -> String {
         match var.slot {
             Slot::Parameter(p, i) => Some(super::instance::parameter_value(
                 model.arm.joints(),
-                &[],
+                &Default::default(),
                 p,
                 i,
             )),
-            Slot::MotorTorque(_) | Slot::BaseWrench(_) => Some(0.0),
+            Slot::MotorTorque(_) | Slot::BaseWrench(_) | Slot::WheelTorque(_) => Some(0.0),
             _ => None,
         }
     };

@@ -18,8 +18,10 @@ use crate::integrate::{Outputs, Simulator};
 
 /// The first bytes of a saved FMU state.
 pub const STATE_MAGIC: &[u8; 8] = b"OFXFMU\0\0";
-/// The layout of a saved FMU state (the simulator's blob carries its own version).
-const FORMAT_VERSION: u32 = 1;
+/// The layout of a saved FMU state (the simulator's blob carries its own version). Version 2:
+/// the initial wheel speeds after the start time, and the simulator's blob of version 2 (the
+/// wheel speeds in the state, the wheel commands and the torques last applied).
+pub const FORMAT_VERSION: u32 = 2;
 
 /// The FMI state of an instance.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -34,15 +36,26 @@ pub enum Mode {
     Terminated,
 }
 
-/// The value of parameter `p` of joint `i` in `joints` (and `q0`, zero if empty).
-pub fn parameter_value(joints: &FlexibleJoints, q0: &[f64], p: Parameter, i: usize) -> f64 {
+/// The value of parameter `p` of joint (or wheel) `i` in `joints` and `initial` (the initial
+/// link angles and wheel speeds; zero if empty).
+pub fn parameter_value(joints: &FlexibleJoints, initial: &Initial, p: Parameter, i: usize) -> f64 {
     match p {
         Parameter::Stiffness => joints.stiffness[i],
         Parameter::MotorInertia => joints.motor_inertia[i],
         Parameter::Damping => joints.damping[i],
         Parameter::MotorDamping => joints.motor_damping[i],
-        Parameter::InitialAngle => q0.get(i).copied().unwrap_or(0.0),
+        Parameter::InitialAngle => initial.q0.get(i).copied().unwrap_or(0.0),
+        Parameter::InitialWheelSpeed => initial.wheel_speed0.get(i).copied().unwrap_or(0.0),
     }
+}
+
+/// The initial conditions an FMU's parameters set: everything else starts at rest.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Initial {
+    /// `q(0)` (n, rad); the motors start at the same angles.
+    pub q0: Vec<f64>,
+    /// `Ω(0)` (k, rad/s): the wheel speeds relative to the bus.
+    pub wheel_speed0: Vec<f64>,
 }
 
 /// One FMU instance.
@@ -52,10 +65,12 @@ pub struct FmuInstance {
     mode: Mode,
     /// The parameter values (the exported ones until set).
     joints: FlexibleJoints,
-    q0: Vec<f64>,
+    initial: Initial,
     /// The inputs set (held), copied into the simulator when it exists.
     u: Vec<f64>,
     base_wrench: [f64; 6],
+    /// The wheel torque commands (k; empty without wheels).
+    wheel_torque: Vec<f64>,
     /// The start time of the run (s): the FMU's time is `start + k dt`.
     start: f64,
     /// The run, built from the parameters when first needed (outputs in Initialization mode,
@@ -70,11 +85,16 @@ impl FmuInstance {
     /// A new instance of `model`, in *Instantiated* mode with the exported parameter values.
     pub fn new(model: FmuModel) -> Self {
         let n = model.arm.dof();
+        let k = model.arm.layout().wheels;
         Self {
             joints: model.arm.joints().clone(),
-            q0: vec![0.0; n],
+            initial: Initial {
+                q0: vec![0.0; n],
+                wheel_speed0: vec![0.0; k],
+            },
             u: vec![0.0; n],
             base_wrench: [0.0; 6],
+            wheel_torque: vec![0.0; k],
             start: 0.0,
             sim: None,
             outputs: Outputs::for_arm(&model.arm),
@@ -163,24 +183,40 @@ impl FmuInstance {
     fn simulator(&mut self) -> Result<&mut Simulator, String> {
         if self.sim.is_none() {
             let robot = self.model.arm.robot().clone();
-            let arm = FlexibleArm::new(robot, self.joints.clone())
-                .map_err(|e| format!("the parameters do not make an arm: {e}"))?
+            let made = |arm: crate::Result<FlexibleArm>| {
+                arm.map_err(|e| format!("the parameters do not make an arm: {e}"))
+            };
+            let mut arm = made(FlexibleArm::new(robot, self.joints.clone()))?
                 .with_method(self.model.arm.method());
-            let x0 = arm
+            if let Some(wheels) = self.model.arm.wheels() {
+                arm = made(arm.with_wheels(wheels.clone()))?;
+            }
+            let mut x0 = arm
                 .state(&StateSpec {
-                    q: Some(&self.q0),
+                    q: Some(&self.initial.q0),
                     ..StateSpec::default()
                 })
                 .map_err(|e| format!("q0: {e}"))?;
+            x0[arm.layout().wheel_speed()].copy_from_slice(&self.initial.wheel_speed0);
             let mut sim =
                 Simulator::new(arm, &x0, self.model.config.dt).map_err(|e| e.to_string())?;
-            sim.set_motor_torque(&self.u).map_err(|e| e.to_string())?;
-            sim.set_base_wrench(&self.base_wrench)
-                .map_err(|e| e.to_string())?;
+            self.hold(&mut sim)?;
             self.sim = Some(sim);
             self.fresh = false;
         }
         Ok(self.sim.as_mut().expect("just built"))
+    }
+
+    /// The held inputs into `sim`.
+    fn hold(&self, sim: &mut Simulator) -> Result<(), String> {
+        sim.set_motor_torque(&self.u).map_err(|e| e.to_string())?;
+        sim.set_base_wrench(&self.base_wrench)
+            .map_err(|e| e.to_string())?;
+        if !self.wheel_torque.is_empty() {
+            sim.set_wheel_torque(&self.wheel_torque)
+                .map_err(|e| e.to_string())?;
+        }
+        Ok(())
     }
 
     /// The values of the variables `vrs` into `values` (same lengths).
@@ -196,9 +232,10 @@ impl FmuInstance {
             let slot = self.model.table.get(vr)?.slot;
             *value = match slot {
                 Slot::Time => self.time(),
-                Slot::Parameter(p, i) => parameter_value(&self.joints, &self.q0, p, i),
+                Slot::Parameter(p, i) => parameter_value(&self.joints, &self.initial, p, i),
                 Slot::MotorTorque(i) => self.u[i],
                 Slot::BaseWrench(i) => self.base_wrench[i],
+                Slot::WheelTorque(i) => self.wheel_torque[i],
                 Slot::Output(quantity, i) => {
                     // parts of the state are read from it: a master reading q or theta every
                     // step does not pay for the momentum and energy
@@ -289,7 +326,8 @@ impl FmuInstance {
                         Parameter::MotorInertia => &mut j.motor_inertia[i],
                         Parameter::Damping => &mut j.damping[i],
                         Parameter::MotorDamping => &mut j.motor_damping[i],
-                        Parameter::InitialAngle => &mut self.q0[i],
+                        Parameter::InitialAngle => &mut self.initial.q0[i],
+                        Parameter::InitialWheelSpeed => &mut self.initial.wheel_speed0[i],
                     };
                     if field.to_bits() != value.to_bits() {
                         *field = value;
@@ -299,14 +337,15 @@ impl FmuInstance {
                 }
                 Slot::MotorTorque(i) => self.u[i] = value,
                 Slot::BaseWrench(i) => self.base_wrench[i] = value,
+                Slot::WheelTorque(i) => self.wheel_torque[i] = value,
                 _ => unreachable!("checked above"),
             }
         }
-        if let Some(sim) = self.sim.as_mut() {
-            // checked finite above: these cannot fail
-            sim.set_motor_torque(&self.u).map_err(|e| e.to_string())?;
-            sim.set_base_wrench(&self.base_wrench)
-                .map_err(|e| e.to_string())?;
+        if let Some(mut sim) = self.sim.take() {
+            // checked finite above: this cannot fail
+            let held = self.hold(&mut sim);
+            self.sim = Some(sim);
+            held?;
         }
         Ok(())
     }
@@ -394,6 +433,7 @@ impl FmuInstance {
         sim.restore(&blob[21..]).map_err(|e| e.to_string())?;
         self.u.copy_from_slice(sim.motor_torque());
         self.base_wrench = *sim.base_wrench();
+        self.wheel_torque.copy_from_slice(sim.wheel_torque());
         self.mode = mode;
         self.start = start;
         self.fresh = false;

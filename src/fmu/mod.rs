@@ -13,6 +13,6 @@ pub mod model;
 pub mod variables;
 
 pub use description::model_description;
-pub use instance::{FmuInstance, Mode};
-pub use model::{FmiVersion, FmuConfig, FmuModel};
+pub use instance::{FmuInstance, Initial, Mode};
+pub use model::{BaseConfig, FmiVersion, FmuConfig, FmuModel};
 pub use variables::{Causality, Parameter, Quantity, Slot, Variable, VariableTable};

@@ -7,14 +7,18 @@
 
 use super::variables::VariableTable;
 use crate::error::{Error, Result};
-use crate::flex::{FlexibleArm, FlexibleJoints};
-use crate::integrate::simulator::fnv1a;
+use crate::flex::{FlexibleArm, FlexibleJoints, ReactionWheels, Wheel};
+use crate::integrate::simulator::{arm_fingerprint, fnv1a};
 use crate::model::{Robot, UrdfOptions};
+use crate::spatial::{Inertia, Mat3, Vec3};
+use crate::Method;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
-/// The version of the `fmu.toml` layout; the runtime refuses another.
-pub const CONFIG_VERSION: u32 = 1;
+/// The version of the `fmu.toml` layout; the runtime reads this one and the ones before it
+/// (version 2 added `method`, `[base]` and the `[[wheels]]`; a version-1 file has none of them:
+/// the recursive method, the URDF's base, no wheels) and refuses a newer one.
+pub const CONFIG_VERSION: u32 = 2;
 
 /// The resource files, as named in the FMU (under `resources/`).
 pub const URDF_FILE: &str = "model.urdf";
@@ -49,9 +53,57 @@ pub struct FmuConfig {
     pub ee_links: Vec<String>,
     /// The joints held at zero.
     pub locked_joints: Vec<String>,
+    /// The dynamics method, `"recursive"` or `"operator"` ([`Method::name`]).
+    #[serde(default = "recursive")]
+    pub method: String,
     /// The variable names in value-reference order, as the description declares them: the
     /// runtime rebuilds the table from the model and refuses a different one.
     pub variables: Vec<String>,
+    /// The bus the arm is mounted on, when its inertia replaces the URDF root link's (none:
+    /// the URDF's).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub base: Option<BaseConfig>,
+    /// The reaction wheels on the bus, in order, their axes as the arm holds them (normalised)
+    /// and limits `inf` for none (none: an arm without wheels).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub wheels: Vec<Wheel>,
+}
+
+fn recursive() -> String {
+    Method::Recursive.name().into()
+}
+
+/// The base body's inertia as the model holds it (every number in its round-trip form, so that
+/// the runtime rebuilds the same bus bit for bit).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BaseConfig {
+    /// Mass (kg).
+    pub mass: f64,
+    /// Centre of mass in the base frame (m).
+    pub com: [f64; 3],
+    /// Rotational inertia about the base ORIGIN (not the centre of mass), base axes, row-major
+    /// (kg·m²).
+    pub rotational: [f64; 9],
+}
+
+impl BaseConfig {
+    fn of(inertia: &Inertia) -> Self {
+        let r = &inertia.rotational;
+        Self {
+            mass: inertia.mass,
+            com: [inertia.com[0], inertia.com[1], inertia.com[2]],
+            rotational: std::array::from_fn(|k| r[(k / 3, k % 3)]),
+        }
+    }
+
+    fn inertia(&self) -> Inertia {
+        Inertia {
+            mass: self.mass,
+            com: Vec3::from(self.com),
+            rotational: Mat3::from_row_slice(&self.rotational),
+        }
+    }
 }
 
 /// An arm as an FMU carries it: its files, and the arm and variables they make.
@@ -84,6 +136,54 @@ impl FmuModel {
         check_identifier(model_identifier)?;
         let robot = Robot::from_urdf_string(urdf, options)?;
         let arm = FlexibleArm::new(robot, joints.clone())?;
+        Self::of_arm(urdf, options, &arm, dt, model_identifier)
+    }
+
+    /// The model of an FMU of `arm` whose robot is `urdf` loaded with `options`, but for the
+    /// base's inertia, which may replace the root link's (a bus the arm is mounted on,
+    /// [`Robot::with_base_inertia`]): the FMU carries that bus, the arm's reaction wheels, its
+    /// joint parameters and its dynamics method, and steps exactly as `arm` does. An error if
+    /// the URDF makes another robot.
+    pub fn of_arm(
+        urdf: &str,
+        options: &UrdfOptions,
+        arm: &FlexibleArm,
+        dt: f64,
+        model_identifier: &str,
+    ) -> Result<Self> {
+        crate::args::check_dt(dt)?;
+        check_identifier(model_identifier)?;
+        let loaded = Robot::from_urdf_string(urdf, options)?;
+        let bus = arm.robot().inertias()[0];
+        let base = (loaded.inertias()[0] != bus).then_some(bus);
+        let robot = match base {
+            Some(inertia) => loaded.with_base_inertia(inertia)?,
+            None => loaded,
+        };
+        if rigid_model(&robot) != rigid_model(arm.robot()) {
+            return Err(Error::InvalidArgument {
+                what: "urdf".into(),
+                message: format!(
+                    "it does not make the arm's robot '{}' ({} joints, end-effectors {:?}): \
+                     loaded with the given end-effector links and locked joints, its links, \
+                     joints, inertias and end-effectors must be the arm's (only the base's \
+                     inertia may differ, for a bus); it makes '{}' ({} joints, end-effectors \
+                     {:?})",
+                    arm.robot().name(),
+                    arm.dof(),
+                    arm.robot().ee_links(),
+                    robot.name(),
+                    robot.dof(),
+                    robot.ee_links()
+                ),
+            });
+        }
+        let mut made = FlexibleArm::new(robot, arm.joints().clone())?.with_method(arm.method());
+        if let Some(wheels) = arm.wheels() {
+            made = made.with_wheels(wheels.clone())?;
+        }
+        debug_assert_eq!(arm_fingerprint(&made), arm_fingerprint(arm));
+        let arm = made;
         let table = VariableTable::new(&arm);
         let robot = arm.robot();
         let config = FmuConfig {
@@ -93,8 +193,12 @@ impl FmuModel {
             dt,
             ee_links: robot.ee_links().iter().map(|s| s.to_string()).collect(),
             locked_joints: options.locked_joints.clone(),
+            method: arm.method().name().into(),
             variables: table.names(),
+            base: base.as_ref().map(BaseConfig::of),
+            wheels: arm.wheels().map_or(Vec::new(), |w| w.wheels().to_vec()),
         };
+        let joints = arm.joints();
         let joints_toml = joints_toml(&robot.joint_names(), joints);
         Ok(Self {
             config,
@@ -136,10 +240,10 @@ impl FmuModel {
         };
         let config: FmuConfig =
             toml::from_str(config_text).map_err(|e| malformed(e.to_string()))?;
-        if config.version != CONFIG_VERSION {
+        if !(1..=CONFIG_VERSION).contains(&config.version) {
             return Err(malformed(format!(
-                "version {}; this runtime reads version {CONFIG_VERSION} (export the FMU again \
-                 with this orbitflex)",
+                "version {}; this runtime reads versions 1 to {CONFIG_VERSION} (export the FMU \
+                 again with this orbitflex)",
                 config.version
             )));
         }
@@ -148,16 +252,19 @@ impl FmuModel {
             ee_links: config.ee_links.clone(),
             locked_joints: config.locked_joints.clone(),
         };
-        let robot = Robot::from_urdf_string(&urdf, &options)?;
+        let mut robot = Robot::from_urdf_string(&urdf, &options)?;
+        if let Some(base) = &config.base {
+            robot = robot.with_base_inertia(base.inertia())?;
+        }
         let joints =
             FlexibleJoints::from_toml_str(&joints_toml, &robot.joint_names(), JOINTS_FILE)?;
-        let model = Self::new(
-            &urdf,
-            &options,
-            &joints,
-            config.dt,
-            &config.model_identifier,
-        )?;
+        let method = Method::from_name(&config.method).map_err(|e| malformed(e.to_string()))?;
+        let mut arm = FlexibleArm::new(robot, joints)?.with_method(method);
+        if !config.wheels.is_empty() {
+            let wheels = ReactionWheels::normalised(config.wheels.clone())?;
+            arm = arm.with_wheels(wheels)?;
+        }
+        let model = Self::of_arm(&urdf, &options, &arm, config.dt, &config.model_identifier)?;
         if model.config.variables != config.variables {
             return Err(malformed(
                 "its variables are not those this runtime makes of the model (an FMU exported \
@@ -221,6 +328,18 @@ impl FmuModel {
             ),
         ]
     }
+}
+
+/// Everything of `robot` its dynamics depend on, as text (numbers in round-trip form): two
+/// robots with the same text step alike.
+fn rigid_model(robot: &Robot) -> String {
+    format!(
+        "{:?}|{:?}|{:?}|{:?}",
+        robot.joints(),
+        robot.parents(),
+        robot.inertias(),
+        robot.end_effectors()
+    )
 }
 
 /// A C identifier of at most 64 characters (the binary's name and the model identifier).

@@ -34,6 +34,9 @@ pub enum Parameter {
     MotorDamping,
     /// `q_i(0)` (rad); the motor starts at the same angle (`θ_i(0) = q_i(0)`), everything at rest.
     InitialAngle,
+    /// `Ω_w(0)` (rad/s): reaction wheel `w`'s initial speed relative to the bus (its momentum
+    /// bias); the index is the wheel's, not a joint's.
+    InitialWheelSpeed,
 }
 
 impl Parameter {
@@ -42,7 +45,7 @@ impl Parameter {
         match self {
             Parameter::Stiffness | Parameter::MotorInertia => (value > 0.0, "> 0"),
             Parameter::Damping | Parameter::MotorDamping => (value >= 0.0, ">= 0"),
-            Parameter::InitialAngle => (true, "finite"),
+            Parameter::InitialAngle | Parameter::InitialWheelSpeed => (true, "finite"),
         }
     }
 }
@@ -72,6 +75,10 @@ pub enum Quantity {
     Momentum,
     /// Total energy (1).
     Energy,
+    /// Reaction-wheel speeds `Ω` (per wheel).
+    WheelSpeed,
+    /// The wheel torques applied over the last step (per wheel).
+    AppliedWheelTorque,
 }
 
 impl Quantity {
@@ -90,6 +97,7 @@ impl Quantity {
             Quantity::Deflection => part(layout.theta()) - part(layout.q()),
             Quantity::BasePose => part(layout.base_pose()),
             Quantity::BaseTwist => part(layout.base_twist()),
+            Quantity::WheelSpeed => part(layout.wheel_speed()),
             _ => return None,
         })
     }
@@ -108,6 +116,8 @@ impl Quantity {
             Quantity::EePoses => out.ee_poses[i],
             Quantity::Momentum => out.momentum[i],
             Quantity::Energy => out.energy,
+            Quantity::WheelSpeed => out.wheel_speed[i],
+            Quantity::AppliedWheelTorque => out.applied_wheel_torque[i],
         }
     }
 }
@@ -123,6 +133,8 @@ pub enum Slot {
     MotorTorque(usize),
     /// Element `i` of `f_B = [moment; force]` (base frame).
     BaseWrench(usize),
+    /// The torque command to reaction wheel `w`.
+    WheelTorque(usize),
     /// Element `i` of an output quantity.
     Output(Quantity, usize),
 }
@@ -181,11 +193,14 @@ impl VariableTable {
     /// `base_velocity.{x,y,z}`, `ee_position.<ee>.{x,y,z}`, `ee_quaternion.<ee>.{x,y,z,w}`,
     /// `momentum.angular.{x,y,z}`, `momentum.linear.{x,y,z}`, `energy`.
     ///
-    /// Reaction wheels (when they exist) will add the inputs `wheel_torque.<k>` after the base
-    /// wrench, and outputs after these; no name here will change.
+    /// An arm with `k` reaction wheels adds, per wheel `w` (0 to k−1, the arm's wheel order),
+    /// the parameter `wheel_speed0.<w>` after the `q0.<j>`, the input `wheel_torque.<w>` after
+    /// the base wrench, and the outputs `wheel_speed.<w>` and `applied_wheel_torque.<w>` after
+    /// `energy`; the variables of an arm without wheels are unchanged.
     pub fn new(arm: &FlexibleArm) -> Self {
         let robot = arm.robot();
         let joints = robot.joint_names();
+        let wheels = arm.layout().wheels;
         let mut v = Vec::new();
         let mut push = |name: String,
                         causality: Causality,
@@ -250,6 +265,15 @@ impl VariableTable {
                 );
             }
         }
+        for w in 0..wheels {
+            push(
+                format!("wheel_speed0.{w}"),
+                Causality::Parameter,
+                Some("rad/s"),
+                format!("initial speed of reaction wheel {w} relative to the bus (momentum bias)"),
+                Slot::Parameter(Parameter::InitialWheelSpeed, w),
+            );
+        }
         for (i, j) in joints.iter().enumerate() {
             push(
                 format!("motor_torque.{j}"),
@@ -275,6 +299,19 @@ impl VariableTable {
                 Some("N"),
                 format!("force on the base, base-frame {axis}"),
                 Slot::BaseWrench(3 + i),
+            );
+        }
+        for w in 0..wheels {
+            push(
+                format!("wheel_torque.{w}"),
+                Causality::Input,
+                Some("N.m"),
+                format!(
+                    "torque command to reaction wheel {w} about its spin axis (the bus feels the \
+                     opposite); clipped to its max_torque, and to none that speeds it up at its \
+                     max_speed"
+                ),
+                Slot::WheelTorque(w),
             );
         }
         let per_joint = [
@@ -400,6 +437,30 @@ impl VariableTable {
             "total energy (rigid kinetic, motor kinetic, spring)".into(),
             Slot::Output(Quantity::Energy, 0),
         );
+        for (quantity, prefix, unit, what) in [
+            (
+                Quantity::WheelSpeed,
+                "wheel_speed",
+                "rad/s",
+                "speed relative to the bus",
+            ),
+            (
+                Quantity::AppliedWheelTorque,
+                "applied_wheel_torque",
+                "N.m",
+                "motor torque applied over the last step, after the limits",
+            ),
+        ] {
+            for w in 0..wheels {
+                push(
+                    format!("{prefix}.{w}"),
+                    Causality::Output,
+                    Some(unit),
+                    format!("{what} of reaction wheel {w}"),
+                    Slot::Output(quantity, w),
+                );
+            }
+        }
         Self { variables: v }
     }
 

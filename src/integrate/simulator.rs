@@ -26,8 +26,9 @@ use crate::Loads;
 const MAGIC: &[u8; 8] = b"OFXSIM\0\0";
 
 /// The layout of a [`Simulator::save`] blob. Raise it whenever the layout changes: a blob of
-/// another version is refused, never misread.
-pub const STATE_FORMAT_VERSION: u32 = 1;
+/// another version is refused, never misread. Version 2 added the reaction-wheel count to the
+/// header and the wheel torques applied over the last step to the numbers.
+pub const STATE_FORMAT_VERSION: u32 = 2;
 
 /// A stepping simulation of one [`FlexibleArm`]: the arm, a workspace, the state `x`
 /// (model §4), the step count `k` (time `t = k dt`), the step `dt` and the held inputs.
@@ -66,8 +67,11 @@ pub struct Simulator {
     ee_wrench: Vec<f64>,
     /// Held reaction-wheel torque commands (k, N·m; empty without wheels).
     wheel_torque: Vec<f64>,
-    /// The wheel torques applied over the step in progress (k, after saturation).
+    /// The wheel torques applied over the last step taken (k, after saturation; zero before
+    /// the first).
     applied: Vec<f64>,
+    /// `applied` before the step in progress: a failed step puts it back.
+    before_applied: Vec<f64>,
     /// [`arm_fingerprint`] of `arm`, written into saved states.
     fingerprint: u64,
 }
@@ -100,6 +104,12 @@ pub struct Outputs {
     pub momentum: [f64; 6],
     /// Total energy (J), model §6.2.
     pub energy: f64,
+    /// Reaction-wheel speeds `Ω` relative to the bus (k, rad/s; empty without wheels).
+    pub wheel_speed: Vec<f64>,
+    /// The torques the wheel motors applied over the last step (k, N·m, after saturation;
+    /// zero before the first step; empty without wheels): row `k` of a run's
+    /// [`Trajectory::wheel_torque`](crate::Trajectory::wheel_torque) after step `k`.
+    pub applied_wheel_torque: Vec<f64>,
 }
 
 impl Outputs {
@@ -114,6 +124,8 @@ impl Outputs {
             deflection: vec![0.0; n],
             spring_torque: vec![0.0; n],
             ee_poses: vec![0.0; 7 * arm.robot().end_effectors().len()],
+            wheel_speed: vec![0.0; arm.layout().wheels],
+            applied_wheel_torque: vec![0.0; arm.layout().wheels],
             ..Self::default()
         }
     }
@@ -139,6 +151,7 @@ impl Simulator {
             ee_wrench: Vec::new(),
             wheel_torque: vec![0.0; arm.layout().wheels],
             applied: vec![0.0; arm.layout().wheels],
+            before_applied: vec![0.0; arm.layout().wheels],
             fingerprint: arm_fingerprint(&arm),
             arm,
         };
@@ -156,6 +169,7 @@ impl Simulator {
         self.base_wrench = [0.0; 6];
         self.ee_wrench.clear();
         self.wheel_torque.fill(0.0);
+        self.applied.fill(0.0);
         Ok(())
     }
 
@@ -205,6 +219,12 @@ impl Simulator {
     /// The held reaction-wheel torque commands (k, N·m; empty without wheels).
     pub fn wheel_torque(&self) -> &[f64] {
         &self.wheel_torque
+    }
+
+    /// The torques the wheel motors applied over the last step (k, N·m: the held commands
+    /// saturated at that step's start; zero before the first step; empty without wheels).
+    pub fn applied_wheel_torque(&self) -> &[f64] {
+        &self.applied
     }
 
     /// Holds the reaction-wheel torque commands (k, N·m, applied to each wheel about its axis;
@@ -282,6 +302,7 @@ impl Simulator {
             ee_wrench,
             wheel_torque,
             applied,
+            before_applied,
             ..
         } = self;
         let layout = arm.layout();
@@ -296,6 +317,7 @@ impl Simulator {
             }
             before.copy_from_slice(x);
             if let Some(wheels) = arm.wheels() {
+                before_applied.copy_from_slice(applied);
                 wheels.saturate(wheel_torque, &x[layout.wheel_speed()], applied);
             }
             let inputs = Inputs {
@@ -312,6 +334,7 @@ impl Simulator {
             };
             if let Some(message) = outcome {
                 x.copy_from_slice(before);
+                applied.copy_from_slice(before_applied);
                 return Err(stop(format!(
                     "{message}; dt = {dt} s may be past the RK4 stability limit"
                 )));
@@ -344,6 +367,8 @@ impl Simulator {
         }
         out.momentum = self.arm.momentum(&mut self.ws, x);
         out.energy = self.arm.energy(&mut self.ws, x);
+        out.wheel_speed.copy_from_slice(&x[layout.wheel_speed()]);
+        out.applied_wheel_torque.copy_from_slice(&self.applied);
     }
 
     /// The outputs at the current state ([`outputs_into`](Self::outputs_into) into new buffers).
@@ -360,13 +385,18 @@ impl Simulator {
             + 8
             + 4
             + 4
+            + 4
             + 8
             + 8
-            + 8 * (self.x.len() + self.u.len() + self.wheel_torque.len() + 6 + self.ee_wrench.len())
+            + 8 * (self.x.len()
+                + self.u.len()
+                + 2 * self.wheel_torque.len()
+                + 6
+                + self.ee_wrench.len())
     }
 
-    /// The simulator's state as bytes: the state, the step count, `dt` and the held inputs,
-    /// with a format version ([`STATE_FORMAT_VERSION`]) and a fingerprint of the arm.
+    /// The simulator's state as bytes: the state (with the wheel speeds), the step count, `dt`,
+    /// the held inputs and the wheel torques applied over the last step, with a format version ([`STATE_FORMAT_VERSION`]) and a fingerprint of the arm.
     /// [`restore`](Self::restore) puts it back bit for bit.
     pub fn save(&self) -> Vec<u8> {
         let mut blob = Vec::with_capacity(self.saved_len());
@@ -381,14 +411,16 @@ impl Simulator {
         blob.extend_from_slice(&self.fingerprint.to_le_bytes());
         blob.extend_from_slice(&(self.arm.dof() as u32).to_le_bytes());
         blob.extend_from_slice(&(self.ee_wrench.len() as u32).to_le_bytes());
+        blob.extend_from_slice(&(self.wheel_torque.len() as u32).to_le_bytes());
         blob.extend_from_slice(&self.dt.to_bits().to_le_bytes());
         blob.extend_from_slice(&self.k.to_le_bytes());
-        // the wheel commands (none without wheels) after u
+        // the wheel commands and the torques last applied (none without wheels) after u
         let numbers = self
             .x
             .iter()
             .chain(&self.u)
             .chain(&self.wheel_torque)
+            .chain(&self.applied)
             .chain(&self.base_wrench);
         for v in numbers.chain(&self.ee_wrench) {
             blob.extend_from_slice(&v.to_bits().to_le_bytes());
@@ -421,10 +453,25 @@ impl Simulator {
                  {STATE_FORMAT_VERSION}"
             )));
         }
-        let header = (r.u64(), r.u32(), r.u32(), r.u64(), r.u64());
-        let (Some(fingerprint), Some(n), Some(ee), Some(dt_bits), Some(k)) = header else {
+        let header = (r.u64(), r.u32(), r.u32(), r.u32(), r.u64(), r.u64());
+        let (Some(fingerprint), Some(n), Some(ee), Some(wheels), Some(dt_bits), Some(k)) = header
+        else {
             return Err(bad("truncated in its header".into()));
         };
+        let own_wheels = self.wheel_torque.len();
+        if wheels as usize != own_wheels {
+            let count = |k: usize| match k {
+                0 => "no reaction wheels".to_string(),
+                1 => "1 reaction wheel".to_string(),
+                k => format!("{k} reaction wheels"),
+            };
+            return Err(bad(format!(
+                "saved from an arm with {}; this simulator's arm has {} (a state holds the \
+                 speeds of its own wheels)",
+                count(wheels as usize),
+                count(own_wheels)
+            )));
+        }
         if fingerprint != self.fingerprint || n as usize != self.arm.dof() {
             return Err(bad(format!(
                 "saved from another arm ({n} joints, fingerprint {fingerprint:016x}); this \
@@ -442,7 +489,7 @@ impl Simulator {
             )));
         }
         let (len, ee) = (self.x.len(), ee as usize);
-        let expected = len + self.u.len() + self.wheel_torque.len() + 6 + ee;
+        let expected = len + self.u.len() + 2 * own_wheels + 6 + ee;
         let wrenches = 6 * self.arm.robot().end_effectors().len();
         if ee != 0 && ee != wrenches {
             return Err(bad(format!(
@@ -463,12 +510,14 @@ impl Simulator {
         let (x, rest) = numbers.split_at(len);
         self.arm.check_state(x).map_err(|e| bad(e.to_string()))?;
         let (u, rest) = rest.split_at(self.u.len());
-        let (wheel_torque, rest) = rest.split_at(self.wheel_torque.len());
+        let (wheel_torque, rest) = rest.split_at(own_wheels);
+        let (applied, rest) = rest.split_at(own_wheels);
         let (base_wrench, ee_wrench) = rest.split_at(6);
         self.x.copy_from_slice(x);
         self.k = k;
         self.u.copy_from_slice(u);
         self.wheel_torque.copy_from_slice(wheel_torque);
+        self.applied.copy_from_slice(applied);
         self.base_wrench.copy_from_slice(base_wrench);
         self.ee_wrench.clear();
         self.ee_wrench.extend_from_slice(ee_wrench);
@@ -522,13 +571,14 @@ impl<'a> Reader<'a> {
 }
 
 /// A 64-bit FNV-1a hash of everything that makes an arm's dynamics: the joints (names, axes,
-/// origins), the tree, the inertias, the end-effector frames, the joint parameters and the
-/// dynamics method. Two arms with the same fingerprint compute the same steps; the numbers are
+/// origins), the tree, the inertias, the end-effector frames, the joint parameters, the
+/// dynamics method and the reaction wheels (an arm without wheels hashes as it did before
+/// wheels existed). Two arms with the same fingerprint compute the same steps; the numbers are
 /// hashed through their shortest round-trip decimal form, so the fingerprint is the same on
 /// every machine.
 pub fn arm_fingerprint(arm: &FlexibleArm) -> u64 {
     let robot = arm.robot();
-    let text = format!(
+    let mut text = format!(
         "{:?}|{:?}|{:?}|{:?}|{:?}|{:?}",
         robot.joints(),
         robot.parents(),
@@ -537,6 +587,9 @@ pub fn arm_fingerprint(arm: &FlexibleArm) -> u64 {
         arm.joints(),
         arm.method()
     );
+    if let Some(wheels) = arm.wheels() {
+        text.push_str(&format!("|{:?}", wheels.wheels()));
+    }
     fnv1a(text.as_bytes())
 }
 

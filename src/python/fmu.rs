@@ -9,9 +9,10 @@ use crate::model::UrdfOptions;
 use pyo3::prelude::*;
 use pyo3::types::PyBytes;
 
-/// ``[(path in the archive, bytes)]`` of the FMU of ``arm``'s joint parameters on the robot of
-/// ``urdf`` (text, loaded with ``ee_links`` and ``locked_joints``), stepping ``dt`` (s), for
-/// FMI ``fmi`` (2 or 3); the binary is not among them.
+/// ``[(path in the archive, bytes)]`` of the FMU of ``arm`` (its joint parameters, bus,
+/// reaction wheels and method), whose robot is ``urdf`` (text, loaded with ``ee_links`` and
+/// ``locked_joints``) but for the base's inertia, stepping ``dt`` (s), for FMI ``fmi`` (2 or
+/// 3); the binary is not among them.
 #[pyfunction]
 #[pyo3(name = "_fmu_files", signature = (urdf, arm, ee_links, locked_joints, dt, model_identifier, fmi))]
 pub fn py_fmu_files<'py>(
@@ -40,8 +41,7 @@ pub fn py_fmu_files<'py>(
         ee_links,
         locked_joints,
     };
-    let joints = arm.get().arm.joints().clone();
-    let model = FmuModel::new(urdf, &options, &joints, dt, model_identifier)?;
+    let model = FmuModel::of_arm(urdf, &options, &arm.get().arm, dt, model_identifier)?;
     Ok(model
         .files(version)
         .into_iter()

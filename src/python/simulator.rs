@@ -269,7 +269,10 @@ impl PySimulator {
     /// ``theta_dot``, ``deflection`` (θ − q), ``spring_torque`` (N·m) (each (n,)),
     /// ``base_pose`` (7: position, quaternion x, y, z, w), ``base_twist`` (6: ω_B, v_B, base
     /// frame), ``ee_poses`` ((k, 7), inertial frame, ``robot.ee_links`` order), ``momentum``
-    /// (6: angular, linear; inertial frame, about the origin), ``energy`` (J).
+    /// (6: angular, linear; inertial frame, about the origin), ``energy`` (J); with reaction
+    /// wheels also ``wheel_speed`` (k, rad/s, relative to the bus) and
+    /// ``applied_wheel_torque`` (k, N·m: the torques the wheel motors applied over the last
+    /// step, after the limits; zero before the first step).
     fn outputs<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let out: Outputs = self.lock()?.outputs();
         let dict = PyDict::new(py);
@@ -289,6 +292,13 @@ impl PySimulator {
         dict.set_item("ee_poses", row_major(py, k, 7, out.ee_poses))?;
         dict.set_item("momentum", array1(py, &out.momentum))?;
         dict.set_item("energy", out.energy)?;
+        if !out.wheel_speed.is_empty() {
+            dict.set_item("wheel_speed", array1(py, &out.wheel_speed))?;
+            dict.set_item(
+                "applied_wheel_torque",
+                array1(py, &out.applied_wheel_torque),
+            )?;
+        }
         Ok(dict)
     }
 

@@ -135,3 +135,54 @@ def test_bad_calls_return_a_status_and_a_message_per_thread(lib):
     lib.ofx_simulator_free(None)  # no-ops
     lib.ofx_arm_free(None)
     assert lib.ofx_version().decode() == orbitflex.__version__
+
+
+def test_a_c_program_with_reaction_wheels_equals_simulate(tmp_path):
+    # capi/tests/wheels.c: the built-in arm with four wheels (ofx_arm_with_wheels), commands
+    # beyond the torque limit and a wheel pushed past its speed limit, built with the system
+    # compiler; its hex-printed numbers are arm.simulate's, bit for bit
+    cc = shutil.which("cc")
+    if cc is None:
+        pytest.skip("no system C compiler (cc)")
+    exe = tmp_path / "wheels"
+    subprocess.run([cc, "-std=c99", "-O2", "-Wall", "-Wextra", "-Werror", "-pedantic",
+                    str(ROOT / "capi/tests/wheels.c"), f"-I{ROOT / 'include'}", f"-L{LIB_PATH.parent}",
+                    "-l:" + LIB_PATH.name, f"-Wl,-rpath,{LIB_PATH.parent}", "-lm", "-o", str(exe)], check=True)
+    run = subprocess.run([str(exe)], capture_output=True, text=True)
+    assert run.returncode == 0, run.stderr
+    lines = {line.split(" ", 1)[0]: line.split(" ", 1)[1] for line in run.stdout.splitlines()
+             if not line.startswith(("refused", "plain"))}
+    hexes = lambda key: np.array([float.fromhex(v) for v in lines[key].split()])  # noqa: E731
+    a, p = 0.5773502691896258, 0.3181980515339464
+    sx, sy = np.array([1, -1, -1, 1.0]), np.array([1, 1, -1, -1.0])
+    wheels = orbitflex.ReactionWheels(np.column_stack([sx * a, sy * a, np.full(4, a)]),
+                                      np.column_stack([sx * p, sy * p, np.full(4, -0.45)]),
+                                      12.0, 0.25, 0.15, 60.0, 800.0)
+    arm = orbitflex.FlexibleArm(orbitflex.models.space_arm(), orbitflex.models.space_arm_joints(), wheels=wheels)
+    steps = np.arange(300)
+    sign = np.where(steps % 50 < 25, 1.0, -1.0)
+    command = sign[:, None] * 70.0 * np.arange(1, 5) / 4.0
+    command[:, 2] = 70.0
+    u = np.array([1.0, -0.5, 0.25, 2.0, 0.0, -1.0, 0.5])
+    traj = arm.simulate(arm.state(wheel_speed=[0.0, 0.0, 799.95, 0.0]), 1e-3, 300, u=u, wheel_torque=command)
+    assert lines["wheels"] == "4 state 45" and lines["outputs"] == "4"
+    assert np.array_equal(hexes("x"), traj.x[-1])
+    assert np.array_equal(hexes("wheel_speed"), traj.wheel_speed[-1])
+    assert np.array_equal(hexes("applied"), traj.wheel_torque[-1])
+    assert lines["replay"] == "bit-exact"
+    # both limits acted: ±60 N·m, and wheel 2 past 800 rad/s gets no torque speeding it up
+    assert np.abs(traj.wheel_torque).max() == 60.0 and traj.wheel_speed[:, 2].max() >= 800.0
+    assert np.any(traj.wheel_torque[:, 2] == 0.0)
+    refusals = {line.split()[1]: line.split(" ", 3)[3] for line in run.stdout.splitlines()
+                if line.startswith("refused")}
+    codes = {line.split()[1]: int(line.split()[2]) for line in run.stdout.splitlines() if line.startswith("refused")}
+    assert set(codes.values()) == {INVALID}
+    assert refusals["count"] == "ofx_simulator_set_wheel_torque: torque: expected length 4, given 3"
+    assert "finite" in refusals["nan"]
+    assert "the arm has no reaction wheels" in refusals["no_wheels"]
+    assert "saved from an arm with 4 reaction wheels; this simulator's arm has no reaction wheels" \
+        in refusals["restore"]
+    assert "spin_inertia[1]" in refusals["bad_wheel"] and "given -0.25" in refusals["bad_wheel"]
+    assert "expected at least one wheel, given 0" in refusals["none"]
+    assert refusals["null"] == "ofx_arm_with_wheels: wheels is NULL"
+    assert "plain outputs 0" in run.stdout

@@ -9,7 +9,7 @@ from typing import List, NoReturn, Optional, Sequence
 from .. import __version__
 from .errors import Parser, at_least_one, fail, finite, non_negative, package_dir, positive
 from .plan import PLAN_EPILOG, SERVO_HZ, TRACK_DT
-from .robots import BUS_SIDE
+from .robots import add_bus_arguments
 from .simulate import SIMULATE_EPILOG
 from .slew import DT_MARGIN
 
@@ -70,14 +70,7 @@ def model_options(p: argparse.ArgumentParser, verb: str) -> None:
     if verb == "simulate":
         p.add_argument("--slew", metavar="RAD", type=finite, nargs="+", default=None,
                        help="slew per joint, rad: one value for every joint, or one per joint (default 0.3)")
-    p.add_argument("--base-mass", metavar="KG", type=positive, default=None,
-                   help="mount the arm on a bus of this mass, replacing the root link's inertia")
-    p.add_argument("--base-inertia", metavar=("IXX", "IYY", "IZZ"), type=finite, nargs=3, default=None,
-                   help=f"the bus's principal moments about its COM, kg·m² (default: a solid "
-                        f"{BUS_SIDE:g} m cube of --base-mass)")
-    p.add_argument("--base-com", metavar=("X", "Y", "Z"), type=finite, nargs=3, default=None,
-                   help="the bus's COM in the root link's frame, m (default 0 0 0, the root link's "
-                        "origin; 0 0 -0.75 puts a 1.5 m bus under an arm that points up z)")
+    add_bus_arguments(p)
 
 
 def simulate_options(sim: argparse.ArgumentParser) -> None:

@@ -10,7 +10,7 @@ from typing import List, Optional, TYPE_CHECKING, Tuple
 import numpy as np
 
 from .. import FlexibleArm, FlexibleJoints, Robot, models
-from .errors import CliError, cli_words, urdf_error
+from .errors import CliError, cli_words, finite, positive, urdf_error
 
 if TYPE_CHECKING:
     from .slew import Array
@@ -111,3 +111,16 @@ def add_robot_arguments(p: argparse.ArgumentParser) -> None:
                    help="end-effector links of a tree: a comma-separated list; repeatable")
     p.add_argument("--locked-joints", metavar="NAMES", action="append", default=None,
                    help="joints held at zero: a comma-separated list; repeatable")
+
+
+def add_bus_arguments(p: argparse.ArgumentParser) -> None:
+    """The bus the arm is mounted on (``simulate``, ``plan``, ``fmu``): ``--base-mass``,
+    ``--base-inertia`` and ``--base-com``, read by :func:`mount_on_bus`."""
+    p.add_argument("--base-mass", metavar="KG", type=positive, default=None,
+                   help="mount the arm on a bus of this mass, replacing the root link's inertia")
+    p.add_argument("--base-inertia", metavar=("IXX", "IYY", "IZZ"), type=finite, nargs=3, default=None,
+                   help=f"the bus's principal moments about its COM, kg·m² (default: a solid "
+                        f"{BUS_SIDE:g} m cube of --base-mass)")
+    p.add_argument("--base-com", metavar=("X", "Y", "Z"), type=finite, nargs=3, default=None,
+                   help="the bus's COM in the root link's frame, m (default 0 0 0, the root link's "
+                        "origin; 0 0 -0.75 puts a 1.5 m bus under an arm that points up z)")
