@@ -35,6 +35,19 @@ check(importlib.metadata.version("orbitflex") == orbitflex.__version__,
 check((package / "_core.pyi").is_file() and (package / "py.typed").is_file(),
       "the type stub and py.typed are shipped")
 
+# The FMU / C API runtime ships beside the extension (`orbitflex fmu` packs it into every FMU), and
+# it is the same release as the core.
+import ctypes  # noqa: E402
+
+runtimes = [package / "_runtime" / name for name in ("liborbitflex_c.so", "liborbitflex_c.dylib", "orbitflex_c.dll")]
+runtime = next((r for r in runtimes if r.is_file()), None)
+check(runtime is not None, f"the FMU runtime is shipped in {package / '_runtime'}")
+assert runtime is not None
+library = ctypes.CDLL(str(runtime))
+library.ofx_version.restype = ctypes.c_char_p
+check(library.ofx_version().decode() == orbitflex.__version__,
+      f"the runtime's ofx_version() is the core's version ({orbitflex.__version__})")
+
 # The built-in model goes through the URDF reader compiled into the core.
 robot = orbitflex.Robot.from_urdf_string(orbitflex.SPACE_ARM_URDF)
 n = robot.dof

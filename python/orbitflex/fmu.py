@@ -23,17 +23,18 @@ _RUNTIME_NAMES = ("liborbitflex_c.so",)
 
 
 def runtime_library() -> Path:
-    """The FMU runtime (``liborbitflex_c.so``): the one in the installed package, else the file
-    named by ``$ORBITFLEX_RUNTIME``. Raises ``FileNotFoundError`` saying how to build it."""
-    here = Path(__file__).resolve().parent / "_runtime"
-    for name in _RUNTIME_NAMES:
-        if (here / name).is_file():
-            return here / name
+    """The FMU runtime (``liborbitflex_c.so``): the file named by ``$ORBITFLEX_RUNTIME`` when it is
+    set (an explicit choice wins, e.g. a freshly built ``target/release/liborbitflex_c.so``), else
+    the one in the installed package. Raises ``FileNotFoundError`` saying how to build it."""
     env = os.environ.get("ORBITFLEX_RUNTIME")
     if env:
         if Path(env).is_file():
             return Path(env)
         raise FileNotFoundError(f"$ORBITFLEX_RUNTIME names {env}, which is not a file")
+    here = Path(__file__).resolve().parent / "_runtime"
+    for name in _RUNTIME_NAMES:
+        if (here / name).is_file():
+            return here / name
     raise FileNotFoundError(
         f"the FMU runtime liborbitflex_c.so is not in {here}: install orbitflex with `pip install .` "
         "(its build backend builds the runtime), or build it with `cargo build --release -p "
