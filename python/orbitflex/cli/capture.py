@@ -135,7 +135,7 @@ def summarise(scenario: models.CaptureScenario, traj: Trajectory, metrics: Dict[
             "impulse_force_N_s": e.impulse[3:].tolist(), "energy_loss_J": e.energy_loss,
             "momentum_change": float(np.abs(e.momentum_after - e.momentum_before).max()),
         }
-    if scenario.wheel_controller is not None:
+    if scenario.wheel_controller is not None and scenario.arm.wheels is not None:
         pd = scenario.wheel_controller
         summary["wheels"] = {"source": args.wheels_source, "count": len(scenario.arm.wheels.mass),
                              "attitude_pd": {"kp": pd.kp.tolist(), "kd": pd.kd.tolist()},
@@ -274,6 +274,7 @@ def plot_wheels(traj: Trajectory, figures: Figures, rows: Any, mark: Any) -> Non
     from .wheels import limit_lines
 
     w = traj.arm.wheels
+    assert w is not None
     t = traj.t
     fig, (top, middle, bottom) = figures.new("Reaction wheels detumbling the stack", rows=3, height=9.0,
                                              sharex=True)
