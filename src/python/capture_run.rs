@@ -496,14 +496,15 @@ fn per_run<'py, T: pyo3::PyClass>(
 
 /// Many runs with targets at once, over a pool of ``threads`` threads (default every core): run
 /// ``k`` is ``arms[k].simulate(x0s[k], dt, steps, controllers[k], target=targets[k],
-/// capture=capture, capture_ee=capture_ee, record_every=record_every)``, bit for bit. ``arms``
-/// and ``controllers`` (``MotorPD``) may be one for every run; ``x0s`` is (runs, 13 + 4n) or one
-/// state (13 + 4n,). Returns the ``Trajectory`` of each run in order (with ``events``,
+/// capture=capture, capture_ee=capture_ee, record_every=record_every,
+/// wheel_torque=wheel_torque[k])``, bit for bit. ``arms``, ``controllers`` (``MotorPD``) and
+/// ``wheel_torque`` (``AttitudePD`` for arms with reaction wheels, or None) may be one for every
+/// run; ``x0s`` is (runs, 13 + 4n + k) or one state. Returns the ``Trajectory`` of each run in order (with ``events``,
 /// ``target``, ``arm_after``). A run that fails does not stop the others; once all are over, the
 /// first failure is raised as ``SimulationError`` naming the run, with its ``trajectory``
 /// (what it computed) and ``.trajectories`` (every run's). Ctrl-C stops the runs.
 #[pyfunction]
-#[pyo3(name = "simulate_capture_batch", signature = (arms, x0s, dt, steps, controllers, targets, capture, *, capture_ee=None, record_every=None, threads=None))]
+#[pyo3(name = "simulate_capture_batch", signature = (arms, x0s, dt, steps, controllers, targets, capture, *, capture_ee=None, record_every=None, threads=None, wheel_torque=None))]
 pub fn py_simulate_capture_batch<'py>(
     py: Python<'py>,
     arms: &Bound<'py, PyAny>,
@@ -516,6 +517,7 @@ pub fn py_simulate_capture_batch<'py>(
     capture_ee: Option<&Bound<'py, PyAny>>,
     record_every: Option<&Bound<'py, PyAny>>,
     threads: Option<usize>,
+    wheel_torque: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<Vec<Py<super::trajectory::PyTrajectory>>> {
     use crate::capture::{simulate_capture_batch, CaptureBatchSettings, CaptureCase};
     use std::sync::atomic::{AtomicBool, AtomicUsize};
@@ -573,12 +575,32 @@ pub fn py_simulate_capture_batch<'py>(
         ee: Some(super::convert::ee_arg(first.robot(), capture_ee)?),
         threads,
     };
+    let wheel_pds = match wheel_torque.filter(|o| !o.is_none()) {
+        // as in simulate: wheels without a controller get no torque
+        None => Vec::new(),
+        Some(obj) => per_run::<super::control::PyAttitudePD>(obj, "wheel_torque", runs)?
+            .iter()
+            .zip(&arms)
+            .enumerate()
+            .map(|(k, (pd, arm))| {
+                let arm = &arm.get().arm;
+                if arm.wheels().is_none() {
+                    return Err(super::errors::ModelError::new_err(format!(
+                        "wheel_torque: arms[{k}] has no reaction wheels; give none (or build \
+                         the arm with wheels)"
+                    )));
+                }
+                pd.get().bind(arm)
+            })
+            .collect::<PyResult<Vec<_>>>()?,
+    };
     let cases: Vec<CaptureCase<'_>> = (0..runs)
         .map(|k| CaptureCase {
             arm: &arms[k].get().arm,
             x0: &x0[k * len..(k + 1) * len],
             controller: &controllers[k].get().pd,
             target: &targets[k].get().target,
+            wheel_torque: wheel_pds.get(k),
         })
         .collect();
     let (cancel, done) = (AtomicBool::new(false), AtomicUsize::new(0));
