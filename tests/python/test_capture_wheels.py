@@ -242,3 +242,21 @@ def _nan_equal(a, b):
         x, y = a[k], b[k]
         assert x == y or (isinstance(x, float) and math.isnan(x) and math.isnan(y)), k
     return True
+
+
+def test_a_batch_with_wheels_equals_single_runs():
+    scenarios = [models.capture_scenario(rate, 0.02, 0.6, wheels=models.pyramid_wheels()) for rate in (1.0, 3.0)]
+    steps = 1500
+    trajs = of.simulate_capture_batch(
+        [s.arm for s in scenarios], np.array([s.x0 for s in scenarios]), 1e-3, steps,
+        [s.controller for s in scenarios], [s.target for s in scenarios], scenarios[0].when,
+        record_every=3, threads=2, wheel_torque=[s.wheel_controller for s in scenarios])
+    for s, traj in zip(scenarios, trajs):
+        single = s.run(steps * 1e-3, record_every=3)
+        assert len(traj.events) == 1
+        for name in ("x", "u", "target", "wheel_torque"):
+            assert getattr(traj, name).tobytes() == getattr(single, name).tobytes(), name
+    with pytest.raises(of.ModelError, match=r"wheel_torque: arms\[0\] has no reaction wheels"):
+        plain = models.capture_scenario()
+        of.simulate_capture_batch(plain.arm, plain.x0, 1e-3, 10, plain.controller, [plain.target], plain.when,
+                                  wheel_torque=scenarios[0].wheel_controller)

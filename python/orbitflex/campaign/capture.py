@@ -307,7 +307,8 @@ class CaptureCampaign:
                 [s.arm for s in scenarios], np.array([s.x0 for s in scenarios]), s0.dt,
                 int(round(self.duration / s0.dt)), [s.controller for s in scenarios],
                 [s.target for s in scenarios], s0.when, record_every=self.record_every, threads=threads,
-                wheel_torque=None if s0.wheel_controller is None else [s.wheel_controller for s in scenarios])
+                wheel_torque=None if s0.wheel_controller is None else [
+                    s.wheel_controller for s in scenarios if s.wheel_controller is not None])
             for (k, _), traj in zip(cases, trajectories):
                 m = detumble_metrics(traj, joint_rate=self.joint_rate, bus_rate=self.bus_rate)
                 rows[k]["captured"] = m["captured"]
@@ -358,7 +359,7 @@ class CaptureCampaign:
             client = Client(scheduler, timeout=timeout) if own else client  # type: ignore[no-untyped-call]
             try:
                 futures = [client.submit(_chunk_task, self, a, b, pure=False) for a, b in chunks]
-                for future in as_completed(futures):
+                for future in as_completed(futures):  # type: ignore[no-untyped-call]
                     finished(*future.result())
             finally:
                 if own:
