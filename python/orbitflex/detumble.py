@@ -158,7 +158,9 @@ def rigid_stack_rates(inertia: Any, kp: float, kd: float, error: Any, rate: Any,
         disc = complex(kd * kd - 4.0 * kp * moment)
         s1 = (-kd + disc ** 0.5) / (2.0 * moment)
         s2 = (-kd - disc ** 0.5) / (2.0 * moment)
-        if abs(s1 - s2) <= 1e-9 * abs(s1):  # critically damped: e = (c1 + c2 t) e^{s t}
+        # critically damped (to 1e-6: the two-root form would lose digits to cancellation, the
+        # repeated-root form is off by O((δ t)²), δ = |s1 − s2|/2): e = (c1 + c2 t) e^{s t}
+        if abs(s1 - s2) <= 1e-6 * abs(s1):
             s = s1.real
             c1, c2 = e0[i], w0[i] - s * e0[i]
             out[:, i] = np.exp(s * t) * (c2 + s * (c1 + c2 * t))
