@@ -438,6 +438,7 @@ fn a_batch_with_targets_equals_the_single_runs() {
             x0: &s.x0,
             controller: &s.controller,
             target: &s.target,
+            wheel_torque: None,
         })
         .collect();
     let settings = CaptureBatchSettings {

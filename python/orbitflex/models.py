@@ -22,7 +22,7 @@ onto the end-effector at 2 cm/s; see :class:`CaptureScenario`.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any, Optional
 
 import numpy as np
@@ -31,6 +31,7 @@ from ._core import (
     DEFAULT_BUS_SIDE,
     DUAL_ARM_URDF,
     SPACE_ARM_URDF,
+    AttitudePD,
     CaptureWhen,
     FlexibleArm,
     FlexibleJoints,
@@ -40,6 +41,7 @@ from ._core import (
     Target,
     Trajectory,
     _capture_scenario,
+    rotation_matrix,
 )
 
 __all__ = [
@@ -54,7 +56,14 @@ __all__ = [
     "dual_arm_joints",
     "capture_scenario",
     "CaptureScenario",
+    "DETUMBLE_BANDWIDTH",
 ]
+
+# The AttitudePD bandwidth (rad/s) with which capture_scenario(wheels=...) detumbles the stack by
+# default (damping ratio 0.7 about its major axis): a ninth of the lowest mode of the arm holding
+# its 200 kg catch under the stack-tuned motor PD (0.143 Hz = 0.90 rad/s, ζ ≈ 0.58), so the stack
+# turns as one rigid body under the attitude loop (orbitflex.detumble).
+DETUMBLE_BANDWIDTH = 0.05
 
 
 def space_arm() -> Robot:
@@ -133,12 +142,15 @@ def pyramid_wheels(spin_inertia: float = 0.25, transverse_inertia: float = 0.15,
 class CaptureScenario:
     """A capture run as values (``capture_scenario()``).
 
-    - ``arm``: the built-in space arm (500 kg bus, 7 flexible joints);
-    - ``x0``: the arm at rest in its pre-grasp posture (springs relaxed);
+    - ``arm``: the built-in space arm (500 kg bus, 7 flexible joints), with ``wheels`` if given;
+    - ``x0``: the arm at rest in its pre-grasp posture (springs relaxed, wheels at rest);
     - ``target``: the 200 kg client at ``t = 0``;
     - ``when``: the trigger (1 cm, 5 cm/s, 5 deg);
-    - ``controller``: the motor PD (0.25 Hz, damping ratio 1) holding the pre-grasp posture
-      before and after the capture;
+    - ``controller``: the motor PD holding the pre-grasp posture before and after the capture
+      (0.25 Hz, damping ratio 1, tuned for the arm alone or for the arm holding its catch:
+      ``motor_pd``);
+    - ``wheel_controller``: the ``AttitudePD`` driving the wheels (holding the bus at its
+      initial attitude; ``None`` without wheels);
     - ``dt`` (s), ``duration`` (s), ``meet`` (s): when the handle would reach the EE exactly
       (the trigger fires once it is within ``when.distance``, 0.5 s earlier at 2 cm/s).
     """
@@ -151,6 +163,7 @@ class CaptureScenario:
     dt: float
     duration: float
     meet: float
+    wheel_controller: Optional[AttitudePD] = None
 
     @property
     def steps(self) -> int:
@@ -159,27 +172,73 @@ class CaptureScenario:
 
     def run(self, duration: Optional[float] = None, **simulate: Any) -> Trajectory:
         """``arm.simulate`` of the scenario (``duration`` in s, default the scenario's), with
-        its target and trigger; other keywords (``record_every``, ``progress``, ...) pass on."""
+        its target, trigger and wheel controller; other keywords (``record_every``,
+        ``progress``, ...) pass on."""
         steps = self.steps if duration is None else int(round(duration / self.dt))
+        if self.wheel_controller is not None:
+            simulate.setdefault("wheel_torque", self.wheel_controller)
         return self.arm.simulate(
             self.x0, self.dt, steps, self.controller,
             target=self.target, capture=self.when, **simulate,
         )
 
+    def stack(self) -> FlexibleArm:
+        """The arm holding the target as it would at the exact meeting (the handle's frame on
+        the EE's): ``robot.with_payload`` of the target at the grasp's pose, with the arm's
+        joints and wheels. What the stack-tuned motor PD and the default detumble gains are
+        computed for (a run's ``arm_after`` differs only by the trigger's small offset)."""
+        t = self.target
+        grasp = np.asarray(t.grasp)
+        r = rotation_matrix(grasp[3:])  # the handle's axes in the target's frame: R_{t,g}
+        com = r.T @ (np.asarray(t.com) - grasp[:3])
+        inertia = r.T @ np.asarray(t.inertia) @ r
+        robot = self.arm.robot.with_payload(t.mass, inertia, com)
+        return FlexibleArm(robot, self.arm.joints, wheels=self.arm.wheels)
+
 
 def capture_scenario(
-    tumble_deg_s: float = 2.0, drift: float = 0.02, meet: float = 5.0
+    tumble_deg_s: float = 2.0, drift: float = 0.02, meet: float = 5.0,
+    wheels: Optional[ReactionWheels] = None, attitude_pd: Optional[AttitudePD] = None,
+    motor_pd: Optional[str] = None,
 ) -> CaptureScenario:
     """The built-in capture scenario: the space arm, holding its pre-grasp posture, captures a
     200 kg target spinning at ``tumble_deg_s`` (deg/s) about its major axis, whose handle
     drifts onto the end-effector along its approach axis at ``drift`` (m/s), reaching it at
-    ``meet`` (s). Computed in Rust (``orbitflex::capture::scenario``)."""
+    ``meet`` (s). Computed in Rust (``orbitflex::capture::scenario``).
+
+    ``wheels``: reaction wheels in the bus (``ReactionWheels``; ``pyramid_wheels()`` fits) to
+    detumble the stack after the capture, driven by ``attitude_pd`` (an ``AttitudePD``; default
+    :func:`orbitflex.detumble.detumble_gains` of the stack's inertia at ``DETUMBLE_BANDWIDTH`` rad/s,
+    damping ratio 0.7, holding the bus at its initial attitude). The arm's motors alone cannot
+    remove the stack's angular momentum; the wheels take it.
+
+    ``motor_pd``: ``"arm"`` tunes the motor PD (0.25 Hz, damping ratio 1) for the arm alone,
+    ``"stack"`` for the arm holding its catch (:meth:`CaptureScenario.stack`: stiffer; the arm
+    alone then rings at ≈ 0.22 Hz, ζ ≈ 0.89). Default ``"stack"`` with wheels, ``"arm"``
+    without. Tuned for the arm alone, the arm holding 200 kg swings at 0.025 Hz with a damping
+    ratio of 0.085: it takes minutes to settle, and a detumble waits for it."""
+    from .detumble import detumble_gains, stack_inertia
+
+    if motor_pd is None:
+        motor_pd = "arm" if wheels is None else "stack"
+    if motor_pd not in ("arm", "stack"):
+        raise ValueError(f"motor_pd: expected 'arm' or 'stack', given {motor_pd!r}")
+    if attitude_pd is not None and wheels is None:
+        raise ValueError("attitude_pd: given without wheels; give the ReactionWheels it drives (wheels=)")
+    if wheels is not None and not isinstance(wheels, ReactionWheels):
+        raise TypeError(f"wheels: expected a ReactionWheels, given {type(wheels).__name__}")
+    if attitude_pd is not None and not isinstance(attitude_pd, AttitudePD):
+        raise TypeError(f"attitude_pd: expected an AttitudePD, given {type(attitude_pd).__name__}")
     d = _capture_scenario(tumble_deg_s, drift, meet)
-    arm = FlexibleArm(space_arm(), space_arm_joints())
+    arm = FlexibleArm(space_arm(), space_arm_joints(), wheels=wheels)
+    x0 = np.asarray(d["x0"])
+    if wheels is not None:
+        n = arm.dof
+        x0 = arm.state(q=x0[7:7 + n], theta=x0[7 + n:7 + 2 * n])
     target = Target(d["mass"], d["inertia"], d["pose"], d["twist"], d["grasp"], name=d["name"])
-    return CaptureScenario(
+    s = CaptureScenario(
         arm=arm,
-        x0=d["x0"],
+        x0=x0,
         target=target,
         when=CaptureWhen(d["distance"], d["speed"], d["angle"]),
         controller=MotorPD(d["kp"], d["kd"], d["theta_ref"]),
@@ -187,3 +246,12 @@ def capture_scenario(
         duration=d["duration"],
         meet=d["meet"],
     )
+    stack = s.stack() if (motor_pd == "stack" or (wheels is not None and attitude_pd is None)) else None
+    if motor_pd == "stack" and stack is not None:
+        kp, kd = stack.motor_pd_gains(0.25, 1.0, q=d["theta_ref"])
+        s = replace(s, controller=MotorPD(kp, kd, d["theta_ref"]))
+    if wheels is not None:
+        if attitude_pd is None and stack is not None:
+            attitude_pd = AttitudePD(*detumble_gains(stack_inertia(stack, x0)[2], DETUMBLE_BANDWIDTH, 0.7))
+        s = replace(s, wheel_controller=attitude_pd)
+    return s

@@ -4,7 +4,7 @@
 use super::run::{simulate_capture_into, CaptureRecord, CaptureRun};
 use super::target::Target;
 use super::when::CaptureWhen;
-use crate::control::{MotorPD, Wrenches};
+use crate::control::{AttitudePD, MotorPD, Wrenches};
 use crate::error::{Error, Result};
 use crate::flex::FlexibleArm;
 use crate::integrate::batch::{in_pool, Cancel};
@@ -12,7 +12,8 @@ use crate::integrate::{Drive, Run, Trajectory};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 
-/// One run of a batch with targets: its arm, start, motor PD and target.
+/// One run of a batch with targets: its arm, start, motor PD, target and, for an arm with
+/// reaction wheels, the attitude controller that drives them.
 #[derive(Debug, Clone)]
 pub struct CaptureCase<'a> {
     /// The arm.
@@ -23,6 +24,9 @@ pub struct CaptureCase<'a> {
     pub controller: &'a MotorPD,
     /// The target at `t = 0`.
     pub target: &'a Target,
+    /// The wheels' controller, bound to the arm (each run starts from its own copy); `None`:
+    /// no wheel torque.
+    pub wheel_torque: Option<&'a AttitudePD>,
 }
 
 /// What one run of a batch with targets produced: its rows and its capture record, and the error
@@ -56,7 +60,8 @@ pub struct CaptureBatchSettings {
 }
 
 /// Runs every case over a pool of `settings.threads` threads, each as the single run
-/// [`simulate_capture_into`] (no wrenches; the case's motor PD), in order of the cases. A run
+/// [`simulate_capture_into`] (no wrenches; the case's motor PD and wheel controller), in order of
+/// the cases. A run
 /// that fails never stops the others; `cancel` stops those still going, and `done` counts the
 /// runs over.
 pub fn simulate_capture_batch(
@@ -86,7 +91,11 @@ fn one_run(
 ) -> CaptureOutcome {
     let mut pd = case.controller.clone();
     let mut wrenches = Wrenches::ZERO;
+    let mut wheel_pd = case.wheel_torque.cloned();
     let mut drive = Drive::new(&mut pd, &mut wrenches);
+    if let Some(wheels) = wheel_pd.as_mut() {
+        drive.wheel_torque = wheels;
+    }
     let layout = case.arm.layout();
     let run = Run::new(case.x0, s.dt, s.steps).recording_every(s.record_every);
     let mut trajectory = match Trajectory::reserved(layout, s.steps, s.record_every) {

@@ -668,8 +668,11 @@ impl PyFlexibleArm {
         let capturing = Capturing::from_args(arm, target, capture, capture_ee)?;
         if capturing.is_some() && on_rows.is_some() {
             return Err(ModelError::new_err(
-                "on_rows: a run with a target keeps its rows in memory (the target's rows and \
-                 events are recorded with them); leave on_rows out, or use record_every",
+                "on_rows: not with a target: the target's rows, the events and the momentum \
+                 that includes the target are kept with the arm's rows, which on_rows(t, x, u) \
+                 would not carry; leave on_rows out and thin the rows with record_every, or run \
+                 the approach with the target until after the capture, then continue from \
+                 traj.x[-1] on traj.arm_after (the target is part of it) with on_rows",
             ));
         }
         if let Some(callback) = on_rows {

@@ -228,6 +228,89 @@ impl PyCapture {
         self.capture.ee
     }
 
+    /// Pickles as its values and its combined arm, bit for bit ([`Self::restore`]).
+    fn __reduce__<'py>(slf: &Bound<'py, Self>) -> PyResult<(PyObject, PyObject)> {
+        let py = slf.py();
+        let me = slf.get();
+        let c = &me.capture;
+        let p = &c.payload;
+        let args = (
+            me.arm.clone_ref(py),
+            c.x.clone(),
+            (
+                c.impulse.to_array().to_vec(),
+                c.energy_loss,
+                c.relative_twist.to_array().to_vec(),
+                c.target_twist.to_array().to_vec(),
+            ),
+            (
+                p.mass,
+                p.com.as_slice().to_vec(),
+                p.rotational.as_slice().to_vec(),
+                c.payload_com.as_slice().to_vec(),
+                c.payload_inertia.as_slice().to_vec(),
+            ),
+            c.ee,
+        );
+        Ok((
+            slf.get_type().getattr("_restore")?.unbind(),
+            args.into_pyobject(py)?.into_any().unbind(),
+        ))
+    }
+
+    /// The capture from the values [`Self::__reduce__`] gives (for pickle).
+    #[staticmethod]
+    #[pyo3(name = "_restore")]
+    fn restore(
+        arm: Bound<'_, PyFlexibleArm>,
+        x: Vec<f64>,
+        jump: (Vec<f64>, f64, Vec<f64>, Vec<f64>),
+        payload: (f64, Vec<f64>, Vec<f64>, Vec<f64>, Vec<f64>),
+        ee: usize,
+    ) -> PyResult<Self> {
+        use crate::spatial::{Force, Inertia, Mat3, Motion};
+        let (impulse, energy_loss, relative_twist, target_twist) = jump;
+        let (mass, com, rotational, payload_com, payload_inertia) = payload;
+        let length = |v: &[f64], n: usize, what: &str| {
+            if v.len() == n {
+                Ok(())
+            } else {
+                Err(super::errors::ModelError::new_err(format!(
+                    "Capture.{what}: expected {n} numbers, given {}",
+                    v.len()
+                )))
+            }
+        };
+        length(&impulse, 6, "impulse")?;
+        length(&relative_twist, 6, "relative_twist")?;
+        length(&target_twist, 6, "target_twist")?;
+        length(&com, 3, "payload com")?;
+        length(&payload_com, 3, "payload_com")?;
+        length(&rotational, 9, "payload rotational inertia")?;
+        length(&payload_inertia, 9, "payload_inertia")?;
+        let flex = arm.get().arm.clone();
+        length(&x, flex.layout().len(), "x")?;
+        Ok(Self {
+            capture: Capture {
+                arm: flex,
+                x,
+                impulse: Force::from_slice(&impulse),
+                energy_loss,
+                relative_twist: Motion::from_slice(&relative_twist),
+                target_twist: Motion::from_slice(&target_twist),
+                payload: Inertia {
+                    mass,
+                    com: Vec3::from_column_slice(&com),
+                    rotational: Mat3::from_column_slice(&rotational),
+                },
+                payload_com: Vec3::from_column_slice(&payload_com),
+                payload_inertia: Mat3::from_column_slice(&payload_inertia),
+                ee,
+            },
+            arm: arm.unbind(),
+        })
+    }
+
     fn __repr__(&self) -> String {
         format!(
             "Capture(impulse={:?}, energy_loss={})",
@@ -259,14 +342,26 @@ pub fn py_capture(
     let ee = super::convert::ee_arg(flex.robot(), ee)?;
     let x = vector(x, "x (state)", Some(flex.layout().len()))?;
     let result = capture(flex, &x, &target.get().target, Some(ee))?;
-    let robot = Bound::new(py, PyRobot::wrap(result.arm.robot().clone()))?;
+    let combined = combined_arm(py, arm, &result.arm)?;
+    Ok(PyCapture {
+        capture: result,
+        arm: combined,
+    })
+}
+
+/// The Python `FlexibleArm` of the combined arm `after` of a capture by `arm`: its robot, with
+/// `arm`'s joints, method and reaction wheels (the grasp leaves the bus's wheels on the bus).
+pub(crate) fn combined_arm(
+    py: Python<'_>,
+    arm: &Bound<'_, PyFlexibleArm>,
+    after: &crate::flex::FlexibleArm,
+) -> PyResult<Py<PyFlexibleArm>> {
+    let robot = Bound::new(py, PyRobot::wrap(after.robot().clone()))?;
     let combined = py.get_type::<PyFlexibleArm>().call1((
         robot,
         arm.getattr("joints")?,
-        result.arm.method().name(),
+        after.method().name(),
+        arm.getattr("wheels")?,
     ))?;
-    Ok(PyCapture {
-        capture: result,
-        arm: combined.downcast_into::<PyFlexibleArm>()?.unbind(),
-    })
+    Ok(combined.downcast_into::<PyFlexibleArm>()?.unbind())
 }

@@ -4,7 +4,6 @@
 use super::arm::PyFlexibleArm;
 use super::capture::PyTarget;
 use super::convert::{array1, real};
-use super::robot::PyRobot;
 use super::run::{Channels, Progress, Watch};
 use crate::capture::{
     simulate_capture_into, CaptureEvent, CaptureRecord, CaptureRun, CaptureWhen, Target,
@@ -153,6 +152,89 @@ impl PyCaptureEvent {
     fn momentum_after<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
         array1(py, &self.event.momentum_after)
     }
+    /// Pickles as its values, bit for bit ([`Self::restore`] rebuilds it).
+    fn __reduce__<'py>(slf: &Bound<'py, Self>) -> PyResult<(PyObject, PyObject)> {
+        let py = slf.py();
+        let e = &slf.get().event;
+        let a = &e.approach;
+        let args = (
+            (
+                e.step,
+                e.time,
+                e.ee,
+                a.distance,
+                a.speed,
+                a.angle,
+                e.energy_loss,
+            ),
+            (
+                e.impulse.to_array().to_vec(),
+                e.relative_twist.to_array().to_vec(),
+                e.x_before.clone(),
+                e.x_after.clone(),
+                e.target_before.to_vec(),
+                e.target_after.to_vec(),
+                e.momentum_before.to_vec(),
+                e.momentum_after.to_vec(),
+            ),
+        );
+        Ok((
+            slf.get_type().getattr("_restore")?.unbind(),
+            args.into_pyobject(py)?.into_any().unbind(),
+        ))
+    }
+    /// The event from the values [`Self::__reduce__`] gives (for pickle).
+    #[staticmethod]
+    #[pyo3(name = "_restore")]
+    #[allow(clippy::type_complexity)]
+    fn restore(
+        scalars: (usize, f64, usize, f64, f64, f64, f64),
+        arrays: (
+            Vec<f64>,
+            Vec<f64>,
+            Vec<f64>,
+            Vec<f64>,
+            Vec<f64>,
+            Vec<f64>,
+            Vec<f64>,
+            Vec<f64>,
+        ),
+    ) -> PyResult<Self> {
+        let (step, time, ee, distance, speed, angle, energy_loss) = scalars;
+        let (impulse, relative_twist, x_before, x_after, tb, ta, mb, ma) = arrays;
+        fn fixed<const N: usize>(v: Vec<f64>, what: &str) -> PyResult<[f64; N]> {
+            let given = v.len();
+            v.try_into().map_err(|_| {
+                super::errors::ModelError::new_err(format!(
+                    "CaptureEvent.{what}: expected {N} numbers, given {given}"
+                ))
+            })
+        }
+        Ok(Self {
+            event: CaptureEvent {
+                step,
+                time,
+                ee,
+                approach: crate::capture::Approach {
+                    distance,
+                    speed,
+                    angle,
+                },
+                impulse: crate::spatial::Force::from_slice(&fixed::<6>(impulse, "impulse")?),
+                energy_loss,
+                relative_twist: crate::spatial::Motion::from_slice(&fixed::<6>(
+                    relative_twist,
+                    "relative_twist",
+                )?),
+                x_before,
+                x_after,
+                target_before: fixed(tb, "target_before")?,
+                target_after: fixed(ta, "target_after")?,
+                momentum_before: fixed(mb, "momentum_before")?,
+                momentum_after: fixed(ma, "momentum_after")?,
+            },
+        })
+    }
     fn __repr__(&self) -> String {
         let e = &self.event;
         format!(
@@ -257,6 +339,33 @@ pub(crate) fn capture_releasing_gil(
     })
 }
 
+/// The [`CaptureRecord`] of a pickled `Trajectory` (its `_restore_capture`): the events (a
+/// list of `CaptureEvent`), the target's rows (13 per row), the combined arm and the target.
+pub(crate) fn restore_record(
+    events: &Bound<'_, PyAny>,
+    target: Vec<f64>,
+    arm_after: Option<&Bound<'_, PyFlexibleArm>>,
+    body: &Target,
+) -> PyResult<CaptureRecord> {
+    let events = events
+        .try_iter()?
+        .map(|e| Ok(e?.downcast::<PyCaptureEvent>()?.get().event.clone()))
+        .collect::<PyResult<Vec<_>>>()?;
+    if target.len() % crate::capture::TARGET_STATE_LEN != 0 {
+        return Err(super::errors::ModelError::new_err(format!(
+            "target: expected rows of {} numbers, given {} numbers",
+            crate::capture::TARGET_STATE_LEN,
+            target.len()
+        )));
+    }
+    Ok(CaptureRecord {
+        events,
+        target,
+        arm_after: arm_after.map(|a| a.get().arm.clone()),
+        inertia: *body.spatial_inertia(),
+    })
+}
+
 /// What a `Trajectory` of a run with a target holds beside the arm's rows.
 pub(crate) struct CaptureInfo {
     pub record: CaptureRecord,
@@ -285,15 +394,7 @@ impl CaptureInfo {
         }
         let arm_after = match &record.arm_after {
             None => None,
-            Some(after) => {
-                let robot = Bound::new(py, PyRobot::wrap(after.robot().clone()))?;
-                let combined = py.get_type::<PyFlexibleArm>().call1((
-                    robot,
-                    arm.getattr("joints")?,
-                    after.method().name(),
-                ))?;
-                Some(combined.downcast_into::<PyFlexibleArm>()?.unbind())
-            }
+            Some(after) => Some(super::capture::combined_arm(py, arm, after)?),
         };
         let target = super::trajectory::frozen_rows(
             py,
@@ -395,14 +496,15 @@ fn per_run<'py, T: pyo3::PyClass>(
 
 /// Many runs with targets at once, over a pool of ``threads`` threads (default every core): run
 /// ``k`` is ``arms[k].simulate(x0s[k], dt, steps, controllers[k], target=targets[k],
-/// capture=capture, capture_ee=capture_ee, record_every=record_every)``, bit for bit. ``arms``
-/// and ``controllers`` (``MotorPD``) may be one for every run; ``x0s`` is (runs, 13 + 4n) or one
-/// state (13 + 4n,). Returns the ``Trajectory`` of each run in order (with ``events``,
+/// capture=capture, capture_ee=capture_ee, record_every=record_every,
+/// wheel_torque=wheel_torque[k])``, bit for bit. ``arms``, ``controllers`` (``MotorPD``) and
+/// ``wheel_torque`` (``AttitudePD`` for arms with reaction wheels, or None) may be one for every
+/// run; ``x0s`` is (runs, 13 + 4n + k) or one state. Returns the ``Trajectory`` of each run in order (with ``events``,
 /// ``target``, ``arm_after``). A run that fails does not stop the others; once all are over, the
 /// first failure is raised as ``SimulationError`` naming the run, with its ``trajectory``
 /// (what it computed) and ``.trajectories`` (every run's). Ctrl-C stops the runs.
 #[pyfunction]
-#[pyo3(name = "simulate_capture_batch", signature = (arms, x0s, dt, steps, controllers, targets, capture, *, capture_ee=None, record_every=None, threads=None))]
+#[pyo3(name = "simulate_capture_batch", signature = (arms, x0s, dt, steps, controllers, targets, capture, *, capture_ee=None, record_every=None, threads=None, wheel_torque=None))]
 pub fn py_simulate_capture_batch<'py>(
     py: Python<'py>,
     arms: &Bound<'py, PyAny>,
@@ -415,6 +517,7 @@ pub fn py_simulate_capture_batch<'py>(
     capture_ee: Option<&Bound<'py, PyAny>>,
     record_every: Option<&Bound<'py, PyAny>>,
     threads: Option<usize>,
+    wheel_torque: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<Vec<Py<super::trajectory::PyTrajectory>>> {
     use crate::capture::{simulate_capture_batch, CaptureBatchSettings, CaptureCase};
     use std::sync::atomic::{AtomicBool, AtomicUsize};
@@ -472,12 +575,32 @@ pub fn py_simulate_capture_batch<'py>(
         ee: Some(super::convert::ee_arg(first.robot(), capture_ee)?),
         threads,
     };
+    let wheel_pds = match wheel_torque.filter(|o| !o.is_none()) {
+        // as in simulate: wheels without a controller get no torque
+        None => Vec::new(),
+        Some(obj) => per_run::<super::control::PyAttitudePD>(obj, "wheel_torque", runs)?
+            .iter()
+            .zip(&arms)
+            .enumerate()
+            .map(|(k, (pd, arm))| {
+                let arm = &arm.get().arm;
+                if arm.wheels().is_none() {
+                    return Err(super::errors::ModelError::new_err(format!(
+                        "wheel_torque: arms[{k}] has no reaction wheels; give none (or build \
+                         the arm with wheels)"
+                    )));
+                }
+                pd.get().bind(arm)
+            })
+            .collect::<PyResult<Vec<_>>>()?,
+    };
     let cases: Vec<CaptureCase<'_>> = (0..runs)
         .map(|k| CaptureCase {
             arm: &arms[k].get().arm,
             x0: &x0[k * len..(k + 1) * len],
             controller: &controllers[k].get().pd,
             target: &targets[k].get().target,
+            wheel_torque: wheel_pds.get(k),
         })
         .collect();
     let (cancel, done) = (AtomicBool::new(false), AtomicUsize::new(0));

@@ -554,10 +554,66 @@ impl PyTrajectory {
                 .then(|| me.wheel_torque(py))
                 .transpose()?,
         );
+        if let Some(info) = &me.capture {
+            // a run with a target: its events, target rows, combined arm and target too
+            let capture = (
+                info.events.clone_ref(py),
+                info.record.target.clone(),
+                info.arm_after.as_ref().map(|a| a.clone_ref(py)),
+                info.body.clone_ref(py),
+            );
+            return Ok((
+                slf.get_type().getattr("_restore_capture")?.unbind(),
+                (args, capture).into_pyobject(py)?.into_any().unbind(),
+            ));
+        }
         Ok((
             slf.get_type().into_any().unbind(),
             args.into_pyobject(py)?.into_any().unbind(),
         ))
+    }
+
+    /// A pickled run with a target (for pickle): the arm's rows as ``Trajectory(...)`` takes
+    /// them, then the events, the target's rows, the combined arm and the target.
+    #[staticmethod]
+    #[pyo3(name = "_restore_capture")]
+    #[allow(clippy::type_complexity)]
+    fn restore_capture(
+        py: Python<'_>,
+        rows: (
+            Py<PyFlexibleArm>,
+            Bound<'_, PyAny>,
+            Bound<'_, PyAny>,
+            Bound<'_, PyAny>,
+            Option<Bound<'_, PyAny>>,
+        ),
+        capture: (
+            Bound<'_, PyAny>,
+            Vec<f64>,
+            Option<Bound<'_, PyFlexibleArm>>,
+            Bound<'_, super::capture::PyTarget>,
+        ),
+    ) -> PyResult<Self> {
+        let (arm, t, x, u, wheel_torque) = rows;
+        let (events, target, arm_after, body) = capture;
+        let arm_bound = arm.bind(py).clone();
+        let traj = Self::new(py, arm, &t, &x, &u, wheel_torque.as_ref())?;
+        let record = super::capture_run::restore_record(
+            &events,
+            target,
+            arm_after.as_ref(),
+            &body.get().target,
+        )?;
+        if record.rows() != traj.rows(py) {
+            return Err(super::errors::ModelError::new_err(format!(
+                "target: expected {} rows (one per row of x), given {}",
+                traj.rows(py),
+                record.rows()
+            )));
+        }
+        let info =
+            super::capture_run::CaptureInfo::new(py, &arm_bound, record, &body.get().target)?;
+        Ok(traj.with_capture(info))
     }
 
     fn __repr__(&self, py: Python<'_>) -> PyResult<String> {

@@ -75,7 +75,7 @@ from .dispersion import Array, CampaignError, DISTRIBUTIONS, Dispersion, JOINT_P
 from .execute import ChunkLog, reachable as reachable
 from .outputs import histograms, summary, write_outputs
 from .spec import Campaign
-from .capture import CAPTURE_METRICS, CAPTURE_PARAMETERS, CaptureCampaign
+from .capture import CAPTURE_METRICS, CAPTURE_PARAMETERS, CaptureCampaign, load_campaign
 
-__all__ = ["Campaign", "CaptureCampaign", "CAPTURE_PARAMETERS", "CAPTURE_METRICS", "Dispersion", "CampaignError", "ChunkLog", "summary", "write_outputs", "histograms",
+__all__ = ["Campaign", "CaptureCampaign", "load_campaign", "CAPTURE_PARAMETERS", "CAPTURE_METRICS", "Dispersion", "CampaignError", "ChunkLog", "summary", "write_outputs", "histograms",
            "PARAMETERS", "METRICS"]

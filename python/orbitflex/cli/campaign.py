@@ -21,7 +21,7 @@ def campaign_command(args: argparse.Namespace) -> int:
     except ImportError as e:
         raise CliError("campaign", f"needs pandas and pyarrow ({e}); pip install 'orbitflex[campaign]'") from None
     try:
-        campaign = campaigns.Campaign.from_toml(args.file)
+        campaign = campaigns.load_campaign(args.file)  # a slew Campaign, or a CaptureCampaign ([capture])
     except FileNotFoundError as e:
         raise CliError("FILE", str(e)) from None
     except ModelError as e:
@@ -53,10 +53,14 @@ def campaign_command(args: argparse.Namespace) -> int:
         if bar is not None:
             bar.close()
     seconds_taken = time.time() - started
-    files = campaigns.write_outputs(table, campaign, Path(args.out), plots=not args.no_plots)
+    capture = isinstance(campaign, campaigns.CaptureCampaign)
+    if capture:
+        files = campaign.write_outputs(table, Path(args.out), plots=not args.no_plots)
+    else:
+        files = campaigns.write_outputs(table, campaign, Path(args.out), plots=not args.no_plots)
     failed = int((~table["ok"]).sum())
     print(f"{runs} runs in {seconds_taken:.1f} s, {failed} failed")
-    stats = campaigns.summary(table)
+    stats = campaign.summary(table) if capture else campaigns.summary(table)
     print(f"{'metric':<22}{'unit':>6}{'p5':>12}{'p50':>12}{'p95':>12}{'max':>12}")
     for metric, row in stats.iterrows():
         cells = "".join(f"{row[c]:>12.4g}" if c in row and row[c] == row[c] else f"{'-':>12}"

@@ -4,7 +4,9 @@ run, printed as a summary and written to ``capture_summary.json``, ``capture.npz
 target's rows and the event) and the plots ``capture_bus_rates.png`` (the bus's angular rates,
 the kick at the event), ``capture_spring_torques.png`` (every joint's spring torque around the
 event) and ``capture_target_rates.png`` (the target's rates, free then joined), and, with
-``--animation``, ``capture.html`` (the 3-D view with the target's box).
+``--animation``, ``capture.html`` (the 3-D view with the target's box). With ``--wheels`` the bus
+carries reaction wheels under ``AttitudePD`` that detumble the stack after the capture, and
+``capture_wheels.png`` shows their momentum, speeds and torques against their limits.
 
 A self-contained command: :func:`add_parser` adds it to the CLI's subparsers and :func:`command`
 runs it. The physics is :mod:`orbitflex.capture` in Rust, the metrics
@@ -23,6 +25,7 @@ from typing import Any, Dict, List
 import numpy as np
 
 from .. import Trajectory, detumble_metrics, models
+from ..wheels_file import WheelsFile, WheelsFileError, read_wheels
 from .plots import Figures, plot_rows, seconds
 
 DESCRIPTION = """\
@@ -31,12 +34,15 @@ pre-grasp posture under its motor PD while a 200 kg target spinning at --tumble 
 its major axis drifts onto the end-effector at --drift m/s. The grasp is an instantaneous,
 perfectly inelastic impulse when the EE is within 1 cm, 5 cm/s and 5 deg of the handle; the
 run goes on with the combined arm. Prints the event and the detumbling metrics and writes
-capture_summary.json, capture.npz and three plots."""
+capture_summary.json, capture.npz and three plots. With --wheels the bus's reaction wheels,
+driven by AttitudePD, take the stack's momentum and bring it to rest (a fourth plot)."""
 
 EPILOG = """\
 examples:
   orbitflex capture                              # 2 deg/s, 2 cm/s, 40 s
   orbitflex capture --tumble 4 --duration 60 --out capture_out --animation
+  orbitflex capture --wheels pyramid             # detumbled by the built-in pyramid of wheels
+  orbitflex capture --wheels examples/wheels.toml --duration 100
 """
 
 OUTPUTS = ("capture_summary.json", "capture.npz", "capture_bus_rates.png",
@@ -56,8 +62,12 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
                    help="the target's approach speed (default %(default)s m/s)")
     p.add_argument("--meet", metavar="S", type=positive, default=5.0,
                    help="when the handle would reach the EE (default %(default)s s)")
-    p.add_argument("--duration", metavar="S", type=positive, default=40.0,
-                   help="simulated time (default %(default)s s)")
+    p.add_argument("--duration", metavar="S", type=positive, default=None,
+                   help="simulated time (default 40 s, 150 s with --wheels)")
+    p.add_argument("--wheels", metavar="FILE", default=None,
+                   help="reaction wheels in the bus and their AttitudePD gains, from a wheels TOML file "
+                        "(as simulate --wheels; see examples/wheels.toml), or 'pyramid' for "
+                        "orbitflex.models.pyramid_wheels() with gains derived from the stack's inertia")
     p.add_argument("--record-every", metavar="K", type=int, default=5,
                    help="keep every K-th row (default %(default)s)")
     p.add_argument("--bus-rate", metavar="DEG_S", type=positive, default=0.05,
@@ -76,7 +86,17 @@ def command(args: argparse.Namespace) -> int:
     if args.record_every < 1:
         raise CliError("--record-every", f"expected an integer >= 1, given {args.record_every}")
     out = output_folder(args.out)
-    scenario = models.capture_scenario(args.tumble, args.drift, args.meet)
+    spec = wheels_of(args)
+    if args.duration is None:
+        args.duration = 40.0 if spec is None else 150.0
+    if spec is None:
+        scenario = models.capture_scenario(args.tumble, args.drift, args.meet)
+    else:
+        try:
+            scenario = models.capture_scenario(args.tumble, args.drift, args.meet, wheels=spec.wheels,
+                                               attitude_pd=spec.controller() if spec.kp.size else None)
+        except ValueError as e:
+            raise CliError("--wheels", str(e)) from None
     traj = scenario.run(args.duration, record_every=args.record_every)
     metrics = detumble_metrics(traj, bus_rate=args.bus_rate)
     summary = summarise(scenario, traj, metrics, args)
@@ -115,8 +135,30 @@ def summarise(scenario: models.CaptureScenario, traj: Trajectory, metrics: Dict[
             "impulse_force_N_s": e.impulse[3:].tolist(), "energy_loss_J": e.energy_loss,
             "momentum_change": float(np.abs(e.momentum_after - e.momentum_before).max()),
         }
+    if scenario.wheel_controller is not None and scenario.arm.wheels is not None:
+        pd = scenario.wheel_controller
+        summary["wheels"] = {"source": args.wheels_source, "count": len(scenario.arm.wheels.mass),
+                             "attitude_pd": {"kp": pd.kp.tolist(), "kd": pd.kd.tolist()},
+                             "motor_pd": "tuned for the arm holding the target"}
     summary["metrics"] = metrics
     return summary
+
+
+def wheels_of(args: argparse.Namespace) -> "WheelsFile | None":
+    """The wheels of ``--wheels``: ``pyramid`` (gains left empty: the scenario derives them),
+    a wheels file, or None."""
+    from .errors import CliError
+
+    args.wheels_source = args.wheels
+    if args.wheels is None:
+        return None
+    if args.wheels == "pyramid":
+        args.wheels_source = "orbitflex.models.pyramid_wheels(), detumble gains from the stack's inertia"
+        return WheelsFile(models.pyramid_wheels(), np.zeros(0), np.zeros(0), args.wheels_source)
+    try:
+        return read_wheels(args.wheels)
+    except WheelsFileError as e:
+        raise CliError("--wheels", str(e)) from None
 
 
 def print_summary(s: Dict[str, Any]) -> None:
@@ -138,16 +180,31 @@ def print_summary(s: Dict[str, Any]) -> None:
     settle, detumble = m["settle_time"], m["detumble_time"]
     print("  joints settled (rates < 1 mrad/s) " + (f"{settle:.3g} s after the capture" if math.isfinite(settle)
                                                     else "not by the end of the run"))
+    w = s.get("wheels")
+    if w is not None:
+        pd = w["attitude_pd"]
+        print(f"  {w['count']} reaction wheels ({w['source']}), AttitudePD kp = {pd['kp'][0]:.4g} N·m/rad, "
+              f"kd = {pd['kd'][0]:.4g} N·m·s/rad")
+        print(f"  the wheels hold |h| = {m['wheel_momentum_nms']:.4g} N·m·s at the end (peak "
+              f"{m['peak_wheel_momentum_nms']:.4g}); peak speed {m['peak_wheel_speed_fraction']:.1%} and torque "
+              f"{m['peak_wheel_torque_fraction']:.1%} of their limits"
+              + ("; SATURATED: the wheels did not deliver what AttitudePD asked" if m["wheels_saturated"] else ""))
     if math.isfinite(detumble):
-        print(f"  bus rate below {m['bus_rate_threshold_deg_s']:g} deg/s {detumble:.3g} s after the capture")
-    else:
+        print(f"  stack detumbled (bus and target below {m['bus_rate_threshold_deg_s']:g} deg/s) "
+              f"{detumble:.3g} s after the capture")
+    elif w is None:
         print(f"  bus rate still above {m['bus_rate_threshold_deg_s']:g} deg/s at the end: the arm's motors "
-              "cannot remove the stack's momentum; nulling it needs an attitude actuator")
+              "cannot remove the stack's momentum; nulling it needs an attitude actuator (--wheels)")
+    else:
+        print(f"  the stack still turns faster than {m['bus_rate_threshold_deg_s']:g} deg/s at the end "
+              "(a longer --duration, or faster gains)")
 
 
 def save_npz(traj: Trajectory, path: Path) -> None:
     arrays: Dict[str, Any] = {"t": traj.t, "x": traj.x, "u": traj.u, "target": traj.target,
                               "spring_torque": traj.spring_torque, "momentum": traj.momentum}
+    if traj.arm.wheels is not None:
+        arrays.update(wheel_speed=traj.wheel_speed, wheel_torque=traj.wheel_torque)
     if traj.events:
         e = traj.events[0]
         arrays.update(event_time=e.time, event_step=e.step, impulse=e.impulse, energy_loss=e.energy_loss,
@@ -157,7 +214,8 @@ def save_npz(traj: Trajectory, path: Path) -> None:
 
 def plot(scenario: models.CaptureScenario, traj: Trajectory, out: Path, record_every: int,
          bus_rate: float) -> List[Path]:
-    caption = (f"model space_arm + {scenario.target.mass:g} kg target, dt = {seconds(scenario.dt)}, "
+    wheels = "" if scenario.arm.wheels is None else f" + {len(scenario.arm.wheels.mass)} reaction wheels (AttitudePD)"
+    caption = (f"model space_arm{wheels} + {scenario.target.mass:g} kg target, dt = {seconds(scenario.dt)}, "
                f"a row every {seconds(record_every * scenario.dt)}")
     figures = Figures(out, caption)
     rows = plot_rows(len(traj.t))
@@ -204,7 +262,50 @@ def plot(scenario: models.CaptureScenario, traj: Trajectory, out: Path, record_e
     ax.set(xlabel="time (s)", ylabel="rate (deg/s)")
     ax.legend(fontsize=9, loc="upper left", bbox_to_anchor=(1.01, 1.0))
     figures.save(fig, "capture_target_rates.png")
+    if traj.arm.wheels is not None:
+        plot_wheels(traj, figures, rows, mark)
     return figures.files
+
+
+def plot_wheels(traj: Trajectory, figures: Figures, rows: Any, mark: Any) -> None:
+    """``capture_wheels.png``: the wheels' spin momentum, speeds and applied torques, against
+    their limits (dashed), the capture marked."""
+    from ..detumble import wheel_momentum
+    from .wheels import limit_lines
+
+    w = traj.arm.wheels
+    assert w is not None
+    t = traj.t
+    fig, (top, middle, bottom) = figures.new("Reaction wheels detumbling the stack", rows=3, height=9.0,
+                                             sharex=True)
+    h = wheel_momentum(traj.arm, np.asarray(traj.x))
+    for i, axis in enumerate("xyz"):
+        top.plot(t[rows], h[rows, i], lw=1, label=f"$h_{axis}$")
+    top.plot(t[rows], np.linalg.norm(h, axis=1)[rows], color="black", lw=1.2, label="$|h|$")
+    mark(top)
+    top.set(ylabel="spin momentum h (N·m·s)", title="momentum the wheels hold, base frame: the stack's, handed over")
+    top.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))
+    max_speed, max_torque = np.asarray(w.max_speed), np.asarray(w.max_torque)
+    colors = [f"C{i}" for i in range(len(max_speed))]
+    for i, c in enumerate(colors):
+        middle.plot(t[rows], traj.wheel_speed[rows, i], color=c, lw=1.1, label=f"wheel {i}")
+    limit_lines(middle, max_speed, colors, "±max_speed")
+    mark(middle)
+    middle.set(ylabel="wheel speed Ω (rad/s)", yscale="symlog", title="wheel speeds relative to the bus "
+               "(log beyond 1 rad/s); dashed: ±max_speed")
+    middle.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))
+    u_rows = rows[rows < len(traj.wheel_torque)]
+    for i, c in enumerate(colors):
+        bottom.plot(t[u_rows], traj.wheel_torque[u_rows, i], color=c, lw=1.0, label=f"wheel {i}")
+    limit_lines(bottom, max_torque, colors, "±max_torque")
+    mark(bottom)
+    finite = max_torque[np.isfinite(max_torque)]
+    bottom.set_yscale("symlog", linthresh=float(finite.max()) / 1000 if finite.size else 1.0)
+    bottom.set(xlabel="time (s)", ylabel="applied torque u_w (N·m)",
+               title="applied wheel torques after saturation (log beyond 0.1 % of the limit); "
+                     "dashed: ±max_torque")
+    bottom.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))
+    figures.save(fig, "capture_wheels.png")
 
 
 if __name__ == "__main__":  # pragma: no cover
