@@ -8,10 +8,11 @@
 //! which need python-control and scipy) belong to the Python layer anyway.
 
 use super::arm::PyFlexibleArm;
-use super::control::PyMotorPD;
+use super::control::{PyAttitudePD, PyMotorPD};
 use super::convert::{array1, array2, matrix, vector};
 use super::errors::ModelError;
 use crate::analysis::{self, InputGroup, LinearSpec, Modes, Motors, OutputGroup, StateSpace};
+use crate::control::AttitudePD;
 use crate::integrate::Feedback;
 use crate::planning::BaseMode;
 use nalgebra::{Complex, DMatrix};
@@ -56,10 +57,58 @@ impl Loop {
     }
 }
 
+/// The controllers `u` (and `wheel_torque`) name: a `MotorPD` on the motors, an `AttitudePD` on
+/// the wheels, or a tuple or list of one of each; anything else goes to [`Loop::parse`].
+fn controllers<'py>(
+    arm: &crate::FlexibleArm,
+    u: &Bound<'py, PyAny>,
+    wheel_torque: Option<Bound<'py, PyAny>>,
+) -> PyResult<(Option<Bound<'py, PyAny>>, Option<AttitudePD>)> {
+    let mut motor = None;
+    let mut attitude = None;
+    let mut take = |obj: Bound<'py, PyAny>, what: &str| -> PyResult<()> {
+        if obj.is_instance_of::<PyAttitudePD>() {
+            if attitude.is_some() {
+                return Err(ModelError::new_err(format!(
+                    "{what}: two AttitudePDs; give one"
+                )));
+            }
+            attitude = Some(obj.downcast::<PyAttitudePD>()?.get().bind(arm)?);
+        } else if what == "wheel_torque" {
+            return Err(ModelError::new_err(format!(
+                "wheel_torque: the linear model takes an AttitudePD or None, given {}",
+                obj.get_type().name()?
+            )));
+        } else if motor.is_some() {
+            return Err(ModelError::new_err(
+                "u: two motor controllers; give at most one MotorPD and one AttitudePD",
+            ));
+        } else {
+            motor = Some(obj);
+        }
+        Ok(())
+    };
+    let is_pair =
+        u.is_instance_of::<pyo3::types::PyTuple>() || u.is_instance_of::<pyo3::types::PyList>();
+    if is_pair {
+        for item in u.try_iter()? {
+            take(item?, "u")?;
+        }
+    } else if !u.is_none() {
+        take(u.clone(), "u")?;
+    }
+    if let Some(w) = wheel_torque.filter(|o| !o.is_none()) {
+        take(w, "wheel_torque")?;
+    }
+    Ok((motor, attitude))
+}
+
 /// The parsed arguments of one call.
 struct Model {
     x: Vec<f64>,
     feedback: Loop,
+    /// An attitude PD on the wheels.
+    attitude: Option<AttitudePD>,
     base: BaseMode,
     motors: Motors,
     inputs: Vec<InputGroup>,
@@ -69,8 +118,8 @@ struct Model {
 }
 
 impl Model {
-    /// From `x` and the dict `spec` that `orbitflex.analysis` builds: `u`, `base`, `motors`,
-    /// `inputs`, `outputs` (lists of group names) and `damping`.
+    /// From `x` and the dict `spec` that `orbitflex.analysis` builds: `u`, `wheel_torque`
+    /// (optional), `base`, `motors`, `inputs`, `outputs` (lists of group names) and `damping`.
     fn parse(
         arm: &crate::FlexibleArm,
         x: Option<&Bound<'_, PyAny>>,
@@ -82,12 +131,14 @@ impl Model {
         };
         let names = |key: &str| -> PyResult<Vec<String>> { item(key)?.extract() };
         let u = item("u")?;
+        let (motor, attitude) = controllers(arm, &u, spec.get_item("wheel_torque")?)?;
         Ok(Self {
             x: match x {
                 Some(x) => vector(x, "x", Some(arm.layout().len()))?,
                 None => Vec::new(),
             },
-            feedback: Loop::parse(Some(&u), arm.dof())?,
+            feedback: Loop::parse(motor.as_ref(), arm.dof())?,
+            attitude,
             base: BaseMode::from_name(&item("base")?.extract::<String>()?)?,
             motors: Motors::from_name(&item("motors")?.extract::<String>()?)?,
             inputs: names("inputs")?
@@ -106,6 +157,7 @@ impl Model {
             base: self.base,
             motors: self.motors,
             feedback: self.feedback.feedback(),
+            attitude: self.attitude.as_ref(),
             inputs: &self.inputs,
             outputs: &self.outputs,
         }
@@ -162,6 +214,7 @@ fn modes_dict<'py>(py: Python<'py>, m: &Modes) -> PyResult<Bound<'py, PyDict>> {
     d.set_item("damping_ratio", array1(py, &m.damping_ratio))?;
     d.set_item("shapes", complex2(py, &m.shapes))?;
     d.set_item("rigid_body", m.rigid_body)?;
+    d.set_item("wheel_spin", m.wheel_spin)?;
     d.set_item("overdamped", array1(py, &m.overdamped))?;
     d.set_item("damped", m.damped)?;
     Ok(d)
