@@ -154,6 +154,7 @@ fn jacobians_dict<'py>(
     out.set_item("u", try_array2(py, &j.u, call)?)?;
     out.set_item("base_wrench", try_array2(py, &j.base_wrench, call)?)?;
     out.set_item("ee_wrench", try_array2(py, &j.ee_wrench, call)?)?;
+    out.set_item("wheel_torque", try_array2(py, &j.wheel_torque, call)?)?;
     Ok(out)
 }
 
@@ -422,9 +423,12 @@ impl PyFlexibleArm {
     }
 
     /// The Jacobians of :meth:`derivative` in tangent coordinates, as a dict: ``"x"``
-    /// (12+4n, 12+4n), ``"u"`` (12+4n, n), ``"base_wrench"`` (12+4n, 6) and ``"ee_wrench"`` (12+4n, 6k):
-    /// ``d(dx)/dt = F dx + G du + …`` for ``x = x̄ ⊕ dx`` (see :meth:`integrate`).
-    #[pyo3(signature = (x, u=None, base_wrench=None, ee_wrench=None))]
+    /// (t, t), ``"u"`` (t, n), ``"base_wrench"`` (t, 6), ``"ee_wrench"`` (t, 6k) and
+    /// ``"wheel_torque"`` (t, k_w; no columns without wheels), ``t = 12 + 4n + k_w``:
+    /// ``d(dx)/dt = F dx + G du + …`` for ``x = x̄ ⊕ dx`` (see :meth:`integrate`). With reaction
+    /// wheels the tangent ends with the wheel speeds, and ``wheel_torque`` (k_w,) commands are
+    /// saturated at ``x`` as :meth:`derivative` does (a clipped command has zero slope).
+    #[pyo3(signature = (x, u=None, base_wrench=None, ee_wrench=None, wheel_torque=None))]
     fn derivative_jacobians<'py>(
         &self,
         py: Python<'py>,
@@ -432,9 +436,11 @@ impl PyFlexibleArm {
         u: Option<&Bound<'py, PyAny>>,
         base_wrench: Option<&Bound<'py, PyAny>>,
         ee_wrench: Option<&Bound<'py, PyAny>>,
+        wheel_torque: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyDict>> {
         let x = vector(x, "x", Some(self.arm.layout().len()))?;
-        let inputs = InputArgs::parse(self.arm.robot(), u, base_wrench, ee_wrench)?;
+        let inputs = InputArgs::parse(self.arm.robot(), u, base_wrench, ee_wrench)?
+            .wheels(&self.arm, wheel_torque)?;
         let j = self
             .arm
             .derivative_jacobians(&mut self.ws(), &x, &inputs.inputs())?;
