@@ -459,3 +459,119 @@ fn closed_loop_matrix_equals_central_differences() {
         );
     }
 }
+
+use orbitflex::analysis::{sampled_loop, SampledFeedback};
+use orbitflex::UrdfOptions;
+
+/// A 200 kg bus with one feather-light link (1e-9 kg, 1e-12 kg·m²) on a unit spring: the
+/// craft is the bus and its wheels to within 1e-11 of its inertia.
+const FEATHER: &str = r#"<robot name="feather">
+  <link name="bus"><inertial><mass value="200"/>
+    <inertia ixx="60" iyy="80" izz="100" ixy="0" ixz="0" iyz="0"/></inertial></link>
+  <joint name="j" type="continuous"><parent link="bus"/><child link="feather"/>
+    <origin xyz="0 0 0"/><axis xyz="0 0 1"/></joint>
+  <link name="feather"><inertial><mass value="1e-9"/>
+    <inertia ixx="1e-12" iyy="1e-12" izz="1e-12" ixy="0" ixz="0" iyz="0"/></inertial></link>
+</robot>"#;
+
+/// Three wheels along the bus axes, centred at its origin.
+fn axis_wheels() -> ReactionWheels {
+    let wheel = |axis| Wheel {
+        axis,
+        position: [0.0; 3],
+        mass: 4.0,
+        spin_inertia: 0.05,
+        transverse_inertia: 0.03,
+        max_torque: 100.0,
+        max_speed: 1e4,
+        friction: 0.0,
+    };
+    ReactionWheels::new(vec![
+        wheel([1.0, 0.0, 0.0]),
+        wheel([0.0, 1.0, 0.0]),
+        wheel([0.0, 0.0, 1.0]),
+    ])
+    .unwrap()
+}
+
+/// An attitude PD sampled every `T` seconds on a rigid craft: per principal axis (inertia `I`)
+/// the plant `I φ̈ = c` held over a period is `Φ = [[1, T], [0, 1]]`, `Γ = [T²/2I; T/I]`, and
+/// `c = −k_p φ_j − k_d ω_j` closes it with the characteristic polynomial
+///
+/// ```text
+/// z² − (2 − k_p T²/2I − k_d T/I) z + (1 − k_d T/I + k_p T²/2I) = 0
+/// ```
+/// whose roots lie inside the unit circle iff `k_p T/2 < k_d` and `k_d T < 2I` (Jury). The
+/// other eigenvalues of the loop are the uncontrolled translations and wheel spins (1) and the
+/// feather's spring (`e^{±iωT}`, modulus 1 without damping), so `ρ` is the larger of 1 and the
+/// roots' moduli.
+///
+/// Bound: the feather moves the craft's inertia by 1e-11 relative; `exp` of the augmented
+/// matrix (scaling and squaring, `‖A T‖ ≲ 1e6 T` for the feather's spring) is accurate to
+/// `≲ 1e-16 · 2^s` with `s ≈ 20` squarings, ≈ 1e-10; the roots of a well-separated quadratic
+/// move as much. 1e-8 leaves a margin of 100.
+#[test]
+fn sampled_attitude_loop_matches_the_discrete_closed_form() {
+    let robot = Robot::from_urdf_string(FEATHER, &UrdfOptions::default()).unwrap();
+    let arm = FlexibleArm::new(
+        robot,
+        FlexibleJoints::uniform(1, 1.0, 1.0, 0.0, 0.0).unwrap(),
+    )
+    .unwrap()
+    .with_wheels(axis_wheels())
+    .unwrap();
+    let x = arm.rest_state();
+    let (kp, kd) = (40.0, 20.0);
+    let pd = AttitudePD::new(
+        [kp; 3],
+        [kd; 3],
+        AttitudeTarget::Initial,
+        arm.wheels().unwrap().allocation().unwrap(),
+    )
+    .unwrap();
+    let plant = LinearSpec {
+        motors: Motors::Clamped,
+        ..LinearSpec::default()
+    };
+    // the craft's inertia about its centre (the bus's, plus the wheels' masses at the origin
+    // and transverse inertias: 60 + 2·0.03, …)
+    let inertia = [60.06, 80.06, 100.06];
+    let critical = 2.0 * kd / kp; // k_p T/2 < k_d: T < 1 s
+    for period in [0.05, 0.5, 0.99 * critical, 1.01 * critical, 1.5] {
+        let l = sampled_loop(
+            &arm,
+            &mut arm.workspace(),
+            &x,
+            &plant,
+            SampledFeedback::Attitude(&pd),
+            1.0 / period,
+            0,
+        )
+        .unwrap();
+        let mut rho: f64 = 1.0;
+        for i in inertia {
+            let tr = 2.0 - kp * period * period / (2.0 * i) - kd * period / i;
+            let det = 1.0 - kd * period / i + kp * period * period / (2.0 * i);
+            let disc = Complex::new(tr * tr - 4.0 * det, 0.0).sqrt();
+            for root in [(tr + disc) / 2.0, (tr - disc) / 2.0] {
+                let nearest = l
+                    .eigenvalues
+                    .iter()
+                    .map(|z| (z - root).norm())
+                    .fold(f64::INFINITY, f64::min);
+                assert!(
+                    nearest < 1e-8,
+                    "T {period}: root {root} missing ({nearest:e})"
+                );
+                rho = rho.max(root.norm());
+            }
+        }
+        assert!(
+            (l.spectral_radius - rho).abs() < 1e-8,
+            "T {period}: ρ {} vs {rho}",
+            l.spectral_radius
+        );
+        assert_eq!(l.unstable(), period > critical, "T {period}");
+    }
+}
+use nalgebra::Complex;

@@ -50,7 +50,7 @@ Array = npt.NDArray[np.float64]
 ComplexArray = npt.NDArray[np.complex128]
 Names = Union[str, Sequence[str]]
 
-__all__ = ["Modes", "StateSpace", "Sweep", "sweep", "closed_loop_modes"]
+__all__ = ["Modes", "StateSpace", "Sweep", "SampledLoop", "sweep", "closed_loop_modes", "sampled_loop"]
 
 
 def _names(value: Names, what: str) -> List[str]:
@@ -305,6 +305,40 @@ def closed_loop_modes(arm: FlexibleArm, x: npt.ArrayLike, pd: Any, count: int = 
     parts = [f"{f:.3g} Hz (ζ {z:.2f}, {j})" for f, z, j in
              zip(modes.frequency_hz[:count], modes.damping_ratio[:count], modes.dominant_joints[:count])]
     return modes, f"first closed-loop modes ({base} base): " + ", ".join(parts)
+
+
+@dataclass(frozen=True)
+class SampledLoop:
+    """A controller run at its own rate, closed around the linear model (:func:`sampled_loop`).
+
+    ``spectral_radius``: of the loop's one-period matrix (plant discretised with zero-order hold
+    at the period, the delay's samples in flight as extra states); ``threshold``: the largest
+    stable value (1 plus 1e-6, times the continuous loop's own growth at a moving state);
+    ``unstable``: ``spectral_radius > threshold``; ``eigenvalues`` (complex); ``period`` (s),
+    ``rate_hz``, ``delay`` (samples) and ``controller`` (``"MotorPD"`` or ``"AttitudePD"``)."""
+
+    spectral_radius: float
+    threshold: float
+    unstable: bool
+    eigenvalues: ComplexArray
+    period: float
+    rate_hz: float
+    delay: int
+    controller: str
+
+
+def sampled_loop(arm: FlexibleArm, x: npt.ArrayLike, controller: Any, u: Any = None, base: str = "free",
+                 motors: str = "free", *, wheel_torque: Any = None) -> SampledLoop:
+    """The discrete loop of ``controller``, a ``Sampled(MotorPD(...) | AttitudePD(...), rate_hz,
+    delay)``, about the state ``x``: the linear model (``base``, ``motors``; ``u`` and
+    ``wheel_torque``: the loops that run at every RK4 step, closed in, as in
+    :meth:`FlexibleArm.modes`) discretised with zero-order hold at ``1/rate_hz``, the controller's
+    gain applied ``delay`` samples late. ``simulate`` warns when this loop is unstable.
+    """
+    d = _core._sampled_loop(arm, x, _spec(u, base, motors, wheel_torque=wheel_torque), controller)
+    return SampledLoop(spectral_radius=float(d["spectral_radius"]), threshold=float(d["threshold"]),
+                       unstable=bool(d["unstable"]), eigenvalues=d["eigenvalues"], period=float(d["period"]),
+                       rate_hz=float(d["rate_hz"]), delay=int(d["delay"]), controller=str(d["controller"]))
 
 
 FlexibleArm.modes = _modes  # type: ignore[method-assign]

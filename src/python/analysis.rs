@@ -302,3 +302,150 @@ pub fn py_sweep<'py>(
         })
         .collect()
 }
+
+/// The controller a `Sampled` wraps, as the linear feedback it applies: a `MotorPD` or an
+/// `AttitudePD` (bound to `arm`'s wheels), or None for anything else (a callable, a table).
+enum SampledInner {
+    Motor { kp: Vec<f64>, kd: Vec<f64> },
+    Attitude(AttitudePD),
+}
+
+impl SampledInner {
+    fn parse(arm: &crate::FlexibleArm, inner: &Bound<'_, PyAny>) -> PyResult<Option<Self>> {
+        if inner.is_instance_of::<PyMotorPD>() {
+            let pd = &inner.downcast::<PyMotorPD>()?.get().pd;
+            return Ok(Some(SampledInner::Motor {
+                kp: pd.kp.clone(),
+                kd: pd.kd.clone(),
+            }));
+        }
+        if inner.is_instance_of::<PyAttitudePD>() {
+            let pd = inner.downcast::<PyAttitudePD>()?.get().bind(arm)?;
+            return Ok(Some(SampledInner::Attitude(pd)));
+        }
+        Ok(None)
+    }
+    fn feedback(&self) -> analysis::SampledFeedback<'_> {
+        match self {
+            SampledInner::Motor { kp, kd } => analysis::SampledFeedback::MotorPd { kp, kd },
+            SampledInner::Attitude(pd) => analysis::SampledFeedback::Attitude(pd),
+        }
+    }
+}
+
+/// `crate::analysis::sampled_loop` for a `Sampled(MotorPD | AttitudePD, rate_hz, delay)`
+/// closed around the model `spec` (whose `u`/`wheel_torque` are the loops running every step):
+/// a dict with `spectral_radius`, `threshold`, `unstable`, `eigenvalues`, `period`, `delay`,
+/// `rate_hz` and `controller` (its name).
+#[pyfunction]
+#[pyo3(name = "_sampled_loop")]
+pub fn py_sampled_loop<'py>(
+    py: Python<'py>,
+    arm: &Bound<'py, PyFlexibleArm>,
+    x: &Bound<'py, PyAny>,
+    spec: &Bound<'py, PyDict>,
+    controller: &Bound<'py, PyAny>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let arm = &arm.get().arm;
+    let Some((inner, rate_hz, delay)) = super::control::sampled(Some(controller))? else {
+        return Err(ModelError::new_err(format!(
+            "controller: expected a Sampled(MotorPD or AttitudePD, rate_hz, delay), given {}",
+            controller.get_type().name()?
+        )));
+    };
+    let Some(feedback) = SampledInner::parse(arm, &inner)? else {
+        return Err(ModelError::new_err(format!(
+            "controller: the linear model knows the feedback of a sampled MotorPD or \
+             AttitudePD, not of a {}",
+            inner.get_type().name()?
+        )));
+    };
+    let model = Model::parse(arm, Some(x), spec)?;
+    let l = analysis::sampled_loop(
+        arm,
+        &mut arm.workspace(),
+        &model.x,
+        &model.spec(),
+        feedback.feedback(),
+        rate_hz,
+        delay,
+    )?;
+    let d = PyDict::new(py);
+    d.set_item("spectral_radius", l.spectral_radius)?;
+    d.set_item("threshold", l.threshold)?;
+    d.set_item("unstable", l.unstable())?;
+    d.set_item("eigenvalues", complex1(py, &l.eigenvalues))?;
+    d.set_item("period", l.period)?;
+    d.set_item("delay", l.delay)?;
+    d.set_item("rate_hz", rate_hz)?;
+    d.set_item("controller", feedback.feedback().name())?;
+    Ok(d)
+}
+
+/// The warnings `simulate` gives before a run from `x0` for the sampled controllers among `u`
+/// and `wheel_torque` (a `Sampled` `MotorPD` or `AttitudePD`): one per sampled loop whose
+/// discrete loop at `x0` is unstable, naming the controller, its rate and delay and the
+/// spectral radius. The other channel's controller, if it is a plain `MotorPD` or `AttitudePD`
+/// (run every step), is closed into the plant. A loop the linear model cannot describe (a
+/// state at a wheel's speed limit, say) gives no warning.
+pub(crate) fn sampled_warnings(
+    arm: &crate::FlexibleArm,
+    x0: &[f64],
+    u: Option<&Bound<'_, PyAny>>,
+    wheel_torque: Option<&Bound<'_, PyAny>>,
+) -> PyResult<Vec<String>> {
+    let mut out = Vec::new();
+    let plain = |obj: Option<&Bound<'_, PyAny>>| -> PyResult<Option<SampledInner>> {
+        match obj.filter(|o| !o.is_none()) {
+            Some(o) if super::control::sampled(Some(o))?.is_none() => SampledInner::parse(arm, o),
+            _ => Ok(None),
+        }
+    };
+    let (plain_u, plain_w) = (plain(u)?, plain(wheel_torque)?);
+    for (channel, obj) in [("u", u), ("wheel_torque", wheel_torque)] {
+        let Some((inner, rate_hz, delay)) = super::control::sampled(obj)? else {
+            continue;
+        };
+        let Some(feedback) = SampledInner::parse(arm, &inner)? else {
+            continue;
+        };
+        let (motor, attitude) = match channel {
+            "u" => (None, plain_w.as_ref()),
+            _ => (plain_u.as_ref(), None),
+        };
+        let spec = LinearSpec {
+            feedback: match motor {
+                Some(SampledInner::Motor { kp, kd }) => Feedback::MotorPd { kp, kd },
+                _ => Feedback::None,
+            },
+            attitude: match attitude {
+                Some(SampledInner::Attitude(pd)) => Some(pd),
+                _ => None,
+            },
+            ..LinearSpec::default()
+        };
+        let Ok(l) = analysis::sampled_loop(
+            arm,
+            &mut arm.workspace(),
+            x0,
+            &spec,
+            feedback.feedback(),
+            rate_hz,
+            delay,
+        ) else {
+            continue;
+        };
+        if l.unstable() {
+            out.push(format!(
+                "{channel}: the {} sampled at {rate_hz} Hz (period {:e} s, delay {delay} \
+                 samples) makes an unstable loop: the spectral radius of its zero-order-hold \
+                 discretisation at x0 is {:.6} > 1; the run will likely diverge (raise rate_hz, \
+                 shorten the delay or lower the gains)",
+                feedback.feedback().name(),
+                l.period,
+                l.spectral_radius
+            ));
+        }
+    }
+    Ok(out)
+}

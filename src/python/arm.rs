@@ -636,7 +636,10 @@ impl PyFlexibleArm {
     /// ``on_rows`` stops the run and is raised as it is.
     ///
     /// Warns (``RuntimeWarning``) before it starts when ``dt`` is past the RK4 stability limit of
-    /// the closed loop at ``x0`` (see :meth:`rk4_stability_limit`). Raises ``SimulationError``
+    /// the closed loop at ``x0`` (see :meth:`rk4_stability_limit`), and when a ``Sampled``
+    /// ``MotorPD`` or ``AttitudePD`` makes a loop that is unstable at its rate and delay (the
+    /// spectral radius of the zero-order-hold discretisation of the linear model at ``x0``,
+    /// :func:`orbitflex.analysis.sampled_loop`). Raises ``SimulationError``
     /// (with ``.trajectory``, the finite part, ``.step`` and ``.time``) when the state turns
     /// non-finite or the controller raises or returns non-finite torques; its trajectory keeps
     /// the rows kept so far and ends on the last good state (with ``on_rows``: that state
@@ -723,7 +726,9 @@ impl PyFlexibleArm {
                 Sink::Stream(Stream::new(layout, chunks))
             }
         };
-        if let Some(warning) = integrate::stability_warning(arm, &x0, dt, &*channels.u)? {
+        let sampled = super::analysis::sampled_warnings(arm, &x0, u, wheel_torque)?;
+        let rk4 = integrate::stability_warning(arm, &x0, dt, &*channels.u)?;
+        for warning in rk4.into_iter().chain(sampled) {
             PyErr::warn(
                 py,
                 &py.get_type::<PyRuntimeWarning>(),
