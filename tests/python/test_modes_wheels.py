@@ -176,3 +176,34 @@ def test_wheel_inputs_outputs_and_bad_input():
         arm.modes(arm.state(), u=orbitflex.AttitudePD(1.0, 1.0), base="held")
     with pytest.raises(orbitflex.ModelError, match=r"controller: expected a Sampled"):
         analysis.sampled_loop(arm, x, orbitflex.AttitudePD(1.0, 1.0))
+
+
+def test_cli_modes_with_wheels(tmp_path, capsys):
+    """``orbitflex modes --wheels`` closes the bus loop with the file's AttitudePD (its gains
+    overridable), counts the wheel spins, and names its flags in usage errors."""
+    import json
+    import pathlib
+
+    from orbitflex.cli import main
+
+    toml = pathlib.Path(__file__).resolve().parents[2] / "examples" / "wheels.toml"
+    if not toml.exists():
+        pytest.skip("needs the source tree")
+    out = tmp_path / "out"
+    code = main(["modes", "--wheels", str(toml), "--kp", "800", "--kd", "300", "--inputs", "wheel_torque",
+                 "--outputs", "base_attitude,wheel_speed", "--out", str(out), "--no-plots"])
+    assert code == 0
+    text = capsys.readouterr().out
+    assert "3 rigid-body modes separated out, and 4 wheel spins" in text
+    doc = json.loads((out / "modes.json").read_text())
+    assert doc["wheel_spin_modes"] == 4 and doc["rigid_body_modes"] == 3 and doc["closed_loop"]
+    # open loop: zero attitude gains leave the bus's rotations rigid
+    assert main(["modes", "--wheels", str(toml), "--attitude-kp", "0", "--attitude-kd", "0",
+                 "--out", str(out), "--no-plots"]) == 0
+    assert "13 rigid-body modes separated out, and 4 wheel spins" in capsys.readouterr().out
+    for argv, flag in ((["modes", "--attitude-kp", "3"], "--attitude-kp"),
+                       (["modes", "--wheels", str(toml), "--attitude-kd", "1", "2"], "--attitude-kd"),
+                       (["modes", "--wheels", str(toml), "--base", "held"], "--wheels"),
+                       (["modes", "--wheels", str(tmp_path / "none.toml")], "--wheels")):
+        assert main(argv + ["--out", str(out), "--no-plots"]) == 2
+        assert f"orbitflex: error: {flag}:" in capsys.readouterr().err
