@@ -180,3 +180,32 @@ pub fn random_state(robot: &Robot, seed: u64) -> (Vec<f64>, Vec<f64>, Vec<f64>) 
         rng.vector(n, -1.0, 1.0),
     )
 }
+
+/// `k` random reaction wheels (seeded): unit axes in random directions (not aligned with the
+/// base axes), centres within 0.8 m of the base origin, 1–10 kg, `J_s` 0.01–0.1 kg·m², `J_t`
+/// between `J_s/2` and `J_s`, friction 0–0.01 N·m·s, torque limit `max_torque` and speed limit
+/// 1e4 rad/s.
+pub fn random_wheels(k: usize, seed: u64, max_torque: f64) -> crate::flex::ReactionWheels {
+    let mut rng = Rng::new(seed);
+    let wheels = (0..k)
+        .map(|_| {
+            let spin = rng.range(0.01, 0.1);
+            let a = rng.unit();
+            crate::flex::Wheel {
+                axis: [a.x, a.y, a.z],
+                position: [
+                    rng.range(-0.8, 0.8),
+                    rng.range(-0.8, 0.8),
+                    rng.range(-0.8, 0.8),
+                ],
+                mass: rng.range(1.0, 10.0),
+                spin_inertia: spin,
+                transverse_inertia: rng.range(0.5 * spin, spin),
+                max_torque,
+                max_speed: 1e4,
+                friction: rng.range(0.0, 0.01),
+            }
+        })
+        .collect();
+    crate::flex::ReactionWheels::new(wheels).expect("valid random wheels")
+}

@@ -736,13 +736,21 @@ fn names_round_trip() {
             "spring_torque",
             "ee_position",
             "base_attitude",
-            "base_position"
+            "base_position",
+            "base_rate",
+            "wheel_speed"
         ]
     );
     let names: Vec<&str> = InputGroup::ALL.iter().map(|g| g.name()).collect();
     assert_eq!(
         names,
-        ["motor_torque", "theta_ref", "base_wrench", "ee_wrench"]
+        [
+            "motor_torque",
+            "theta_ref",
+            "base_wrench",
+            "ee_wrench",
+            "wheel_torque"
+        ]
     );
     assert_eq!(
         (Motors::Free.name(), Motors::Clamped.name()),
@@ -818,7 +826,8 @@ fn closed_loop_rows_match_finite_differences() {
 /// Every output row of `C` against central differences of the output's own definition along the
 /// tangent (`x ⊕ dx`): angles, deflections, spring torques (rates included), the end-effectors'
 /// inertial positions (`FlexibleArm::ee_pose`), the base's small rotation (the tangent's `δφ_B`,
-/// `x ⊖ y`) and position, at a turned, moving base, on a tree with several end-effectors.
+/// `x ⊖ y`), position and rate, at a turned, moving base, on a tree with several end-effectors
+/// (every group but `wheel_speed`, which needs wheels: `tests/wheel_linear.rs`).
 #[test]
 fn output_rows_match_finite_differences() {
     let robot = random_tree_all_leaves(TREE_THREE_ARMS.0, 61);
@@ -827,12 +836,16 @@ fn output_rows_match_finite_differences() {
     assert!(k > 1);
     let arm = FlexibleArm::new(robot, random_joints(n, 61)).unwrap();
     let x = state(&arm, 61, false);
+    let groups: Vec<OutputGroup> = OutputGroup::ALL
+        .into_iter()
+        .filter(|g| *g != OutputGroup::WheelSpeed)
+        .collect();
     let spec = LinearSpec {
-        outputs: &OutputGroup::ALL,
+        outputs: &groups,
         ..LinearSpec::default()
     };
     let ss = state_space(&arm, &mut arm.workspace(), &x, &spec).unwrap();
-    assert_eq!(ss.c.nrows(), 4 * n + 3 * k + 6);
+    assert_eq!(ss.c.nrows(), 4 * n + 3 * k + 9);
     let layout = arm.layout();
     let p = arm.joints().clone();
     let outputs = |dx: &[f64]| {
@@ -849,6 +862,7 @@ fn output_rows_match_finite_differences() {
         }
         out.extend_from_slice(&arm.difference(&x, &y).unwrap()[3..6]);
         out.extend_from_slice(s.position);
+        out.extend_from_slice(&s.base_twist[..3]);
         out
     };
     let t = arm.tangent_size();

@@ -16,32 +16,9 @@ use orbitflex::{
     UrdfOptions, Wrenches,
 };
 
-/// `k` wheels with random unit axes (not aligned with the base axes), centres within 0.8 m of
-/// the base origin, 1–10 kg, `J_s` 0.01–0.1 kg·m², `J_t` between `J_s/2` and `J_s`, limits that
-/// the random torques stay within, and friction 0–0.01 N·m·s.
+/// `k` random wheels ([`orbitflex::testing::random_wheels`]), torque limit 1.0 N·m.
 fn random_wheels(k: usize, seed: u64) -> ReactionWheels {
-    let mut rng = Rng::new(seed);
-    let wheels = (0..k)
-        .map(|_| {
-            let spin = rng.range(0.01, 0.1);
-            let a = rng.unit();
-            Wheel {
-                axis: [a.x, a.y, a.z],
-                position: [
-                    rng.range(-0.8, 0.8),
-                    rng.range(-0.8, 0.8),
-                    rng.range(-0.8, 0.8),
-                ],
-                mass: rng.range(1.0, 10.0),
-                spin_inertia: spin,
-                transverse_inertia: rng.range(0.5 * spin, spin),
-                max_torque: 1.0,
-                max_speed: 1e4,
-                friction: rng.range(0.0, 0.01),
-            }
-        })
-        .collect();
-    ReactionWheels::new(wheels).unwrap()
+    orbitflex::testing::random_wheels(k, seed, 1.0)
 }
 
 /// Four wheels in a pyramid (axes 54.7° from the base z axis), as on many spacecraft.
@@ -746,17 +723,19 @@ fn bad_wheel_torques_are_refused_clearly() {
         e.starts_with("wheel_torque: the arm has no reaction wheels"),
         "{e}"
     );
+    // the step's Jacobians are not there yet (the derivative's are: tests/wheel_linear.rs)
     let e = arm
-        .derivative_jacobians(
+        .step_jacobians(
             &mut arm.workspace(),
             &arm.rest_state(),
+            1e-3,
             &Inputs::torques(&u),
         )
         .unwrap_err()
         .to_string();
     assert_eq!(
         e,
-        "derivative_jacobians: not available yet for an arm with reaction wheels"
+        "step_jacobians: not available yet for an arm with reaction wheels"
     );
     // a state of the arm without wheels is the wrong length for the arm with them
     let e = arm

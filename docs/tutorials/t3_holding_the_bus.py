@@ -121,10 +121,22 @@ print(f"tracked with the wheels: bus attitude within {run['base_attitude_error']
 # ## Flight software at 50 Hz, one sample late
 #
 # `Sampled(controller, rate_hz, delay)` runs any controller at its own rate, holding its output
-# between samples. The same hold at 50 Hz with a delay of one sample (20 ms) costs pointing.
+# between samples. The same hold at 50 Hz with a delay of one sample (20 ms) is an unstable
+# discrete loop: `orbitflex.analysis.sampled_loop` gives its spectral radius ρ (above 1:
+# unstable), and `simulate` warns before it starts. The wheels then ride at their torque limit
+# and the pointing error grows tenfold.
 
 # %%
+import warnings
+
+from orbitflex import analysis
+
 for rate, delay in ((1000.0, 0), (50.0, 0), (50.0, 1)):
     acs = orbitflex.Sampled(orbitflex.AttitudePD(*orbitflex.models.PYRAMID_GAINS), rate, delay=delay)
-    r = arm.simulate(arm.state(), dt, steps, u=motor_pd, wheel_torque=acs)
-    print(f"{rate:6.0f} Hz, delay {delay}: bus within {bus_turn(r).max():.2e} rad")
+    rho = analysis.sampled_loop(arm, arm.state(), acs, u=motor_pd).spectral_radius
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        r = arm.simulate(arm.state(), dt, steps, u=motor_pd, wheel_torque=acs)
+    warned = "  (simulate warned: unstable sampled loop)" if caught else ""
+    print(f"{rate:6.0f} Hz, delay {delay}: ρ = {rho:.3f}, bus within {bus_turn(r).max():.2e} rad, "
+          f"wheel torque up to {np.abs(r.wheel_torque).max():.0f} N·m{warned}")

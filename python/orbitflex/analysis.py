@@ -22,8 +22,16 @@ Inputs by name: ``motor_torque`` (N·m, link side), ``theta_ref`` (rad, the PD's
 ``base_wrench`` (``[moment (N·m); force (N)]``, base frame), ``ee_wrench`` (the same, exerted by
 each end-effector, in its frame). Outputs by name: ``q``, ``theta``, ``deflection`` (rad),
 ``spring_torque`` (N·m), ``ee_position`` (m, inertial), ``base_attitude`` (rad, small angles about
-the base axes), ``base_position`` (m, inertial). Reaction-wheel torques and wheel speeds join
-these names when the wheels do.
+the base axes), ``base_position`` (m, inertial), ``base_rate`` (rad/s, the bus's angular velocity,
+base frame).
+
+Reaction wheels. On an arm built with ``wheels=ReactionWheels(...)`` the states end with the k
+wheel speeds ``δΩ`` (rad/s relative to the bus, as ``arm.state_slices["wheel_speed"]``), the input
+``wheel_torque`` (k, N·m commanded to each wheel about its axis; the bus feels the opposite) and
+the output ``wheel_speed`` (k, rad/s) exist, and an ``AttitudePD`` closes the bus's attitude loop:
+``u=AttitudePD(...)``, ``u=(MotorPD(...), AttitudePD(...))``, or ``wheel_torque=AttitudePD(...)``
+as in :meth:`FlexibleArm.simulate`. The linear model leaves the wheels' torque and speed limits
+out; a state with a wheel at its speed limit is refused.
 """
 
 from __future__ import annotations
@@ -36,13 +44,13 @@ import numpy as np
 import numpy.typing as npt
 
 from . import _core
-from ._core import FlexibleArm, MotorPD
+from ._core import AttitudePD, FlexibleArm, MotorPD
 
 Array = npt.NDArray[np.float64]
 ComplexArray = npt.NDArray[np.complex128]
 Names = Union[str, Sequence[str]]
 
-__all__ = ["Modes", "StateSpace", "Sweep", "sweep", "closed_loop_modes"]
+__all__ = ["Modes", "StateSpace", "Sweep", "SampledLoop", "sweep", "closed_loop_modes", "sampled_loop"]
 
 
 def _names(value: Names, what: str) -> List[str]:
@@ -55,9 +63,16 @@ def _names(value: Names, what: str) -> List[str]:
 
 
 def _spec(u: Any, base: str, motors: str, inputs: Names = (), outputs: Names = (),
-          damping: bool = True) -> Dict[str, Any]:
-    return {"u": u, "base": base, "motors": motors, "inputs": _names(inputs, "inputs"),
-            "outputs": _names(outputs, "outputs"), "damping": bool(damping)}
+          damping: bool = True, wheel_torque: Any = None) -> Dict[str, Any]:
+    return {"u": u, "wheel_torque": wheel_torque, "base": base, "motors": motors,
+            "inputs": _names(inputs, "inputs"), "outputs": _names(outputs, "outputs"),
+            "damping": bool(damping)}
+
+
+def _closed(u: Any, wheel_torque: Any) -> bool:
+    """Whether a feedback closes the loop: a MotorPD or an AttitudePD, alone or in a pair."""
+    items = list(u) if isinstance(u, (tuple, list)) else [u]
+    return any(isinstance(c, (MotorPD, AttitudePD)) for c in items + [wheel_torque])
 
 
 @dataclass(frozen=True)
@@ -70,7 +85,9 @@ class Modes:
     δv_B | δq̇ | δθ̇]``: the displacement part has unit modal mass, its heaviest component is real
     and positive, and the rates are ``λ`` times the displacements. ``rigid_body``: the number of
     rigid-body modes (the null space of the stiffness). ``eigenvalues``: every eigenvalue of the
-    model's state matrix (1/s). ``overdamped``: real eigenvalues (1/s) of structural modes damped
+    model's state matrix (1/s). ``wheel_spin``: the number of reaction wheels' free spins separated
+    out (k: a wheel speed has no angle in the state, so each adds one eigenvalue, zero or its
+    friction's decay, not a pair). ``overdamped``: real eigenvalues (1/s) of structural modes damped
     past critical. ``damped``: True for the state matrix's modes, False for the undamped pencil
     ``(K, M)``. ``spring_energy`` (m, n): each spring's share ``k_i |δθ_i − δq_i|²`` of the mode's
     spring energy.
@@ -89,6 +106,7 @@ class Modes:
     base: str
     motors: str
     closed_loop: bool
+    wheel_spin: int = 0
 
     def __len__(self) -> int:
         return len(self.frequency_hz)
@@ -103,7 +121,8 @@ class Modes:
         loop = ", closed loop" if self.closed_loop else ""
         kind = "damped" if self.damped else "undamped"
         lines = [f"{len(self)} structural modes ({kind}; base {self.base}, motors {self.motors}{loop}); "
-                 f"{self.rigid_body} rigid-body modes separated out",
+                 f"{self.rigid_body} rigid-body modes separated out"
+                 + (f", and {self.wheel_spin} wheel spins" if self.wheel_spin else ""),
                  f"{'mode':>4}  {'f (Hz)':>10}  {'f_n (Hz)':>10}  {'zeta':>7}  dominant spring"]
         shown = len(self) if count is None else min(count, len(self))
         for i in range(shown):
@@ -127,11 +146,11 @@ def _modes_from(d: Dict[str, Any], arm: FlexibleArm, base: str, motors: str, clo
                  damping_ratio=d["damping_ratio"], shapes=shapes, rigid_body=int(d["rigid_body"]),
                  eigenvalues=d["eigenvalues"], overdamped=d["overdamped"], damped=bool(d["damped"]),
                  spring_energy=share, joint_names=list(arm.robot.joint_names), base=base, motors=motors,
-                 closed_loop=closed)
+                 closed_loop=closed, wheel_spin=int(d["wheel_spin"]))
 
 
 def _modes(self: FlexibleArm, x: npt.ArrayLike, u: Any = None, base: str = "free", motors: str = "free",
-           *, damping: bool = True) -> Modes:
+           *, damping: bool = True, wheel_torque: Any = None) -> Modes:
     """The structural modes about the state ``x`` (13+4n,): see :class:`Modes`.
 
     ``damping=True`` (default): eigenvalues and eigenvectors of the linear model's state matrix,
@@ -139,15 +158,18 @@ def _modes(self: FlexibleArm, x: npt.ArrayLike, u: Any = None, base: str = "free
     state. ``damping=False``: the undamped modes ``K φ = ω² M φ`` at ``x``'s configuration (springs
     and a PD's ``kp``; damping, velocities and preload ignored), real shapes. Without damping, at
     rest, both give the same modes. ``base``: ``"free"`` or ``"held"``; ``motors``: ``"free"`` or
-    ``"clamped"`` (brakes on).
+    ``"clamped"`` (brakes on). ``u``: None, torques, a ``MotorPD``, an ``AttitudePD`` (arm with
+    wheels) or a pair of them; ``wheel_torque``: an ``AttitudePD`` or None (see the module docs).
+    An attitude loop's ``kp`` holds the bus's rotation: its three rigid-body modes become the
+    attitude loop's modes, reported with the structural ones.
     """
-    d = _core._modes(self, x, _spec(u, base, motors, damping=damping))
-    return _modes_from(d, self, base, motors, isinstance(u, MotorPD))
+    d = _core._modes(self, x, _spec(u, base, motors, damping=damping, wheel_torque=wheel_torque))
+    return _modes_from(d, self, base, motors, _closed(u, wheel_torque))
 
 
 def _frequency_response(self: FlexibleArm, x: npt.ArrayLike, freqs_hz: npt.ArrayLike, inputs: Names = "motor_torque",
                         outputs: Names = "q", u: Any = None, base: str = "free",
-                        motors: str = "free") -> ComplexArray:
+                        motors: str = "free", *, wheel_torque: Any = None) -> ComplexArray:
     """``H(j 2π f) = C (j 2π f I − A)⁻¹ B`` at each frequency of ``freqs_hz`` (Hz, ≥ 0): a complex
     array (len(freqs_hz), n_out, n_in), in the units of the outputs per unit of the inputs (e.g.
     rad/(N·m)). ``inputs``/``outputs``: a group name or a list of them (see the module docs; the
@@ -155,16 +177,18 @@ def _frequency_response(self: FlexibleArm, x: npt.ArrayLike, freqs_hz: npt.Array
     Hessenberg reduction, then one Hessenberg solve per frequency, without the GIL. A frequency
     at a pole on the imaginary axis (0 Hz with a floating base or free motors) is an error.
     """
-    return _core._frequency_response(self, x, freqs_hz, _spec(u, base, motors, inputs, outputs))
+    return _core._frequency_response(self, x, freqs_hz,
+                                     _spec(u, base, motors, inputs, outputs, wheel_torque=wheel_torque))
 
 
 def _state_space(self: FlexibleArm, x: npt.ArrayLike, u: Any = None, inputs: Names = "motor_torque",
-                 outputs: Names = "q", base: str = "free", motors: str = "free") -> StateSpace:
+                 outputs: Names = "q", base: str = "free", motors: str = "free", *,
+                 wheel_torque: Any = None) -> StateSpace:
     """The linear model ``d(dx)/dt = A dx + B du``, ``dy = C dx + D du`` about ``x``, with named
     states, inputs and outputs (:class:`StateSpace`). The states are the tangent's elements the
-    model keeps (12+4n free/free; no ``θ, θ̇`` clamped; no base pose and twist held).
+    model keeps (12+4n+k free/free, k wheels; no ``θ, θ̇`` clamped; no base pose and twist held).
     """
-    d = _core._state_space(self, x, _spec(u, base, motors, inputs, outputs))
+    d = _core._state_space(self, x, _spec(u, base, motors, inputs, outputs, wheel_torque=wheel_torque))
     return StateSpace(A=d["A"], B=d["B"], C=d["C"], D=d["D"], states=d["states"], inputs=d["inputs"],
                       outputs=d["outputs"], tangent_index=np.asarray(d["tangent_index"], dtype=np.intp),
                       x=np.array(x, dtype=float), model=self.robot.name, base=base, motors=motors)
@@ -174,7 +198,7 @@ def _state_space(self: FlexibleArm, x: npt.ArrayLike, u: Any = None, inputs: Nam
 class StateSpace:
     """A linear model about the state ``x``: ``A`` (s×s), ``B`` (s×m), ``C`` (p×s), ``D`` (p×m),
     with the names of its ``states``, ``inputs`` and ``outputs``; ``tangent_index[i]`` is where
-    state ``i`` sits in the tangent (12+4n)."""
+    state ``i`` sits in the tangent (12+4n+k)."""
 
     A: Array
     B: Array
@@ -240,7 +264,7 @@ class Sweep:
 
 def sweep(arm: FlexibleArm, configurations: npt.ArrayLike, *, u: Any = None, base: str = "free",
           motors: str = "free", damping: bool = True, count: Optional[int] = None,
-          threads: Optional[int] = None) -> Sweep:
+          threads: Optional[int] = None, wheel_torque: Any = None) -> Sweep:
     """The first ``count`` modes (default: all) at each of ``configurations``, in one call,
     in parallel over ``threads`` threads (default every core) without the GIL.
 
@@ -255,8 +279,8 @@ def sweep(arm: FlexibleArm, configurations: npt.ArrayLike, *, u: Any = None, bas
     states = q if q.shape[1] == arm.state_size else np.array([arm.state(q=row) for row in q]).reshape(-1, arm.state_size)
     if threads is not None and (not isinstance(threads, int) or threads < 1):
         raise _core.ModelError(f"threads: expected an integer >= 1 or None, given {threads!r}")
-    rows = _core._sweep(arm, states, _spec(u, base, motors, damping=damping), threads)
-    modes = [_modes_from(d, arm, base, motors, isinstance(u, MotorPD)) for d in rows]
+    rows = _core._sweep(arm, states, _spec(u, base, motors, damping=damping, wheel_torque=wheel_torque), threads)
+    modes = [_modes_from(d, arm, base, motors, _closed(u, wheel_torque)) for d in rows]
     width = max([len(m) for m in modes] + [0]) if count is None else count
 
     def table(name: str) -> Array:
@@ -271,15 +295,50 @@ def sweep(arm: FlexibleArm, configurations: npt.ArrayLike, *, u: Any = None, bas
                  rigid_body=np.array([m.rigid_body for m in modes], dtype=np.int64), modes=modes)
 
 
-def closed_loop_modes(arm: FlexibleArm, x: npt.ArrayLike, pd: MotorPD, count: int = 3,
+def closed_loop_modes(arm: FlexibleArm, x: npt.ArrayLike, pd: Any, count: int = 3,
                       base: str = "free") -> Tuple[Modes, str]:
-    """The closed-loop modes of ``arm`` under the motor PD ``pd`` at ``x``, and a line naming the
-    first ``count`` of them, e.g. ``"first closed-loop modes: 0.46 Hz (ζ 0.13, shoulder_pitch), …"``
-    (for a summary such as the demo's)."""
+    """The closed-loop modes of ``arm`` under ``pd`` at ``x`` (a ``MotorPD``, an ``AttitudePD`` on
+    the wheels, or a pair of them), and a line naming the first ``count`` of them, e.g.
+    ``"first closed-loop modes: 0.46 Hz (ζ 0.13, shoulder_pitch), …"`` (for a summary such as the
+    demo's)."""
     modes = arm.modes(x, u=pd, base=base)
     parts = [f"{f:.3g} Hz (ζ {z:.2f}, {j})" for f, z, j in
              zip(modes.frequency_hz[:count], modes.damping_ratio[:count], modes.dominant_joints[:count])]
     return modes, f"first closed-loop modes ({base} base): " + ", ".join(parts)
+
+
+@dataclass(frozen=True)
+class SampledLoop:
+    """A controller run at its own rate, closed around the linear model (:func:`sampled_loop`).
+
+    ``spectral_radius``: of the loop's one-period matrix (plant discretised with zero-order hold
+    at the period, the delay's samples in flight as extra states); ``threshold``: the largest
+    stable value (1 plus 1e-6, times the continuous loop's own growth at a moving state);
+    ``unstable``: ``spectral_radius > threshold``; ``eigenvalues`` (complex); ``period`` (s),
+    ``rate_hz``, ``delay`` (samples) and ``controller`` (``"MotorPD"`` or ``"AttitudePD"``)."""
+
+    spectral_radius: float
+    threshold: float
+    unstable: bool
+    eigenvalues: ComplexArray
+    period: float
+    rate_hz: float
+    delay: int
+    controller: str
+
+
+def sampled_loop(arm: FlexibleArm, x: npt.ArrayLike, controller: Any, u: Any = None, base: str = "free",
+                 motors: str = "free", *, wheel_torque: Any = None) -> SampledLoop:
+    """The discrete loop of ``controller``, a ``Sampled(MotorPD(...) | AttitudePD(...), rate_hz,
+    delay)``, about the state ``x``: the linear model (``base``, ``motors``; ``u`` and
+    ``wheel_torque``: the loops that run at every RK4 step, closed in, as in
+    :meth:`FlexibleArm.modes`) discretised with zero-order hold at ``1/rate_hz``, the controller's
+    gain applied ``delay`` samples late. ``simulate`` warns when this loop is unstable.
+    """
+    d = _core._sampled_loop(arm, x, _spec(u, base, motors, wheel_torque=wheel_torque), controller)
+    return SampledLoop(spectral_radius=float(d["spectral_radius"]), threshold=float(d["threshold"]),
+                       unstable=bool(d["unstable"]), eigenvalues=d["eigenvalues"], period=float(d["period"]),
+                       rate_hz=float(d["rate_hz"]), delay=int(d["delay"]), controller=str(d["controller"]))
 
 
 FlexibleArm.modes = _modes  # type: ignore[method-assign]

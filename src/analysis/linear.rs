@@ -4,6 +4,7 @@
 
 use crate::algorithms;
 use crate::args::RigidState;
+use crate::control::{AttitudePD, AttitudeTarget, Controller};
 use crate::error::{Error, Result};
 use crate::flex::{FlexibleArm, Inputs, ModelWorkspace};
 use crate::integrate::Feedback;
@@ -44,8 +45,7 @@ impl Motors {
     }
 }
 
-/// A group of inputs of the linear model, by name. Reaction-wheel torques (`"wheel_torque"`)
-/// join this list when the wheels do.
+/// A group of inputs of the linear model, by name.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum InputGroup {
     /// `"motor_torque"`: `δu` (n, N·m, link side), added to whatever the feedback commands.
@@ -57,15 +57,19 @@ pub enum InputGroup {
     /// `"ee_wrench"`: `δf_e = [moment; force]` exerted by each end-effector on its environment,
     /// in its own frame (6 per end-effector, in `ee_links` order).
     EeWrench,
+    /// `"wheel_torque"`: `δu_W` (k, N·m) commanded to each reaction wheel about its axis (the
+    /// bus feels the opposite), added to what an attitude controller commands; needs wheels.
+    WheelTorque,
 }
 
 impl InputGroup {
     /// Every group, in the order of their names.
-    pub const ALL: [InputGroup; 4] = [
+    pub const ALL: [InputGroup; 5] = [
         InputGroup::MotorTorque,
         InputGroup::ThetaRef,
         InputGroup::BaseWrench,
         InputGroup::EeWrench,
+        InputGroup::WheelTorque,
     ];
 
     /// The group's name.
@@ -75,6 +79,7 @@ impl InputGroup {
             InputGroup::ThetaRef => "theta_ref",
             InputGroup::BaseWrench => "base_wrench",
             InputGroup::EeWrench => "ee_wrench",
+            InputGroup::WheelTorque => "wheel_torque",
         }
     }
 
@@ -102,11 +107,16 @@ pub enum OutputGroup {
     BaseAttitude,
     /// `"base_position"`: `δr_B`, inertial frame (m).
     BasePosition,
+    /// `"base_rate"`: the bus's angular velocity `δω_B`, base frame (rad/s).
+    BaseRate,
+    /// `"wheel_speed"`: the reaction wheels' speeds `δΩ` relative to the bus (rad/s, k);
+    /// needs wheels.
+    WheelSpeed,
 }
 
 impl OutputGroup {
     /// Every group, in the order of their names.
-    pub const ALL: [OutputGroup; 7] = [
+    pub const ALL: [OutputGroup; 9] = [
         OutputGroup::Q,
         OutputGroup::Theta,
         OutputGroup::Deflection,
@@ -114,6 +124,8 @@ impl OutputGroup {
         OutputGroup::EePosition,
         OutputGroup::BaseAttitude,
         OutputGroup::BasePosition,
+        OutputGroup::BaseRate,
+        OutputGroup::WheelSpeed,
     ];
 
     /// The group's name.
@@ -126,6 +138,8 @@ impl OutputGroup {
             OutputGroup::EePosition => "ee_position",
             OutputGroup::BaseAttitude => "base_attitude",
             OutputGroup::BasePosition => "base_position",
+            OutputGroup::BaseRate => "base_rate",
+            OutputGroup::WheelSpeed => "wheel_speed",
         }
     }
 
@@ -157,8 +171,8 @@ fn by_name<T: Copy>(
         })
 }
 
-/// What the linear model describes: the base, the motors, the feedback closing the loop, and
-/// the named inputs and outputs.
+/// What the linear model describes: the base, the motors, the feedbacks closing the loop (on
+/// the motors, and on the bus through its reaction wheels), and the named inputs and outputs.
 #[derive(Debug, Clone, Copy)]
 pub struct LinearSpec<'a> {
     /// Free floating, or held inertially still by its actuators (`V_B = 0`, `α_B = 0`).
@@ -168,6 +182,9 @@ pub struct LinearSpec<'a> {
     /// [`Feedback::None`] (open loop) or [`Feedback::MotorPd`] (closed loop);
     /// [`Feedback::Unknown`] is refused.
     pub feedback: Feedback<'a>,
+    /// An [`AttitudePD`] on the reaction wheels closing the bus's attitude loop (free base;
+    /// target the state's own attitude or a constant one), or `None` (wheel torques held).
+    pub attitude: Option<&'a AttitudePD>,
     /// The input groups, in order (`B`'s columns).
     pub inputs: &'a [InputGroup],
     /// The output groups, in order (`C`'s rows).
@@ -181,6 +198,7 @@ impl Default for LinearSpec<'_> {
             base: BaseMode::Free,
             motors: Motors::Free,
             feedback: Feedback::None,
+            attitude: None,
             inputs: &[],
             outputs: &[],
         }
@@ -189,10 +207,11 @@ impl Default for LinearSpec<'_> {
 
 /// The linear model `d(dx)/dt = A dx + B du`, `dy = C dx + D du` about a state, with its names.
 ///
-/// The states are the elements of the tangent `[δr_B | δφ_B | δq | δθ | δω_B | δv_B | δq̇ | δθ̇]`
-/// the model keeps: all `12 + 4n` (free base, free motors), without `δθ, δθ̇` (clamped motors),
-/// without the base's pose and twist (held base). `tangent_index[i]` is where state `i` sits in
-/// the tangent.
+/// The states are the elements of the tangent
+/// `[δr_B | δφ_B | δq | δθ | δω_B | δv_B | δq̇ | δθ̇ | δΩ]` the model keeps: all `12 + 4n + k`
+/// (free base, free motors, `k` reaction wheels), without `δθ, δθ̇` (clamped motors), without
+/// the base's pose and twist (held base); the wheel speeds `δΩ` are always kept.
+/// `tangent_index[i]` is where state `i` sits in the tangent.
 #[derive(Debug, Clone, PartialEq)]
 pub struct StateSpace {
     /// State matrix (1/s and 1/s², as the states' units require).
@@ -204,25 +223,38 @@ pub struct StateSpace {
     /// Feedthrough (zero: every output is a function of the state).
     pub d: DMatrix<f64>,
     /// State names (`r_x`, `phi_x`, `q[joint]`, `theta[joint]`, `omega_x`, `v_x`, `qd[joint]`,
-    /// `theta_dot[joint]`).
+    /// `theta_dot[joint]`, `wheel_speed[w]`).
     pub states: Vec<String>,
     /// Input names (`u[joint]`, `theta_ref[joint]`, `base_moment_x`, `base_force_x`,
-    /// `ee_moment_x[ee]`, `ee_force_x[ee]`, …).
+    /// `ee_moment_x[ee]`, `ee_force_x[ee]`, `wheel_torque[w]`, …).
     pub inputs: Vec<String>,
-    /// Output names (`q[joint]`, `deflection[joint]`, `ee_x[ee]`, `base_attitude_x`, …).
+    /// Output names (`q[joint]`, `deflection[joint]`, `ee_x[ee]`, `base_attitude_x`,
+    /// `base_rate_x`, `wheel_speed[w]`, …).
     pub outputs: Vec<String>,
-    /// Where each state sits in the tangent (`12 + 4n`).
+    /// Where each state sits in the tangent (`12 + 4n + k`).
     pub tangent_index: Vec<usize>,
 }
 
-/// Offsets of the tangent's blocks for `n` joints.
+/// Offsets of the tangent's blocks for `n` joints and `k` reaction wheels.
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct Tangent {
     pub n: usize,
+    pub k: usize,
 }
 
 impl Tangent {
+    /// The tangent of `arm`'s state.
+    pub fn of(arm: &FlexibleArm) -> Self {
+        let layout = arm.layout();
+        Self {
+            n: layout.n,
+            k: layout.wheels,
+        }
+    }
     pub fn len(self) -> usize {
+        12 + 4 * self.n + self.k
+    }
+    pub fn wheel(self) -> usize {
         12 + 4 * self.n
     }
     pub fn q(self) -> usize {
@@ -253,6 +285,7 @@ impl Tangent {
             ]))
             .chain(per_joint("qd"))
             .chain(per_joint("theta_dot"))
+            .chain((0..self.k).map(|w| format!("wheel_speed[{w}]")))
             .collect()
     }
 
@@ -275,6 +308,7 @@ impl Tangent {
         if motors == Motors::Free {
             block(self.theta_dot(), n);
         }
+        block(self.wheel(), self.k);
         keep
     }
 }
@@ -361,7 +395,127 @@ pub(crate) fn check_spec(arm: &FlexibleArm, x: &[f64], spec: &LinearSpec) -> Res
             "\"theta_ref\" is the motor PD's reference: give u=MotorPD(...)".into(),
         );
     }
+    check_wheels(arm, x, spec)
+}
+
+/// The wheels' part of [`check_spec`]: wheel inputs, outputs and an attitude loop need wheels;
+/// an attitude loop needs a free base, an allocation for the arm's `k` wheels and a fixed
+/// target; and no wheel may sit at its speed limit, where the applied torque is not a
+/// differentiable function of the command (the limit cuts one side of it).
+fn check_wheels(arm: &FlexibleArm, x: &[f64], spec: &LinearSpec) -> Result<()> {
+    let invalid = |what: &str, message: String| {
+        Err(Error::InvalidArgument {
+            what: what.into(),
+            message,
+        })
+    };
+    let Some(wheels) = arm.wheels() else {
+        if spec.inputs.contains(&InputGroup::WheelTorque) {
+            return invalid(
+                "inputs",
+                "\"wheel_torque\" drives reaction wheels, and the arm has none".into(),
+            );
+        }
+        if spec.outputs.contains(&OutputGroup::WheelSpeed) {
+            return invalid(
+                "outputs",
+                "\"wheel_speed\" is a reaction wheel's, and the arm has none".into(),
+            );
+        }
+        if spec.attitude.is_some() {
+            return invalid(
+                "u",
+                "an AttitudePD drives reaction wheels, and the arm has none: build the arm with \
+                 wheels=ReactionWheels(...)"
+                    .into(),
+            );
+        }
+        return Ok(());
+    };
+    let speed = &x[arm.layout().wheel_speed()];
+    for (w, wheel) in wheels.wheels().iter().enumerate() {
+        if speed[w].abs() >= wheel.max_speed {
+            return invalid(
+                "x",
+                format!(
+                    "wheel {w} turns at {} rad/s, at its speed limit max_speed = {} rad/s: the \
+                     limit cuts the torques that would speed it up, so the dynamics have no \
+                     linear model there; linearise at a speed within the limit",
+                    speed[w], wheel.max_speed
+                ),
+            );
+        }
+    }
+    if let Some(pd) = spec.attitude {
+        if spec.base == BaseMode::Held {
+            return invalid(
+                "u",
+                "an AttitudePD turns the bus, which base=\"held\" holds still; take \
+                 base=\"free\""
+                    .into(),
+            );
+        }
+        if pd.wheels() != wheels.len() {
+            return Err(Error::Dimension {
+                what: "AttitudePD".into(),
+                expected: format!("an allocation for the arm's {} wheels", wheels.len()),
+                given: format!("an allocation for {} wheels", pd.wheels()),
+            });
+        }
+        if matches!(pd.target(), AttitudeTarget::Table { .. }) {
+            return invalid(
+                "u",
+                "the linear model takes an AttitudePD holding a fixed attitude (attitude=None \
+                 or one quaternion); a table of attitudes is a trajectory, not an operating \
+                 point"
+                    .into(),
+            );
+        }
+    }
     Ok(())
+}
+
+/// The attitude loop's gain `K_W = ∂u_W/∂dx` (k × tangent) and the wheel torques it commands at
+/// `x`. With `q_e = q_ref* ⊗ q_B` (the shorter way round) and `q_B = q̄_B ⊗ Exp(δφ_B)`,
+/// `δe = 2 δvec(q_e) = (w_e 𝟙 + [v_e]×) δφ_B`, so from `T = −k_p ∘ e − k_d ∘ ω_B` and
+/// `u_W = −M T`:
+///
+/// ```text
+/// δu_W = M (diag(k_p) (w_e 𝟙 + [v_e]×) δφ_B + diag(k_d) δω_B)
+/// ```
+/// (`= M (diag(k_p) δφ_B + diag(k_d) δω_B)` at the target, `q_e = 1`).
+pub(crate) fn attitude_gain(
+    pd: &AttitudePD,
+    x: &[f64],
+    t: Tangent,
+    layout: crate::StateLayout,
+) -> Result<(DMatrix<f64>, Vec<f64>)> {
+    let k = pd.wheels();
+    let quat = &x[layout.quaternion()];
+    let reference = match pd.target() {
+        AttitudeTarget::Constant(q) => *q,
+        _ => [quat[0], quat[1], quat[2], quat[3]],
+    };
+    let conj = [-reference[0], -reference[1], -reference[2], reference[3]];
+    let mut q_e = crate::spatial::quaternion_product(&conj, quat);
+    if q_e[3] < 0.0 {
+        q_e.iter_mut().for_each(|v| *v = -*v);
+    }
+    let e_phi =
+        Mat3::identity() * q_e[3] + skew(&crate::spatial::Vec3::new(q_e[0], q_e[1], q_e[2]));
+    let m = pd.allocation();
+    let mut gain = DMatrix::zeros(k, t.len());
+    for w in 0..k {
+        for a in 0..3 {
+            for c in 0..3 {
+                gain[(w, 3 + c)] += m[3 * w + a] * pd.kp[a] * e_phi[(a, c)];
+            }
+            gain[(w, t.twist() + a)] += m[3 * w + a] * pd.kd[a];
+        }
+    }
+    let mut command = vec![0.0; k];
+    pd.clone().output(0, 0.0, x, &mut command)?;
+    Ok((gain, command))
 }
 
 /// The full-tangent Jacobians of the model at `x`: `F` ((12+4n)², rows and columns of the states
@@ -371,6 +525,7 @@ pub(crate) struct FullJacobians {
     pub u: DMatrix<f64>,
     pub base_wrench: DMatrix<f64>,
     pub ee_wrench: DMatrix<f64>,
+    pub wheel_torque: DMatrix<f64>,
 }
 
 /// `F` and `G` of the free base ([`FlexibleArm::derivative_jacobians`] at zero loads), or of the
@@ -383,21 +538,35 @@ pub(crate) fn jacobians(
 ) -> Result<FullJacobians> {
     let n = arm.dof();
     let zeros = vec![0.0; n];
+    let t = Tangent::of(arm);
+    // the attitude loop's gain, and the wheel torques it commands at x (the operating point)
+    let attitude = spec
+        .attitude
+        .map(|pd| attitude_gain(pd, x, t, arm.layout()))
+        .transpose()?;
     let mut full = match spec.base {
         BaseMode::Free => {
-            let j = arm.derivative_jacobians(ws, x, &Inputs::torques(&zeros))?;
+            let inputs = Inputs {
+                wheel_torque: attitude.as_ref().map_or(&[], |(_, u)| &u[..]),
+                ..Inputs::torques(&zeros)
+            };
+            let j = arm.derivative_jacobians(ws, x, &inputs)?;
             FullJacobians {
                 f: j.x,
                 u: j.u,
                 base_wrench: j.base_wrench,
                 ee_wrench: j.ee_wrench,
+                wheel_torque: j.wheel_torque,
             }
         }
         BaseMode::Held => held_jacobians(arm, ws, x)?,
     };
+    if let Some((gain, _)) = &attitude {
+        // u_W = … + K_W dx: A = F + G_W K_W
+        full.f += &full.wheel_torque * gain;
+    }
     if let Feedback::MotorPd { kp, kd } = spec.feedback {
         // u = … − k_p θ − k_d θ̇: θ̈_i gains −k_p/j, −k_d/j
-        let t = Tangent { n };
         let j = &arm.joints().motor_inertia;
         for i in 0..n {
             full.f[(t.theta_dot() + i, t.theta() + i)] -= kp[i] / j[i];
@@ -424,7 +593,7 @@ fn held_jacobians(arm: &FlexibleArm, ws: &mut ModelWorkspace, x: &[f64]) -> Resu
     let robot = arm.robot();
     let n = arm.dof();
     let k_ee = robot.end_effectors().len();
-    let t = Tangent { n };
+    let t = Tangent::of(arm);
     let s = arm.layout().split(x);
     let p = arm.joints();
     let zero6 = [0.0; 6];
@@ -496,11 +665,20 @@ fn held_jacobians(arm: &FlexibleArm, ws: &mut ModelWorkspace, x: &[f64]) -> Resu
         f[(row, t.theta_dot() + i)] = -(damping + beta) / j;
         g_u[(row, i)] = 1.0 / j;
     }
+    // the wheels on a bus held still (ω̇_B = 0): Ω̇ = (u_W − c Ω)/J_s (W1)
+    let wheels = arm.wheels().map_or(&[][..], |w| w.wheels());
+    let mut g_w = DMatrix::zeros(size, wheels.len());
+    for (w, wheel) in wheels.iter().enumerate() {
+        let row = t.wheel() + w;
+        f[(row, row)] = -wheel.friction / wheel.spin_inertia;
+        g_w[(row, w)] = 1.0 / wheel.spin_inertia;
+    }
     Ok(FullJacobians {
         f,
         u: g_u,
         base_wrench: DMatrix::zeros(size, 6),
         ee_wrench: g_e,
+        wheel_torque: g_w,
     })
 }
 
@@ -532,8 +710,7 @@ pub fn state_space(
     crate::flex::normalise_quaternion(&mut x[arm.layout().quaternion()]);
     check_spec(arm, &x, spec)?;
     let full = jacobians(arm, ws, &x, spec)?;
-    let n = arm.dof();
-    let t = Tangent { n };
+    let t = Tangent::of(arm);
     let keep = t.kept(spec.base, spec.motors);
     let robot = arm.robot();
     let joints = robot.joint_names();
@@ -573,6 +750,12 @@ pub fn state_space(
                     }
                 }
             }
+            InputGroup::WheelTorque => {
+                for w in 0..t.k {
+                    b_columns.push(full.wheel_torque.column(w).into_owned());
+                    inputs.push(format!("wheel_torque[{w}]"));
+                }
+            }
         }
     }
     let b = DMatrix::from_fn(keep.len(), b_columns.len(), |r, c| b_columns[c][keep[r]]);
@@ -607,7 +790,7 @@ fn output_rows(
     groups: &[OutputGroup],
 ) -> (DMatrix<f64>, Vec<String>) {
     let n = arm.dof();
-    let t = Tangent { n };
+    let t = Tangent::of(arm);
     let robot = arm.robot();
     let joints = robot.joint_names();
     let p = arm.joints();
@@ -647,11 +830,17 @@ fn output_rows(
             continue;
         }
         match group {
-            OutputGroup::BasePosition | OutputGroup::BaseAttitude => {
-                let (start, prefix) = if *group == OutputGroup::BasePosition {
-                    (0, "base_position")
-                } else {
-                    (3, "base_attitude")
+            OutputGroup::WheelSpeed => {
+                for w in 0..t.k {
+                    rows.push(unit(&[(t.wheel() + w, 1.0)]));
+                    names.push(format!("wheel_speed[{w}]"));
+                }
+            }
+            OutputGroup::BasePosition | OutputGroup::BaseAttitude | OutputGroup::BaseRate => {
+                let (start, prefix) = match group {
+                    OutputGroup::BasePosition => (0, "base_position"),
+                    OutputGroup::BaseAttitude => (3, "base_attitude"),
+                    _ => (t.twist(), "base_rate"),
                 };
                 for (a, axis) in ["x", "y", "z"].iter().enumerate() {
                     rows.push(unit(&[(start + a, 1.0)]));

@@ -50,11 +50,13 @@
 pub mod frequency;
 pub mod linear;
 pub mod modes;
+pub mod sampled;
 pub mod sweep;
 
 pub use frequency::{frequency_response, HessenbergForm};
 pub use linear::{state_space, InputGroup, LinearSpec, Motors, OutputGroup, StateSpace};
 pub use modes::{modes, Modes};
+pub use sampled::{sampled_loop, SampledFeedback, SampledLoop};
 pub use sweep::sweep;
 
 #[cfg(doc)]

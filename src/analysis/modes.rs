@@ -29,15 +29,20 @@ pub struct Modes {
     pub natural_frequency_hz: Vec<f64>,
     /// Damping ratios `−Re λ / |λ|` of the same modes (zero for undamped modes).
     pub damping_ratio: Vec<f64>,
-    /// The mode shapes, one column per mode, in the full tangent layout (`12 + 4n` rows; rows of
+    /// The mode shapes, one column per mode, in the full tangent layout (`12 + 4n + k` rows; rows of
     /// states the model holds fixed are zero), complex. The displacement part `z` (in the
     /// coordinates of the velocities) has unit modal mass `zᴴ M z = 1`, and its component of
     /// largest kinetic weight `M_ii |z_i|²` is real and positive.
     pub shapes: DMatrix<Complex<f64>>,
     /// The number of rigid-body modes separated out: the dimension of the stiffness's null
     /// space (6 + n for a free base with free motors, 6 with clamped motors, n for a held base
-    /// with free motors, 0 held and clamped; a motor PD's `k_p` removes a joint's).
+    /// with free motors, 0 held and clamped; a motor PD's `k_p` removes a joint's, an attitude
+    /// PD's `k_p` the bus's rotation about each axis it holds).
     pub rigid_body: usize,
+    /// The number of wheel-spin modes separated out: one per reaction wheel (`k`). A wheel's
+    /// speed has no position in the state, so each adds one eigenvalue to `A` (zero, or the
+    /// decay of its friction), not a pair; they are never reported as structural modes.
+    pub wheel_spin: usize,
     /// Real eigenvalues (1/s) of structural modes damped past critical: they decay without
     /// oscillating and are not among the modes above.
     pub overdamped: Vec<f64>,
@@ -64,6 +69,9 @@ struct Mechanics {
     /// frame.
     rotation: crate::spatial::Mat3,
     free_base: bool,
+    /// Per reaction wheel: its spin inertia `J_s` and the inertia `I_w` its momentum is weighed
+    /// against (the locked system's about the wheel's axis, or `J_s` on a held base).
+    wheels: Vec<(f64, f64)>,
 }
 
 fn mechanics(
@@ -73,7 +81,7 @@ fn mechanics(
     spec: &LinearSpec,
 ) -> Result<Mechanics> {
     let n = arm.dof();
-    let t = Tangent { n };
+    let t = Tangent::of(arm);
     let s = arm.layout().split(x);
     let p = arm.joints();
     let free_base = spec.base == BaseMode::Free;
@@ -101,7 +109,7 @@ fn mechanics(
         }));
     }
     let size = dofs.len();
-    let full = algorithms::crba(arm.robot(), &mut ws.data, s.q)?;
+    let full = algorithms::crba(arm.rigid_model(), &mut ws.data, s.q)?;
     let offset = if free_base { 0 } else { 6 };
     let rigid_size = if free_base { 6 + n } else { n };
     let mut mass = DMatrix::zeros(size, size);
@@ -113,13 +121,53 @@ fn mechanics(
     };
     let mut stiffness = DMatrix::zeros(size, size);
     let mut rigid_columns: Vec<DVector<f64>> = Vec::new();
+    // an attitude PD: the bus feels T = A M T_cmd, T_cmd = −k_p ∘ (E δφ) − …, a stiffness
+    // A M diag(k_p) E on the bus's rotation (A = [a_1 … a_k])
+    let attitude = match (spec.attitude, arm.wheels()) {
+        (Some(pd), Some(wheels)) => {
+            let (gain, _) = super::linear::attitude_gain(pd, x, t, arm.layout())?;
+            let mut block = crate::spatial::Mat3::zeros();
+            for (w, wheel) in wheels.wheels().iter().enumerate() {
+                for r in 0..3 {
+                    for c in 0..3 {
+                        block[(r, c)] += wheel.axis[r] * gain[(w, 3 + c)];
+                    }
+                }
+            }
+            block
+        }
+        _ => crate::spatial::Mat3::zeros(),
+    };
     if free_base {
+        for r in 0..3 {
+            for c in 0..3 {
+                stiffness[(r, c)] = attitude[(r, c)];
+            }
+        }
         for a in 0..6 {
+            if a < 3 && attitude.column(a).amax() != 0.0 {
+                // the attitude loop holds this rotation
+                continue;
+            }
             let mut v = DVector::zeros(size);
             v[a] = 1.0;
             rigid_columns.push(v);
         }
     }
+    let wheels = arm.wheels().map_or(Vec::new(), |w| {
+        w.wheels()
+            .iter()
+            .map(|wheel| {
+                let a = crate::spatial::Vec3::from(wheel.axis);
+                let locked = if free_base {
+                    (a.transpose() * mass.fixed_view::<3, 3>(0, 0) * a)[0]
+                } else {
+                    0.0
+                };
+                (wheel.spin_inertia, locked.max(wheel.spin_inertia))
+            })
+            .collect()
+    });
     for i in 0..n {
         let (qi, k) = (rigid_size - n + i, p.stiffness[i]);
         stiffness[(qi, qi)] = k;
@@ -146,6 +194,7 @@ fn mechanics(
         rigid,
         rotation: quaternion_to_rotation(s.quaternion),
         free_base,
+        wheels,
     })
 }
 
@@ -203,6 +252,50 @@ impl Mechanics {
         let (re, im) = (g.map(|c| c.re), g.map(|c| c.im));
         let projected = re.dot(&chol.solve(&re)) + im.dot(&chol.solve(&im));
         projected / total
+    }
+
+    /// The share of the eigenvector `v` (eigenvalue `λ`, full tangent) that is not structural:
+    /// rigid-body motion or wheel spin. With the displacement `z`, the rates `ż` of the
+    /// degrees of freedom and the wheels' momenta `J_s δΩ`, weigh
+    ///
+    /// ```text
+    /// E_m = żᴴ M ż + (|λ|² + ω_K²) zᴴ M z,   E_w = Σ_w |J_s δΩ_w|² / I_w
+    /// ```
+    /// (`ω_K² = tr K / tr M`, a frequency scale of the model; `I_w` the locked system's inertia
+    /// about the wheel's axis, so that a wheel absorbing the bus's momentum weighs about as
+    /// much as the bus's own motion), and return `(E_w + s E_m) / (E_w + E_m)`, `s` the rigid
+    /// share of `z` ([`Self::rigid_share`]). A structural mode scores near 0, a rigid-body
+    /// mode or a wheel's free spin (or a mixture, where a multiple zero eigenvalue leaves the
+    /// eigenvectors free) near 1.
+    fn non_structural_share(
+        &self,
+        v: &DVector<Complex<f64>>,
+        lambda: Complex<f64>,
+        wheel0: usize,
+        rigid_mass: &Option<nalgebra::Cholesky<f64, nalgebra::Dyn>>,
+    ) -> f64 {
+        let z = self.displacement(v);
+        let rates = DVector::from_fn(self.dofs.len(), |a, _| v[self.dofs[a].rate]);
+        let mass = self.mass.map(|x| Complex::new(x, 0.0));
+        let trace_m = self.mass.trace();
+        let omega_k2 = if trace_m > 0.0 {
+            self.stiffness.trace() / trace_m
+        } else {
+            0.0
+        };
+        let mechanical = rates.dotc(&(&mass * &rates)).re
+            + (lambda.norm_sqr() + omega_k2) * z.dotc(&(&mass * &z)).re;
+        let spin: f64 = self
+            .wheels
+            .iter()
+            .enumerate()
+            .map(|(w, &(js, iw))| (v[wheel0 + w] * js).norm_sqr() / iw)
+            .sum();
+        let total = mechanical + spin;
+        if total <= 0.0 {
+            return 0.0;
+        }
+        (spin + self.rigid_share(&z, rigid_mass) * mechanical) / total
     }
 
     /// The factor that scales `z` to unit modal mass and turns its heaviest component real and
@@ -278,7 +371,7 @@ fn state_matrix_modes(
     spec: &LinearSpec,
     mech: &Mechanics,
 ) -> Result<Modes> {
-    let t = Tangent { n: arm.dof() };
+    let t = Tangent::of(arm);
     // the model's A alone: no inputs or outputs
     let bare = LinearSpec {
         inputs: &[],
@@ -292,7 +385,7 @@ fn state_matrix_modes(
     let rigid_mass = (r > 0)
         .then(|| (mech.rigid.transpose() * &mech.mass * &mech.rigid).cholesky())
         .flatten();
-    // each eigenvector in the full tangent, its displacement and its rigid-body share
+    // each eigenvector in the full tangent and its share of rigid-body motion and wheel spin
     let count = eig.values.len();
     let mut vectors = Vec::with_capacity(count);
     let mut share = Vec::with_capacity(count);
@@ -301,15 +394,15 @@ fn state_matrix_modes(
         for (row, &index) in keep.iter().enumerate() {
             v[index] = eig.vectors[(row, j)];
         }
-        let z = mech.displacement(&v);
-        share.push(mech.rigid_share(&z, &rigid_mass));
+        share.push(mech.non_structural_share(&v, eig.values[j], t.wheel(), &rigid_mass));
         vectors.push(v);
     }
-    // the 2r most rigid eigenvalues are the rigid-body modes' (a conjugate pair stays together)
+    // the 2r + k least structural eigenvalues are the rigid-body modes' and the wheels' spins
+    // (a conjugate pair stays together)
     let mut order: Vec<usize> = (0..count).filter(|&j| eig.values[j].im >= 0.0).collect();
     order.sort_by(|&a, &b| share[b].total_cmp(&share[a]).then(a.cmp(&b)));
     let mut rigid = vec![false; count];
-    let mut left = 2 * r;
+    let mut left = 2 * r + t.k;
     for &j in &order {
         let size = if eig.values[j].im > 0.0 { 2 } else { 1 };
         if size <= left {
@@ -349,6 +442,7 @@ fn state_matrix_modes(
         damping_ratio: lambdas.iter().map(|l| -l.re / l.norm()).collect(),
         shapes,
         rigid_body: r,
+        wheel_spin: t.k,
         overdamped,
         damped: true,
     })
@@ -361,7 +455,7 @@ fn sort_eigenvalues(values: &mut [Complex<f64>]) {
 /// `K φ = ω² M φ` by Cholesky `M = L Lᵀ` and the symmetric eigenproblem of `L⁻¹ K L⁻ᵀ`; the `r`
 /// smallest eigenvalues are the null space of `K` (exactly `r` of them are zero).
 fn undamped_modes(arm: &FlexibleArm, mech: &Mechanics) -> Result<Modes> {
-    let t = Tangent { n: arm.dof() };
+    let t = Tangent::of(arm);
     let chol = mech
         .mass
         .clone()
@@ -393,7 +487,7 @@ fn undamped_modes(arm: &FlexibleArm, mech: &Mechanics) -> Result<Modes> {
         shapes.set_column(column, &mech.tangent(&z, Complex::new(0.0, omega), t.len()));
         omegas.push(omega);
     }
-    let mut eigenvalues: Vec<Complex<f64>> = vec![Complex::new(0.0, 0.0); 2 * r];
+    let mut eigenvalues: Vec<Complex<f64>> = vec![Complex::new(0.0, 0.0); 2 * r + t.k];
     for &w in &omegas {
         eigenvalues.push(Complex::new(0.0, w));
         eigenvalues.push(Complex::new(0.0, -w));
@@ -406,6 +500,7 @@ fn undamped_modes(arm: &FlexibleArm, mech: &Mechanics) -> Result<Modes> {
         damping_ratio: vec![0.0; omegas.len()],
         shapes,
         rigid_body: r,
+        wheel_spin: t.k,
         overdamped: Vec::new(),
         damped: false,
     })

@@ -403,19 +403,21 @@ impl FlexibleArm {
     }
 
     /// The Jacobians of [`derivative`](Self::derivative) at `x` with `inputs`, in tangent
-    /// coordinates: `d(dx)/dt = F dx + G du + G_B df_B + G_E df` ([`super::jacobians`]).
+    /// coordinates: `d(dx)/dt = F dx + G du + G_B df_B + G_E df + G_W du_W`
+    /// ([`super::jacobians`]). With reaction wheels the tangent ends with `δΩ` (k) and `G_W` is
+    /// the wheel torque commands' ([`super::wheels`], (W1) and (W2) differentiated).
     pub fn derivative_jacobians(
         &self,
         ws: &mut ModelWorkspace,
         x: &[f64],
         inputs: &Inputs,
     ) -> Result<Jacobians> {
-        self.refuse_wheels("derivative_jacobians")?;
         ws.check(self)?;
         self.check_state(x)?;
-        inputs.check(&self.robot)?;
+        self.check_inputs(inputs)?;
         let mut x = x.to_vec();
         normalise_quaternion(&mut x[self.layout().quaternion()]);
+        self.saturate_wheels(&x, inputs, &mut ws.wheel_torque);
         let out = jacobians::derivative_jacobians(self, ws, &x, inputs)?;
         let base_wrench = inputs.loads.base_wrench.to_array();
         self.check_overflow(

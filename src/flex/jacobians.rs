@@ -30,8 +30,9 @@ use crate::spatial::{
 use nalgebra::{DMatrix, DMatrixViewMut};
 
 /// Jacobians with respect to the state's tangent and to the inputs. Rows: the tangent of the
-/// result (`12 + 4n`); columns: the tangent of the state (`x`), the motor torques (`u`, n), the
-/// base wrench (`base_wrench`, 6) and the EE wrenches (`ee_wrench`, 6 per end-effector).
+/// result (`12 + 4n + k_w`, `k_w` reaction wheels); columns: the tangent of the state (`x`), the
+/// motor torques (`u`, n), the base wrench (`base_wrench`, 6), the EE wrenches (`ee_wrench`, 6
+/// per end-effector) and the wheel torque commands (`wheel_torque`, `k_w`).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Jacobians {
     /// With respect to the state's tangent, (12+4n)×(12+4n).
@@ -42,16 +43,21 @@ pub struct Jacobians {
     pub base_wrench: DMatrix<f64>,
     /// With respect to `[f_1; …; f_k]`, (12+4n)×6k.
     pub ee_wrench: DMatrix<f64>,
+    /// With respect to the wheel torque commands, (12+4n+k_w)×k_w (no columns without wheels):
+    /// the slope of the saturation ([`super::saturated_torque`]) times the applied torque's
+    /// effect.
+    pub wheel_torque: DMatrix<f64>,
 }
 
 impl Jacobians {
     /// The four blocks' numbers.
-    pub(crate) fn blocks(&self) -> [&[f64]; 4] {
+    pub(crate) fn blocks(&self) -> [&[f64]; 5] {
         [
             self.x.as_slice(),
             self.u.as_slice(),
             self.base_wrench.as_slice(),
             self.ee_wrench.as_slice(),
+            self.wheel_torque.as_slice(),
         ]
     }
 
@@ -61,6 +67,7 @@ impl Jacobians {
             u: DMatrix::zeros(rows, n),
             base_wrench: DMatrix::zeros(rows, 6),
             ee_wrench: DMatrix::zeros(rows, 6 * k),
+            wheel_torque: DMatrix::zeros(rows, 0),
         }
     }
 
@@ -77,6 +84,7 @@ impl Jacobians {
             u: try_matrix(rows, n, need)?,
             base_wrench: try_matrix(rows, 6, need)?,
             ee_wrench: try_matrix(rows, 6 * k, need)?,
+            wheel_torque: DMatrix::zeros(rows, 0),
         })
     }
 }
@@ -184,7 +192,17 @@ pub(crate) fn derivative_jacobians(
     let c = t + layout.n + 6 + 6 * k;
     let need = || too_large("derivative_jacobians", layout.n, t, c, 1);
     let mut out = Jacobians::try_zeros(t, t, layout.n, k, &need)?;
-    jacobians_into(arm, ws, x, inputs, Coordinates::Tangent, &mut out)?;
+    let Some(wheels) = arm.wheels() else {
+        jacobians_into(arm, ws, x, inputs, Coordinates::Tangent, &mut out)?;
+        return Ok(out);
+    };
+    // the rigid dynamics on the augmented bus, loaded with the wheels' moment Σ n_w (W2)
+    let s = layout.split(x);
+    let mut loads = inputs.loads;
+    loads.base_wrench.angular += wheels.base_moment(&s.omega(), s.wheel_speed, &ws.wheel_torque);
+    let loaded = Inputs { loads, ..*inputs };
+    jacobians_into(arm, ws, x, &loaded, Coordinates::Tangent, &mut out)?;
+    super::wheels::add_wheel_jacobians(wheels, layout, x, inputs.wheel_torque, &mut out);
     Ok(out)
 }
 
@@ -569,7 +587,13 @@ fn jacobians_into(
     let s = layout.split(x);
     arm.spring_torque(x, &mut ws.tau);
     let rigid = RigidState::new(s.q, s.base_twist, s.qd);
-    algorithms::aba_derivatives_into(arm.robot(), &mut ws.data, &rigid, &ws.tau, &inputs.loads)?;
+    algorithms::aba_derivatives_into(
+        arm.rigid_model(),
+        &mut ws.data,
+        &rigid,
+        &ws.tau,
+        &inputs.loads,
+    )?;
     let d = &ws.data.derivatives;
     let p = arm.joints();
     out.x.as_mut_slice().fill(0.0);

@@ -40,4 +40,4 @@ pub use crate::spatial::{
     normalise_quaternion, quaternion_exp, quaternion_log, quaternion_product, quaternion_rate,
 };
 pub use crate::state::{StateLayout, StateParts};
-pub use wheels::{saturated_torque, ReactionWheels, Wheel};
+pub use wheels::{saturated_torque, saturation_slope, ReactionWheels, Wheel};

@@ -452,3 +452,98 @@ pub(super) fn derivative_with_wheels(
     );
     Ok(())
 }
+
+/// The slope `∂u/∂command` of [`saturated_torque`] at `command` and `speed`: 1 where the command
+/// passes unchanged (strictly inside `±max_torque`, and not cut by the speed limit), 0 where it
+/// is clipped or cut. At the kinks (`|command| = max_torque`, or a wheel at `max_speed` with
+/// `command = 0`) the side that limits is taken.
+#[inline]
+pub fn saturation_slope(wheel: &Wheel, command: f64, speed: f64) -> f64 {
+    let clipped = command.abs() >= wheel.max_torque;
+    let cut = speed.abs() >= wheel.max_speed && command * speed >= 0.0;
+    if clipped || cut {
+        0.0
+    } else {
+        1.0
+    }
+}
+
+/// Adds the wheels' terms to the Jacobians `out` of the derivative at `x` (tangent coordinates),
+/// whose rigid rows already hold the dynamics of the augmented bus loaded with `Σ n_w` (so that
+/// `out.base_wrench` is `∂[α_B; q̈]/∂f_B` there). With `h = J_s (a·ω + Ω)` and `u` the applied
+/// torque, (W2) varies as
+///
+/// ```text
+/// δn_w = (h [a]× + J_s (a × ω) aᵀ) δω + (J_s (a × ω) + c a) δΩ − a δu
+/// ```
+///
+/// which enters the rigid rows through `∂/∂f_B`'s moment columns, and (W1) gives the wheel rows
+/// `δΩ̇ = −aᵀ δω̇ − (c/J_s) δΩ + δu/J_s`. `δu = s δu_cmd` with `s` the
+/// [`saturation_slope`]; `command` holds the commanded torques (k, or empty for zero).
+pub(super) fn add_wheel_jacobians(
+    wheels: &ReactionWheels,
+    layout: crate::state::StateLayout,
+    x: &[f64],
+    command: &[f64],
+    out: &mut super::Jacobians,
+) {
+    let n = layout.n;
+    let k = wheels.len();
+    let rows = out.x.nrows();
+    let (twist, wheel0) = (6 + 2 * n, 12 + 4 * n);
+    let s = layout.split(x);
+    let omega = s.omega();
+    out.wheel_torque = nalgebra::DMatrix::zeros(rows, k);
+    // ∂n/∂ω (3×3), ∂n/∂Ω (3×k), ∂n/∂u_cmd (3×k)
+    let mut d_omega = Mat3::zeros();
+    let mut d_speed = nalgebra::Matrix3xX::zeros(k);
+    let mut d_command = nalgebra::Matrix3xX::zeros(k);
+    for (w, wheel) in wheels.wheels().iter().enumerate() {
+        let a = Vec3::from(wheel.axis);
+        let h = axial_momentum(wheel, &omega, s.wheel_speed[w]);
+        let gyro = a.cross(&omega) * wheel.spin_inertia;
+        d_omega += crate::spatial::skew(&a) * h + gyro * a.transpose();
+        d_speed.set_column(w, &(gyro + a * wheel.friction));
+        let cmd = command.get(w).copied().unwrap_or(0.0);
+        let slope = saturation_slope(wheel, cmd, s.wheel_speed[w]);
+        d_command.set_column(w, &(-a * slope));
+    }
+    // the rigid rows (twist and q̈): through the moment columns of ∂/∂f_B
+    for r in (twist..twist + 6).chain(12 + 2 * n..12 + 3 * n) {
+        let g = nalgebra::RowVector3::new(
+            out.base_wrench[(r, 0)],
+            out.base_wrench[(r, 1)],
+            out.base_wrench[(r, 2)],
+        );
+        let by_omega = g * d_omega;
+        for j in 0..3 {
+            out.x[(r, twist + j)] += by_omega[j];
+        }
+        let by_speed = g * &d_speed;
+        let by_command = g * &d_command;
+        for w in 0..k {
+            out.x[(r, wheel0 + w)] += by_speed[w];
+            out.wheel_torque[(r, w)] = by_command[w];
+        }
+    }
+    // the wheel rows: δΩ̇ = −aᵀ δω̇ − (c/J_s) δΩ + s δu_cmd / J_s
+    for (w, wheel) in wheels.wheels().iter().enumerate() {
+        let row = wheel0 + w;
+        let a = wheel.axis;
+        for block in [
+            &mut out.x,
+            &mut out.u,
+            &mut out.base_wrench,
+            &mut out.ee_wrench,
+            &mut out.wheel_torque,
+        ] {
+            for c in 0..block.ncols() {
+                block[(row, c)] = -(0..3).map(|m| a[m] * block[(twist + m, c)]).sum::<f64>();
+            }
+        }
+        out.x[(row, row)] -= wheel.friction / wheel.spin_inertia;
+        let cmd = command.get(w).copied().unwrap_or(0.0);
+        out.wheel_torque[(row, w)] +=
+            saturation_slope(wheel, cmd, s.wheel_speed[w]) / wheel.spin_inertia;
+    }
+}

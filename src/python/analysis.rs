@@ -8,10 +8,11 @@
 //! which need python-control and scipy) belong to the Python layer anyway.
 
 use super::arm::PyFlexibleArm;
-use super::control::PyMotorPD;
+use super::control::{PyAttitudePD, PyMotorPD};
 use super::convert::{array1, array2, matrix, vector};
 use super::errors::ModelError;
 use crate::analysis::{self, InputGroup, LinearSpec, Modes, Motors, OutputGroup, StateSpace};
+use crate::control::AttitudePD;
 use crate::integrate::Feedback;
 use crate::planning::BaseMode;
 use nalgebra::{Complex, DMatrix};
@@ -56,10 +57,58 @@ impl Loop {
     }
 }
 
+/// The controllers `u` (and `wheel_torque`) name: a `MotorPD` on the motors, an `AttitudePD` on
+/// the wheels, or a tuple or list of one of each; anything else goes to [`Loop::parse`].
+fn controllers<'py>(
+    arm: &crate::FlexibleArm,
+    u: &Bound<'py, PyAny>,
+    wheel_torque: Option<Bound<'py, PyAny>>,
+) -> PyResult<(Option<Bound<'py, PyAny>>, Option<AttitudePD>)> {
+    let mut motor = None;
+    let mut attitude = None;
+    let mut take = |obj: Bound<'py, PyAny>, what: &str| -> PyResult<()> {
+        if obj.is_instance_of::<PyAttitudePD>() {
+            if attitude.is_some() {
+                return Err(ModelError::new_err(format!(
+                    "{what}: two AttitudePDs; give one"
+                )));
+            }
+            attitude = Some(obj.downcast::<PyAttitudePD>()?.get().bind(arm)?);
+        } else if what == "wheel_torque" {
+            return Err(ModelError::new_err(format!(
+                "wheel_torque: the linear model takes an AttitudePD or None, given {}",
+                obj.get_type().name()?
+            )));
+        } else if motor.is_some() {
+            return Err(ModelError::new_err(
+                "u: two motor controllers; give at most one MotorPD and one AttitudePD",
+            ));
+        } else {
+            motor = Some(obj);
+        }
+        Ok(())
+    };
+    let is_pair =
+        u.is_instance_of::<pyo3::types::PyTuple>() || u.is_instance_of::<pyo3::types::PyList>();
+    if is_pair {
+        for item in u.try_iter()? {
+            take(item?, "u")?;
+        }
+    } else if !u.is_none() {
+        take(u.clone(), "u")?;
+    }
+    if let Some(w) = wheel_torque.filter(|o| !o.is_none()) {
+        take(w, "wheel_torque")?;
+    }
+    Ok((motor, attitude))
+}
+
 /// The parsed arguments of one call.
 struct Model {
     x: Vec<f64>,
     feedback: Loop,
+    /// An attitude PD on the wheels.
+    attitude: Option<AttitudePD>,
     base: BaseMode,
     motors: Motors,
     inputs: Vec<InputGroup>,
@@ -69,8 +118,8 @@ struct Model {
 }
 
 impl Model {
-    /// From `x` and the dict `spec` that `orbitflex.analysis` builds: `u`, `base`, `motors`,
-    /// `inputs`, `outputs` (lists of group names) and `damping`.
+    /// From `x` and the dict `spec` that `orbitflex.analysis` builds: `u`, `wheel_torque`
+    /// (optional), `base`, `motors`, `inputs`, `outputs` (lists of group names) and `damping`.
     fn parse(
         arm: &crate::FlexibleArm,
         x: Option<&Bound<'_, PyAny>>,
@@ -82,12 +131,14 @@ impl Model {
         };
         let names = |key: &str| -> PyResult<Vec<String>> { item(key)?.extract() };
         let u = item("u")?;
+        let (motor, attitude) = controllers(arm, &u, spec.get_item("wheel_torque")?)?;
         Ok(Self {
             x: match x {
                 Some(x) => vector(x, "x", Some(arm.layout().len()))?,
                 None => Vec::new(),
             },
-            feedback: Loop::parse(Some(&u), arm.dof())?,
+            feedback: Loop::parse(motor.as_ref(), arm.dof())?,
+            attitude,
             base: BaseMode::from_name(&item("base")?.extract::<String>()?)?,
             motors: Motors::from_name(&item("motors")?.extract::<String>()?)?,
             inputs: names("inputs")?
@@ -106,6 +157,7 @@ impl Model {
             base: self.base,
             motors: self.motors,
             feedback: self.feedback.feedback(),
+            attitude: self.attitude.as_ref(),
             inputs: &self.inputs,
             outputs: &self.outputs,
         }
@@ -162,6 +214,7 @@ fn modes_dict<'py>(py: Python<'py>, m: &Modes) -> PyResult<Bound<'py, PyDict>> {
     d.set_item("damping_ratio", array1(py, &m.damping_ratio))?;
     d.set_item("shapes", complex2(py, &m.shapes))?;
     d.set_item("rigid_body", m.rigid_body)?;
+    d.set_item("wheel_spin", m.wheel_spin)?;
     d.set_item("overdamped", array1(py, &m.overdamped))?;
     d.set_item("damped", m.damped)?;
     Ok(d)
@@ -248,4 +301,151 @@ pub fn py_sweep<'py>(
             Err(e) => Err(ModelError::new_err(format!("configurations[{i}]: {e}"))),
         })
         .collect()
+}
+
+/// The controller a `Sampled` wraps, as the linear feedback it applies: a `MotorPD` or an
+/// `AttitudePD` (bound to `arm`'s wheels), or None for anything else (a callable, a table).
+enum SampledInner {
+    Motor { kp: Vec<f64>, kd: Vec<f64> },
+    Attitude(AttitudePD),
+}
+
+impl SampledInner {
+    fn parse(arm: &crate::FlexibleArm, inner: &Bound<'_, PyAny>) -> PyResult<Option<Self>> {
+        if inner.is_instance_of::<PyMotorPD>() {
+            let pd = &inner.downcast::<PyMotorPD>()?.get().pd;
+            return Ok(Some(SampledInner::Motor {
+                kp: pd.kp.clone(),
+                kd: pd.kd.clone(),
+            }));
+        }
+        if inner.is_instance_of::<PyAttitudePD>() {
+            let pd = inner.downcast::<PyAttitudePD>()?.get().bind(arm)?;
+            return Ok(Some(SampledInner::Attitude(pd)));
+        }
+        Ok(None)
+    }
+    fn feedback(&self) -> analysis::SampledFeedback<'_> {
+        match self {
+            SampledInner::Motor { kp, kd } => analysis::SampledFeedback::MotorPd { kp, kd },
+            SampledInner::Attitude(pd) => analysis::SampledFeedback::Attitude(pd),
+        }
+    }
+}
+
+/// `crate::analysis::sampled_loop` for a `Sampled(MotorPD | AttitudePD, rate_hz, delay)`
+/// closed around the model `spec` (whose `u`/`wheel_torque` are the loops running every step):
+/// a dict with `spectral_radius`, `threshold`, `unstable`, `eigenvalues`, `period`, `delay`,
+/// `rate_hz` and `controller` (its name).
+#[pyfunction]
+#[pyo3(name = "_sampled_loop")]
+pub fn py_sampled_loop<'py>(
+    py: Python<'py>,
+    arm: &Bound<'py, PyFlexibleArm>,
+    x: &Bound<'py, PyAny>,
+    spec: &Bound<'py, PyDict>,
+    controller: &Bound<'py, PyAny>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let arm = &arm.get().arm;
+    let Some((inner, rate_hz, delay)) = super::control::sampled(Some(controller))? else {
+        return Err(ModelError::new_err(format!(
+            "controller: expected a Sampled(MotorPD or AttitudePD, rate_hz, delay), given {}",
+            controller.get_type().name()?
+        )));
+    };
+    let Some(feedback) = SampledInner::parse(arm, &inner)? else {
+        return Err(ModelError::new_err(format!(
+            "controller: the linear model knows the feedback of a sampled MotorPD or \
+             AttitudePD, not of a {}",
+            inner.get_type().name()?
+        )));
+    };
+    let model = Model::parse(arm, Some(x), spec)?;
+    let l = analysis::sampled_loop(
+        arm,
+        &mut arm.workspace(),
+        &model.x,
+        &model.spec(),
+        feedback.feedback(),
+        rate_hz,
+        delay,
+    )?;
+    let d = PyDict::new(py);
+    d.set_item("spectral_radius", l.spectral_radius)?;
+    d.set_item("threshold", l.threshold)?;
+    d.set_item("unstable", l.unstable())?;
+    d.set_item("eigenvalues", complex1(py, &l.eigenvalues))?;
+    d.set_item("period", l.period)?;
+    d.set_item("delay", l.delay)?;
+    d.set_item("rate_hz", rate_hz)?;
+    d.set_item("controller", feedback.feedback().name())?;
+    Ok(d)
+}
+
+/// The warnings `simulate` gives before a run from `x0` for the sampled controllers among `u`
+/// and `wheel_torque` (a `Sampled` `MotorPD` or `AttitudePD`): one per sampled loop whose
+/// discrete loop at `x0` is unstable, naming the controller, its rate and delay and the
+/// spectral radius. The other channel's controller, if it is a plain `MotorPD` or `AttitudePD`
+/// (run every step), is closed into the plant. A loop the linear model cannot describe (a
+/// state at a wheel's speed limit, say) gives no warning.
+pub(crate) fn sampled_warnings(
+    arm: &crate::FlexibleArm,
+    x0: &[f64],
+    u: Option<&Bound<'_, PyAny>>,
+    wheel_torque: Option<&Bound<'_, PyAny>>,
+) -> PyResult<Vec<String>> {
+    let mut out = Vec::new();
+    let plain = |obj: Option<&Bound<'_, PyAny>>| -> PyResult<Option<SampledInner>> {
+        match obj.filter(|o| !o.is_none()) {
+            Some(o) if super::control::sampled(Some(o))?.is_none() => SampledInner::parse(arm, o),
+            _ => Ok(None),
+        }
+    };
+    let (plain_u, plain_w) = (plain(u)?, plain(wheel_torque)?);
+    for (channel, obj) in [("u", u), ("wheel_torque", wheel_torque)] {
+        let Some((inner, rate_hz, delay)) = super::control::sampled(obj)? else {
+            continue;
+        };
+        let Some(feedback) = SampledInner::parse(arm, &inner)? else {
+            continue;
+        };
+        let (motor, attitude) = match channel {
+            "u" => (None, plain_w.as_ref()),
+            _ => (plain_u.as_ref(), None),
+        };
+        let spec = LinearSpec {
+            feedback: match motor {
+                Some(SampledInner::Motor { kp, kd }) => Feedback::MotorPd { kp, kd },
+                _ => Feedback::None,
+            },
+            attitude: match attitude {
+                Some(SampledInner::Attitude(pd)) => Some(pd),
+                _ => None,
+            },
+            ..LinearSpec::default()
+        };
+        let Ok(l) = analysis::sampled_loop(
+            arm,
+            &mut arm.workspace(),
+            x0,
+            &spec,
+            feedback.feedback(),
+            rate_hz,
+            delay,
+        ) else {
+            continue;
+        };
+        if l.unstable() {
+            out.push(format!(
+                "{channel}: the {} sampled at {rate_hz} Hz (period {:e} s, delay {delay} \
+                 samples) makes an unstable loop: the spectral radius of its zero-order-hold \
+                 discretisation at x0 is {:.6} > 1; the run will likely diverge (raise rate_hz, \
+                 shorten the delay or lower the gains)",
+                feedback.feedback().name(),
+                l.period,
+                l.spectral_radius
+            ));
+        }
+    }
+    Ok(out)
 }

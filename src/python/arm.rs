@@ -154,6 +154,7 @@ fn jacobians_dict<'py>(
     out.set_item("u", try_array2(py, &j.u, call)?)?;
     out.set_item("base_wrench", try_array2(py, &j.base_wrench, call)?)?;
     out.set_item("ee_wrench", try_array2(py, &j.ee_wrench, call)?)?;
+    out.set_item("wheel_torque", try_array2(py, &j.wheel_torque, call)?)?;
     Ok(out)
 }
 
@@ -422,9 +423,12 @@ impl PyFlexibleArm {
     }
 
     /// The Jacobians of :meth:`derivative` in tangent coordinates, as a dict: ``"x"``
-    /// (12+4n, 12+4n), ``"u"`` (12+4n, n), ``"base_wrench"`` (12+4n, 6) and ``"ee_wrench"`` (12+4n, 6k):
-    /// ``d(dx)/dt = F dx + G du + …`` for ``x = x̄ ⊕ dx`` (see :meth:`integrate`).
-    #[pyo3(signature = (x, u=None, base_wrench=None, ee_wrench=None))]
+    /// (t, t), ``"u"`` (t, n), ``"base_wrench"`` (t, 6), ``"ee_wrench"`` (t, 6k) and
+    /// ``"wheel_torque"`` (t, k_w; no columns without wheels), ``t = 12 + 4n + k_w``:
+    /// ``d(dx)/dt = F dx + G du + …`` for ``x = x̄ ⊕ dx`` (see :meth:`integrate`). With reaction
+    /// wheels the tangent ends with the wheel speeds, and ``wheel_torque`` (k_w,) commands are
+    /// saturated at ``x`` as :meth:`derivative` does (a clipped command has zero slope).
+    #[pyo3(signature = (x, u=None, base_wrench=None, ee_wrench=None, wheel_torque=None))]
     fn derivative_jacobians<'py>(
         &self,
         py: Python<'py>,
@@ -432,9 +436,11 @@ impl PyFlexibleArm {
         u: Option<&Bound<'py, PyAny>>,
         base_wrench: Option<&Bound<'py, PyAny>>,
         ee_wrench: Option<&Bound<'py, PyAny>>,
+        wheel_torque: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyDict>> {
         let x = vector(x, "x", Some(self.arm.layout().len()))?;
-        let inputs = InputArgs::parse(self.arm.robot(), u, base_wrench, ee_wrench)?;
+        let inputs = InputArgs::parse(self.arm.robot(), u, base_wrench, ee_wrench)?
+            .wheels(&self.arm, wheel_torque)?;
         let j = self
             .arm
             .derivative_jacobians(&mut self.ws(), &x, &inputs.inputs())?;
@@ -630,7 +636,10 @@ impl PyFlexibleArm {
     /// ``on_rows`` stops the run and is raised as it is.
     ///
     /// Warns (``RuntimeWarning``) before it starts when ``dt`` is past the RK4 stability limit of
-    /// the closed loop at ``x0`` (see :meth:`rk4_stability_limit`). Raises ``SimulationError``
+    /// the closed loop at ``x0`` (see :meth:`rk4_stability_limit`), and when a ``Sampled``
+    /// ``MotorPD`` or ``AttitudePD`` makes a loop that is unstable at its rate and delay (the
+    /// spectral radius of the zero-order-hold discretisation of the linear model at ``x0``,
+    /// :func:`orbitflex.analysis.sampled_loop`). Raises ``SimulationError``
     /// (with ``.trajectory``, the finite part, ``.step`` and ``.time``) when the state turns
     /// non-finite or the controller raises or returns non-finite torques; its trajectory keeps
     /// the rows kept so far and ends on the last good state (with ``on_rows``: that state
@@ -720,7 +729,9 @@ impl PyFlexibleArm {
                 Sink::Stream(Stream::new(layout, chunks))
             }
         };
-        if let Some(warning) = integrate::stability_warning(arm, &x0, dt, &*channels.u)? {
+        let sampled = super::analysis::sampled_warnings(arm, &x0, u, wheel_torque)?;
+        let rk4 = integrate::stability_warning(arm, &x0, dt, &*channels.u)?;
+        for warning in rk4.into_iter().chain(sampled) {
             PyErr::warn(
                 py,
                 &py.get_type::<PyRuntimeWarning>(),

@@ -505,7 +505,10 @@ impl PyAttitudePD {
 /// the row computed at sample ``j`` is applied from sample ``j + d`` on, zero before the first
 /// arrives. The dynamics keep their RK4 ``dt``; when ``1 / rate_hz`` is a whole number ``m`` of
 /// steps the samples fall on steps 0, m, 2m, … exactly. The RK4 stability warning cannot
-/// vouch for a sampled loop: it then checks the arm's open loop and says so.
+/// vouch for a sampled loop: it then checks the arm's open loop and says so. ``simulate`` also
+/// checks a sampled ``MotorPD`` or ``AttitudePD`` at its rate and delay (the linear model
+/// discretised with zero-order hold, :func:`orbitflex.analysis.sampled_loop`) and warns when
+/// that discrete loop is unstable.
 #[pyclass(name = "Sampled", module = "orbitflex", frozen)]
 pub struct PySampled {
     controller: Py<PyAny>,
@@ -574,7 +577,7 @@ impl PySampled {
 }
 
 /// The wrapped controller, rate and delay of a ``Sampled``, or None.
-fn sampled<'py>(
+pub(crate) fn sampled<'py>(
     obj: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<Option<(Bound<'py, PyAny>, f64, usize)>> {
     match obj {

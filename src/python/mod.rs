@@ -85,6 +85,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(analysis::py_modes, m)?)?;
     m.add_function(wrap_pyfunction!(analysis::py_frequency_response, m)?)?;
     m.add_function(wrap_pyfunction!(analysis::py_sweep, m)?)?;
+    m.add_function(wrap_pyfunction!(analysis::py_sampled_loop, m)?)?;
     m.add_function(wrap_pyfunction!(rotations::rotation_matrix, m)?)?;
     m.add_function(wrap_pyfunction!(rotations::euler_zyx, m)?)?;
     m.add_function(wrap_pyfunction!(rotations::rotation_angle, m)?)?;

@@ -225,8 +225,8 @@ def test_bad_wheels_and_wheel_torques_are_clear_errors():
         arm.simulate(x, 1e-3, 3, wheel_torque=np.zeros((2, 1)))
     with pytest.raises(orbitflex.ModelError, match=r"x: expected length 42, given length 41"):
         arm.derivative(plain.state())
-    with pytest.raises(orbitflex.ModelError, match=r"derivative_jacobians: not available yet for an arm with reaction wheels"):
-        arm.derivative_jacobians(x)
+    with pytest.raises(orbitflex.ModelError, match=r"step_jacobians: not available yet for an arm with reaction wheels"):
+        arm.step_jacobians(x, 1e-3)
     # the saturation rule, exposed
     assert np.array_equal(wheels.saturate([0.5], [0.0]), [0.1])
     assert np.array_equal(wheels.saturate([0.05], [500.0]), [0.0])

@@ -18,7 +18,7 @@ from typing import Any, Dict, List, Optional, Tuple
 import numpy as np
 import numpy.typing as npt
 
-from .. import FlexibleArm, FlexibleJoints, MotorPD, analysis, models
+from .. import AttitudePD, FlexibleArm, FlexibleJoints, MotorPD, analysis, models
 
 Array = npt.NDArray[np.float64]
 
@@ -35,6 +35,8 @@ examples:
   orbitflex modes --motors clamped --q 0 0.3 0 1.2 0 0 0
   orbitflex modes --sweep elbow_pitch 0 2.5 40      # Campbell diagram over the elbow angle
   orbitflex modes arm.urdf --params joints.toml --base held --kp 200 --kd 20
+  orbitflex modes --wheels wheels.toml --kp 800 --kd 300   # bus held by its wheels' AttitudePD
+  orbitflex modes --wheels wheels.toml --attitude-kp 0 --attitude-kd 0   # wheels, open loop
 """
 
 
@@ -63,17 +65,25 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
                    help="close the loop with a motor PD of this stiffness (one value, or one per joint)")
     p.add_argument("--kd", metavar="NMS_PER_RAD", type=non_negative, nargs="+", default=None,
                    help="the motor PD's damping (default 0; needs --kp)")
+    p.add_argument("--wheels", metavar="TOML", default=None,
+                   help="reaction wheels on the bus (keys: examples/wheels.toml); its [attitude_pd] "
+                        "closes the bus's attitude loop through them")
+    p.add_argument("--attitude-kp", metavar="NM_PER_RAD", type=non_negative, nargs="+", default=None,
+                   help="the AttitudePD's stiffness instead of the file's (one value, or x y z; 0: open loop)")
+    p.add_argument("--attitude-kd", metavar="NMS_PER_RAD", type=non_negative, nargs="+", default=None,
+                   help="the AttitudePD's damping instead of the file's (one value, or x y z)")
     p.add_argument("--undamped", action="store_true",
                    help="undamped modes (K φ = ω² M φ) instead of the state matrix's damped ones")
     p.add_argument("--sweep", metavar=("JOINT", "FROM", "TO", "N"), nargs=4, default=None,
                    help="sweep JOINT's angle from FROM to TO rad in N steps: campbell.png")
     p.add_argument("--inputs", default=None,
                    help="inputs of bode.png and the .mat: motor_torque, base_wrench, ee_wrench, "
-                        "theta_ref (default motor_torque, or ee_wrench with --motors clamped; "
-                        "comma-separated for several)")
+                        "theta_ref, wheel_torque (default motor_torque, or ee_wrench with --motors "
+                        "clamped; comma-separated for several)")
     p.add_argument("--outputs", default="q",
                    help="outputs: q, theta, deflection, spring_torque, ee_position, base_attitude, "
-                        "base_position (default %(default)s; comma-separated for several)")
+                        "base_position, base_rate, wheel_speed (default %(default)s; comma-separated "
+                        "for several)")
     p.add_argument("--freqs", metavar=("FROM", "TO", "N"), type=positive, nargs=3, default=None,
                    help="bode.png's frequencies, Hz, log-spaced (default: a decade around the modes)")
     p.add_argument("--count", metavar="K", type=int, default=6, help="modes drawn in modes.png (default %(default)s)")
@@ -113,6 +123,45 @@ def controller(arm: FlexibleArm, args: argparse.Namespace) -> Optional[MotorPD]:
     return MotorPD(kp=kp, kd=kd, theta_ref=np.zeros(arm.dof))
 
 
+def with_wheels(arm: FlexibleArm, pd: Optional[MotorPD], args: argparse.Namespace) -> Tuple[FlexibleArm, Any]:
+    """The arm with ``--wheels``' wheels and the controllers closing the loops: the motor PD, the
+    file's ``AttitudePD`` (gains from ``--attitude-kp/--attitude-kd`` when given), or both."""
+    from .errors import CliError
+    from ..wheels_file import WheelsFileError, read_wheels
+
+    if args.wheels is None:
+        for flag in ("attitude_kp", "attitude_kd"):
+            if getattr(args, flag) is not None:
+                raise CliError("--" + flag.replace("_", "-"), "tunes the wheels' AttitudePD; give --wheels too")
+        return arm, pd
+    try:
+        spec = read_wheels(args.wheels)
+    except WheelsFileError as e:
+        raise CliError("--wheels", str(e)) from None
+
+    def three(values: Optional[List[float]], default: Any, flag: str) -> Any:
+        if values is None:
+            return default
+        if len(values) not in (1, 3):
+            raise CliError(flag, f"expected one value or three (x y z), given {len(values)}")
+        return np.resize(np.asarray(values, dtype=float), 3)
+
+    kp = three(args.attitude_kp, spec.kp, "--attitude-kp")
+    kd = three(args.attitude_kd, spec.kd, "--attitude-kd")
+    try:
+        wheeled = FlexibleArm(arm.robot, arm.joints, wheels=spec.wheels)
+        attitude = AttitudePD(kp, kd)
+    except ValueError as e:
+        raise CliError("--wheels", str(e)) from None
+    return wheeled, attitude if pd is None else (pd, attitude)
+
+
+def has_attitude(u: Any) -> bool:
+    """Whether an AttitudePD with some gain closes the bus's loop."""
+    items = u if isinstance(u, tuple) else (u,)
+    return any(isinstance(c, AttitudePD) and (np.any(c.kp) or np.any(c.kd)) for c in items)
+
+
 def command(args: argparse.Namespace) -> int:
     """Runs ``orbitflex modes``; returns the exit code."""
     from .errors import CliError, output_folder
@@ -121,7 +170,7 @@ def command(args: argparse.Namespace) -> int:
     arm, note = load(args)
     robot = arm.robot
     q = per_joint(args.q, "--q", robot, default=0.0)
-    pd = controller(arm, args)
+    arm, pd = with_wheels(arm, controller(arm, args), args)
     if args.inputs is None:
         args.inputs = "ee_wrench" if args.motors == "clamped" else "motor_torque"
     inputs = [s.strip() for s in args.inputs.split(",") if s.strip()]
@@ -132,7 +181,8 @@ def command(args: argparse.Namespace) -> int:
         ss = arm.state_space(x, u=pd, inputs=inputs, outputs=outputs, base=args.base, motors=args.motors)
     except ValueError as e:
         flag = "--inputs" if str(e).startswith("inputs") else "--outputs" if str(e).startswith("outputs") else \
-            "--motors" if "clamped" in str(e) else "--base"
+            "--motors" if "clamped" in str(e) else "--wheels" if "wheel" in str(e) or "AttitudePD" in str(e) \
+            else "--base"
         raise CliError(flag, str(e)) from None
     sweep = None
     if args.sweep is not None:
@@ -146,7 +196,9 @@ def command(args: argparse.Namespace) -> int:
     if mat is not None:
         files.append(mat)
     if not args.no_plots:
-        caption = f"{robot.name}; base {args.base}, motors {args.motors}" + (", motor PD" if pd else "")
+        loops = [name for name, on in (("motor PD", isinstance(pd, (MotorPD, tuple))),
+                                       ("AttitudePD on the wheels", has_attitude(pd))) if on]
+        caption = f"{robot.name}; base {args.base}, motors {args.motors}" + "".join(", " + n for n in loops)
         files.append(plot_shapes(out / "modes.png", arm, x, modes, args.count, caption))
         files.append(plot_bode(out / "bode.png", arm, x, modes, ss, pd, args, caption))
         if sweep is not None:
@@ -157,7 +209,7 @@ def command(args: argparse.Namespace) -> int:
     return 0
 
 
-def run_sweep(arm: FlexibleArm, q: Array, pd: Optional[MotorPD],
+def run_sweep(arm: FlexibleArm, q: Array, pd: Any,
               args: argparse.Namespace) -> Tuple[analysis.Sweep, Array, str]:
     from .errors import CliError
 
@@ -184,7 +236,7 @@ def write_json(path: Path, arm: FlexibleArm, q: Array, modes: analysis.Modes, ar
     doc: Dict[str, Any] = {
         "model": arm.robot.name, "joint_names": arm.robot.joint_names, "q_rad": q.tolist(),
         "base": args.base, "motors": args.motors, "closed_loop": modes.closed_loop, "damped": modes.damped,
-        "rigid_body_modes": modes.rigid_body,
+        "rigid_body_modes": modes.rigid_body, "wheel_spin_modes": modes.wheel_spin,
         "modes": [{"frequency_hz": float(f), "natural_frequency_hz": float(fn), "damping_ratio": float(z),
                    "dominant_joint": j, "spring_energy_share": [float(v) for v in e]}
                   for f, fn, z, j, e in zip(modes.frequency_hz, modes.natural_frequency_hz, modes.damping_ratio,
@@ -284,7 +336,7 @@ def channels(ss: analysis.StateSpace) -> List[Tuple[int, int]]:
 
 
 def plot_bode(path: Path, arm: FlexibleArm, x: Array, modes: analysis.Modes, ss: analysis.StateSpace,
-              pd: Optional[MotorPD], args: argparse.Namespace, caption: str) -> Path:
+              pd: Any, args: argparse.Namespace, caption: str) -> Path:
     """Magnitude and phase of ``H(j 2π f)`` for the channels of :func:`channels`, with the modes'
     damped natural frequencies marked."""
     if args.freqs is not None:
@@ -320,9 +372,9 @@ def plot_bode(path: Path, arm: FlexibleArm, x: Array, modes: analysis.Modes, ss:
 def units(ss: analysis.StateSpace) -> str:
     """The unit of the drawn channels: output unit per input unit."""
     out = {"q": "rad", "theta": "rad", "deflection": "rad", "spring_torque": "N·m", "ee": "m",
-           "base_attitude": "rad", "base_position": "m"}
+           "base_attitude": "rad", "base_position": "m", "base_rate": "rad/s", "wheel_speed": "rad/s"}
     inp = {"u": "N·m", "theta_ref": "rad", "base_moment": "N·m", "base_force": "N", "ee_moment": "N·m",
-           "ee_force": "N"}
+           "ee_force": "N", "wheel_torque": "N·m"}
 
     def unit(name: str, table: Dict[str, str]) -> str:
         head = name.split("[")[0]
