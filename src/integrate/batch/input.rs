@@ -182,7 +182,11 @@ impl<'a> BatchInput<'a> {
     /// The first row of run `run`, as [`row`](Self::row), empty for [`zero`](Self::zero).
     #[inline]
     pub fn row_or_empty(&self, run: usize) -> &'a [f64] {
-        self.row(run).unwrap_or_default()
+        let start = run * self.run_stride;
+        // the rows of an input read by `for_rows` are in its buffer; `zero` has none
+        self.values
+            .get(start..start + self.width)
+            .unwrap_or_default()
     }
 
     /// The schedule of run `run` over `steps` steps (a copy of its rows).
