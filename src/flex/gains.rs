@@ -187,3 +187,34 @@ impl FlexibleArm {
         })
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use crate::{FlexibleArm, FlexibleJoints, Robot};
+
+    #[test]
+    fn the_servo_is_critically_damped_on_each_motors_inertia() {
+        let arm = FlexibleArm::new(Robot::space_arm(), FlexibleJoints::space_arm()).unwrap();
+        let (kp, kd) = arm.motor_servo_gains(5.0).unwrap();
+        let w = 2.0 * std::f64::consts::PI * 5.0;
+        assert_eq!(kp.len(), arm.dof());
+        for (i, &j) in arm.joints().motor_inertia.iter().enumerate() {
+            // j s² + kd s + kp = j (s + ω)²
+            assert_eq!(kp[i], j * (w * w), "joint {i}");
+            assert_eq!(kd[i], 2.0 * j * w, "joint {i}");
+        }
+        for bad in [0.0, -5.0, f64::NAN, f64::INFINITY] {
+            let message = arm.motor_servo_gains(bad).unwrap_err().to_string();
+            assert!(
+                message.starts_with("bandwidth: expected a finite number > 0, given"),
+                "{message}"
+            );
+        }
+        assert!(arm.motor_pd_gains(&[0.0; 7], 0.25, 1.0).is_ok());
+        let message = arm.motor_pd_gains(&[0.0; 7], 0.25, 0.0).unwrap_err();
+        assert!(
+            message.to_string().starts_with("damping_ratio: "),
+            "{message}"
+        );
+    }
+}

@@ -22,7 +22,13 @@ pub(crate) trait StateRecord {
 pub(crate) fn last_axis(array: &Bound<'_, PyAny>, range: Range<usize>) -> PyResult<PyObject> {
     let py = array.py();
     let columns = PySlice::new(py, range.start as isize, range.end as isize, 1);
-    let key = PyTuple::new(py, [PyEllipsis::get(py).to_owned().into_any(), columns.into_any()])?;
+    let key = PyTuple::new(
+        py,
+        [
+            PyEllipsis::get(py).to_owned().into_any(),
+            columns.into_any(),
+        ],
+    )?;
     Ok(array.get_item(key)?.unbind())
 }
 
