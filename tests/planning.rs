@@ -299,12 +299,12 @@ fn check_limits(plan: &Plan, count: usize) {
     for k in 0..=count {
         let t = plan.duration() * k as f64 / count as f64;
         let p = plan.evaluate(t).unwrap();
-        for i in 0..p.u.len() {
-            worst = worst.max(p.u[i].abs() / limits.motor_torque[i]);
+        for i in 0..p.flexible.u.len() {
+            worst = worst.max(p.flexible.u[i].abs() / limits.motor_torque[i]);
             worst = worst.max(p.qd[i].abs() / limits.joint_speed[i]);
         }
         if plan.base() == BaseMode::Held {
-            let f = p.base_wrench;
+            let f = p.flexible.base_wrench;
             let (moment, force) = (
                 (f[0] * f[0] + f[1] * f[1] + f[2] * f[2]).sqrt(),
                 (f[3] * f[3] + f[4] * f[4] + f[5] * f[5]).sqrt(),
@@ -443,21 +443,29 @@ fn a_damped_plan_has_consistent_motor_rates() {
             (4.0 * (f(&d) - f(&c)) / h - (f(&b) - f(&a)) / (2.0 * h)) / 3.0
         };
         for i in 0..7 {
-            let rate = richardson(&|p| p.theta[i]);
-            let acc = richardson(&|p| p.theta_dot[i]);
+            let rate = richardson(&|p| p.flexible.theta[i]);
+            let acc = richardson(&|p| p.flexible.theta_dot[i]);
             assert!(
-                (rate - now.theta_dot[i]).abs() < 1e-6 * (1.0 + now.theta_dot[i].abs()),
+                (rate - now.flexible.theta_dot[i]).abs()
+                    < 1e-6 * (1.0 + now.flexible.theta_dot[i].abs()),
                 "t={t} θ̇[{i}]: {rate} vs {}",
-                now.theta_dot[i]
+                now.flexible.theta_dot[i]
             );
             assert!(
-                (acc - now.theta_ddot[i]).abs() < 1e-6 * (1.0 + now.theta_ddot[i].abs()),
+                (acc - now.flexible.theta_ddot[i]).abs()
+                    < 1e-6 * (1.0 + now.flexible.theta_ddot[i].abs()),
                 "t={t} θ̈[{i}]: {acc} vs {}",
-                now.theta_ddot[i]
+                now.flexible.theta_ddot[i]
             );
         }
         // and the plan's instant agrees with the pointwise inverse dynamics given its deflection
-        let deflection: Vec<f64> = now.theta.iter().zip(&now.q).map(|(a, b)| a - b).collect();
+        let deflection: Vec<f64> = now
+            .flexible
+            .theta
+            .iter()
+            .zip(&now.q)
+            .map(|(a, b)| a - b)
+            .collect();
         let motion = [
             now.q.clone(),
             now.qd.clone(),
@@ -469,11 +477,11 @@ fn a_damped_plan_has_consistent_motor_rates() {
             .inverse_dynamics(&link_motion(&motion), BaseMode::Free, Some(&deflection))
             .unwrap();
         assert!(
-            relative(&point.u, &now.u) < 1e-9,
+            relative(&point.u, &now.flexible.u) < 1e-9,
             "{}",
-            relative(&point.u, &now.u)
+            relative(&point.u, &now.flexible.u)
         );
-        assert!(relative(&point.base_twist, &now.base_twist) < 1e-12);
+        assert!(relative(&point.base_twist, &now.flexible.base_twist) < 1e-12);
     }
 }
 
@@ -785,6 +793,7 @@ fn references_average_the_feedforward_and_cover_the_run() {
             .map(|m| {
                 plan.evaluate((k as f64 + (m as f64 + 0.5) / 200.0) * dt)
                     .unwrap()
+                    .flexible
                     .u[i]
             })
             .sum::<f64>()
@@ -795,7 +804,7 @@ fn references_average_the_feedforward_and_cover_the_run() {
             r.u[k * 7 + i]
         );
         let start = plan.evaluate(k as f64 * dt).unwrap();
-        assert_eq!(r.theta_ref[k * 7 + i], start.theta[i]);
+        assert_eq!(r.theta_ref[k * 7 + i], start.flexible.theta[i]);
     }
     // after the slew: the goal at rest, no torque
     let last = &r.u[1399 * 7..];
@@ -843,27 +852,27 @@ fn a_slow_damped_spring_relaxes_through_a_waypoint() {
     let lambda = k / d;
     for i in 0..7 {
         let delta = p.deflection[i];
-        assert_eq!((p.qd[i], p.qdd[i], p.tau[i]), (0.0, 0.0, 0.0));
+        assert_eq!((p.qd[i], p.qdd[i], p.flexible.tau[i]), (0.0, 0.0, 0.0));
         // the spring has not relaxed (joint 6 least: 3e-5 rad), and the plan hands it on
         // continuously from the first segment
         assert!(delta.abs() > 1e-5, "{i}: {delta}");
         assert!((before.deflection[i] - delta).abs() < 1e-8 * delta.abs());
         let (rate, acc) = (-lambda * delta, lambda * lambda * delta);
         assert!(
-            (p.theta_dot[i] - rate).abs() < 1e-14 * rate.abs(),
+            (p.flexible.theta_dot[i] - rate).abs() < 1e-14 * rate.abs(),
             "{i}: {} vs {rate}",
-            p.theta_dot[i]
+            p.flexible.theta_dot[i]
         );
         assert!(
-            (p.theta_ddot[i] - acc).abs() < 1e-14 * acc.abs(),
+            (p.flexible.theta_ddot[i] - acc).abs() < 1e-14 * acc.abs(),
             "{i}: {} vs {acc}",
-            p.theta_ddot[i]
+            p.flexible.theta_ddot[i]
         );
         let u = j * acc + beta * rate;
         assert!(
-            (p.u[i] - u).abs() < 1e-14 * u.abs().max(1.0),
+            (p.flexible.u[i] - u).abs() < 1e-14 * u.abs().max(1.0),
             "{i}: {} vs {u}",
-            p.u[i]
+            p.flexible.u[i]
         );
     }
 }
@@ -919,14 +928,22 @@ fn each_segment_binds_and_the_plan_reports_its_longest() {
         // the reported value is the quantity at the reported instant
         let p = plan.evaluate(b.time).unwrap();
         let (value, limit) = match (b.constraint, b.joint) {
-            (Constraint::MotorTorque, Some(j)) => (p.u[j].abs(), limits.motor_torque[j]),
+            (Constraint::MotorTorque, Some(j)) => (p.flexible.u[j].abs(), limits.motor_torque[j]),
             (Constraint::JointSpeed, Some(j)) => (p.qd[j].abs(), limits.joint_speed[j]),
             (Constraint::BaseTorque, None) => (
-                p.base_wrench[..3].iter().map(|f| f * f).sum::<f64>().sqrt(),
+                p.flexible.base_wrench[..3]
+                    .iter()
+                    .map(|f| f * f)
+                    .sum::<f64>()
+                    .sqrt(),
                 limits.base_torque.unwrap(),
             ),
             (Constraint::BaseForce, None) => (
-                p.base_wrench[3..].iter().map(|f| f * f).sum::<f64>().sqrt(),
+                p.flexible.base_wrench[3..]
+                    .iter()
+                    .map(|f| f * f)
+                    .sum::<f64>()
+                    .sqrt(),
                 limits.base_force.unwrap(),
             ),
             other => panic!("{other:?}"),
@@ -971,16 +988,19 @@ fn after_the_end_a_damped_spring_decays_freely() {
                 "{i}: {} vs {delta}",
                 p.deflection[i]
             );
-            assert_eq!((p.q[i], p.qd[i], p.qdd[i], p.tau[i]), (goal, 0.0, 0.0, 0.0));
-            assert!((p.theta[i] - (goal + delta)).abs() < 1e-15);
+            assert_eq!(
+                (p.q[i], p.qd[i], p.qdd[i], p.flexible.tau[i]),
+                (goal, 0.0, 0.0, 0.0)
+            );
+            assert!((p.flexible.theta[i] - (goal + delta)).abs() < 1e-15);
             let (rate, acc) = (-lambda * delta, lambda * lambda * delta);
-            assert!((p.theta_dot[i] - rate).abs() < 1e-14 * rate.abs());
-            assert!((p.theta_ddot[i] - acc).abs() < 1e-14 * acc.abs());
+            assert!((p.flexible.theta_dot[i] - rate).abs() < 1e-14 * rate.abs());
+            assert!((p.flexible.theta_ddot[i] - acc).abs() < 1e-14 * acc.abs());
             let u = j * acc + beta * rate;
             assert!(
-                (p.u[i] - u).abs() < 1e-14 * u.abs(),
+                (p.flexible.u[i] - u).abs() < 1e-14 * u.abs(),
                 "{i}: {} vs {u}",
-                p.u[i]
+                p.flexible.u[i]
             );
         }
     }
@@ -997,17 +1017,24 @@ fn after_the_end_a_damped_spring_decays_freely() {
             plan.evaluate(t + dt).unwrap(),
         );
         for i in 0..7 {
-            assert_eq!(r.theta_ref[k * 7 + i], a.theta[i], "{k} {i}");
-            assert_eq!(r.theta_dot_ref[k * 7 + i], a.theta_dot[i], "{k} {i}");
+            assert_eq!(r.theta_ref[k * 7 + i], a.flexible.theta[i], "{k} {i}");
+            assert_eq!(
+                r.theta_dot_ref[k * 7 + i],
+                a.flexible.theta_dot[i],
+                "{k} {i}"
+            );
             assert_eq!(r.q[k * 7 + i], a.q[i], "{k} {i}");
-            let u = (a.u[i] + 4.0 * m.u[i] + b.u[i]) / 6.0;
+            let u = (a.flexible.u[i] + 4.0 * m.flexible.u[i] + b.flexible.u[i]) / 6.0;
             assert!(
                 (r.u[k * 7 + i] - u).abs() <= 1e-15 * u.abs().max(1e-300),
                 "{k} {i}"
             );
         }
         for c in 0..6 {
-            let f = (a.base_wrench[c] + 4.0 * m.base_wrench[c] + b.base_wrench[c]) / 6.0;
+            let f = (a.flexible.base_wrench[c]
+                + 4.0 * m.flexible.base_wrench[c]
+                + b.flexible.base_wrench[c])
+                / 6.0;
             assert!(
                 (r.base_wrench[k * 6 + c] - f).abs() <= 1e-15 * f.abs(),
                 "{k} {c}"
@@ -1066,15 +1093,15 @@ fn samples_are_the_plan_at_the_sample_times() {
         }
         for row in (0..rows).step_by(37).chain([rows - 1]) {
             let p = plan.evaluate(s.t[row]).unwrap();
-            let (wrench, twist) = (&p.base_wrench[..], &p.base_twist[..]);
+            let (wrench, twist) = (&p.flexible.base_wrench[..], &p.flexible.base_twist[..]);
             for (name, table, want) in [
                 ("q", &s.q, &p.q[..]),
                 ("qd", &s.qd, &p.qd),
                 ("qdd", &s.qdd, &p.qdd),
-                ("theta", &s.theta, &p.theta),
-                ("theta_dot", &s.theta_dot, &p.theta_dot),
-                ("u", &s.u, &p.u),
-                ("tau", &s.tau, &p.tau),
+                ("theta", &s.theta, &p.flexible.theta),
+                ("theta_dot", &s.theta_dot, &p.flexible.theta_dot),
+                ("u", &s.u, &p.flexible.u),
+                ("tau", &s.tau, &p.flexible.tau),
                 ("base_wrench", &s.base_wrench, wrench),
                 ("base_twist", &s.base_twist, twist),
             ] {
@@ -1290,9 +1317,14 @@ fn an_undamped_plan_is_the_pointwise_inverse_dynamics() {
         let plan = plan_slew(&arm, &GOAL, None, &space_limits(base), base, &[]).unwrap();
         // after the end the links rest (τ = 0), so an undamped spring is relaxed at once
         let after = plan.evaluate(plan.duration() + 0.7).unwrap();
-        assert_eq!(after.theta, GOAL);
+        assert_eq!(after.flexible.theta, GOAL);
         assert_eq!(after.deflection, [0.0; 7]);
-        assert!(after.theta_dot.iter().chain(&after.u).all(|v| *v == 0.0));
+        assert!(after
+            .flexible
+            .theta_dot
+            .iter()
+            .chain(&after.flexible.u)
+            .all(|v| *v == 0.0));
         for fraction in [0.13, 0.5, 0.77] {
             let t = fraction * plan.duration();
             let now = plan.evaluate(t).unwrap();
@@ -1307,11 +1339,11 @@ fn an_undamped_plan_is_the_pointwise_inverse_dynamics() {
                 .inverse_dynamics(&link_motion(&motion), base, None)
                 .unwrap();
             for (name, got, want) in [
-                ("theta", &now.theta, &point.theta),
-                ("theta_dot", &now.theta_dot, &point.theta_dot),
-                ("theta_ddot", &now.theta_ddot, &point.theta_ddot),
-                ("u", &now.u, &point.u),
-                ("tau", &now.tau, &point.tau),
+                ("theta", &now.flexible.theta, &point.theta),
+                ("theta_dot", &now.flexible.theta_dot, &point.theta_dot),
+                ("theta_ddot", &now.flexible.theta_ddot, &point.theta_ddot),
+                ("u", &now.flexible.u, &point.u),
+                ("tau", &now.flexible.tau, &point.tau),
             ] {
                 assert!(
                     relative(got, want) < 1e-10,
@@ -1326,11 +1358,11 @@ fn an_undamped_plan_is_the_pointwise_inverse_dynamics() {
             };
             for i in 0..7 {
                 let k = arm.joints().stiffness[i];
-                assert!((now.deflection[i] - now.tau[i] / k).abs() < 1e-15);
+                assert!((now.deflection[i] - now.flexible.tau[i] / k).abs() < 1e-15);
             }
-            assert!(largest(&now.theta, &now.q) > 5e-4);
-            assert!(largest(&now.theta_dot, &now.qd) > 5e-4);
-            assert!(largest(&now.theta_ddot, &now.qdd) > 5e-4);
+            assert!(largest(&now.flexible.theta, &now.q) > 5e-4);
+            assert!(largest(&now.flexible.theta_dot, &now.qd) > 5e-4);
+            assert!(largest(&now.flexible.theta_ddot, &now.qdd) > 5e-4);
         }
     }
 }
@@ -1527,7 +1559,11 @@ fn the_planned_base_pose_follows_the_planned_twist() {
             let norm = q.iter().map(|x| x * x).sum::<f64>().sqrt();
             assert!((norm - 1.0).abs() < 1e-12, "step {k}: |quat| = {norm}");
         }
-        let twist = plan.evaluate((k as f64 + 0.5) * dt).unwrap().base_twist;
+        let twist = plan
+            .evaluate((k as f64 + 0.5) * dt)
+            .unwrap()
+            .flexible
+            .base_twist;
         let relative = product(&conjugate(&a[3..]), &b[3..]);
         for i in 0..3 {
             let rate = 2.0 * relative[i] / dt;
@@ -1584,7 +1620,11 @@ fn a_short_plans_tables_hold_the_goal_after_it() {
         assert_eq!(r.q[k * 7..(k + 1) * 7], goal[..], "row {k}");
         assert_eq!(after.q, goal);
         if k < steps {
-            assert_eq!(r.theta_ref[k * 7..(k + 1) * 7], after.theta[..], "row {k}");
+            assert_eq!(
+                r.theta_ref[k * 7..(k + 1) * 7],
+                after.flexible.theta[..],
+                "row {k}"
+            );
         }
     }
 }

@@ -52,6 +52,20 @@ pub struct MotorGains {
     pub link_inertia: Vec<f64>,
 }
 
+/// `value` is a finite number > 0, or an error naming `what`.
+fn check_positive(what: &str, value: f64) -> Result<()> {
+    if value.is_finite() && value > 0.0 {
+        return Ok(());
+    }
+    Err(Error::InvalidArgument {
+        what: what.into(),
+        message: format!(
+            "expected a finite number > 0, given {}",
+            crate::args::number(value)
+        ),
+    })
+}
+
 /// The diagonal of the free-floating joint-space inertia `H = M_r − M_br M_b⁻¹ M_rb` at `q`
 /// (kg·m²): the inertia joint `i` drives with the base free and the other joints held.
 pub fn free_floating_inertia(arm: &FlexibleArm, q: &[f64]) -> Result<Vec<f64>> {
@@ -73,6 +87,30 @@ pub fn free_floating_inertia(arm: &FlexibleArm, q: &[f64]) -> Result<Vec<f64>> {
 }
 
 impl FlexibleArm {
+    /// The motor servo of a tracking loop: `k_p = j ω²`, `k_d = 2 j ω` per joint (N·m/rad,
+    /// N·m·s/rad), `ω = 2π bandwidth_hz`, `j` the motor inertia: each motor a critically damped
+    /// servo on its own inertia, whatever drives the link (the rule of `orbitflex plan`'s tracking
+    /// PD, which [`motor_pd_gains`](Self::motor_pd_gains) refines with the link and the spring).
+    /// An error when `bandwidth_hz` is not a finite number > 0.
+    ///
+    /// ```
+    /// use orbitflex::{FlexibleArm, FlexibleJoints, Robot};
+    /// let arm = FlexibleArm::new(Robot::space_arm(), FlexibleJoints::space_arm())?;
+    /// let (kp, kd) = arm.motor_servo_gains(5.0)?;
+    /// let (j, w) = (arm.joints().motor_inertia[0], 2.0 * std::f64::consts::PI * 5.0);
+    /// assert_eq!((kp[0], kd[0]), (j * (w * w), 2.0 * j * w));
+    /// # Ok::<(), orbitflex::Error>(())
+    /// ```
+    pub fn motor_servo_gains(&self, bandwidth_hz: f64) -> Result<(Vec<f64>, Vec<f64>)> {
+        check_positive("bandwidth", bandwidth_hz)?;
+        let w = 2.0 * std::f64::consts::PI * bandwidth_hz;
+        let j = &self.joints().motor_inertia;
+        Ok((
+            j.iter().map(|j| j * (w * w)).collect(),
+            j.iter().map(|j| 2.0 * j * w).collect(),
+        ))
+    }
+
     /// Motor PD gains that give each joint a closed loop of `bandwidth_hz` (Hz) and
     /// `damping_ratio` (ζ > 0), from its motor inertia, its link-side inertia at `q` (n, rad)
     /// and its spring (module [`crate::flex::gains`] derives them). Errors name the joint whose
@@ -94,20 +132,8 @@ impl FlexibleArm {
         damping_ratio: f64,
     ) -> Result<MotorGains> {
         check_vector("q", q, self.dof())?;
-        for (what, value) in [
-            ("bandwidth", bandwidth_hz),
-            ("damping_ratio", damping_ratio),
-        ] {
-            if !(value.is_finite() && value > 0.0) {
-                return Err(Error::InvalidArgument {
-                    what: what.into(),
-                    message: format!(
-                        "expected a finite number > 0, given {}",
-                        crate::args::number(value)
-                    ),
-                });
-            }
-        }
+        check_positive("bandwidth", bandwidth_hz)?;
+        check_positive("damping_ratio", damping_ratio)?;
         let link_inertia = free_floating_inertia(self, q)?;
         let p = self.joints();
         let (w, zeta) = (2.0 * std::f64::consts::PI * bandwidth_hz, damping_ratio);
@@ -159,5 +185,36 @@ impl FlexibleArm {
             kd,
             link_inertia,
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use crate::{FlexibleArm, FlexibleJoints, Robot};
+
+    #[test]
+    fn the_servo_is_critically_damped_on_each_motors_inertia() {
+        let arm = FlexibleArm::new(Robot::space_arm(), FlexibleJoints::space_arm()).unwrap();
+        let (kp, kd) = arm.motor_servo_gains(5.0).unwrap();
+        let w = 2.0 * std::f64::consts::PI * 5.0;
+        assert_eq!(kp.len(), arm.dof());
+        for (i, &j) in arm.joints().motor_inertia.iter().enumerate() {
+            // j s² + kd s + kp = j (s + ω)²
+            assert_eq!(kp[i], j * (w * w), "joint {i}");
+            assert_eq!(kd[i], 2.0 * j * w, "joint {i}");
+        }
+        for bad in [0.0, -5.0, f64::NAN, f64::INFINITY] {
+            let message = arm.motor_servo_gains(bad).unwrap_err().to_string();
+            assert!(
+                message.starts_with("bandwidth: expected a finite number > 0, given"),
+                "{message}"
+            );
+        }
+        assert!(arm.motor_pd_gains(&[0.0; 7], 0.25, 1.0).is_ok());
+        let message = arm.motor_pd_gains(&[0.0; 7], 0.25, 0.0).unwrap_err();
+        assert!(
+            message.to_string().starts_with("damping_ratio: "),
+            "{message}"
+        );
     }
 }

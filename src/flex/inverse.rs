@@ -102,7 +102,7 @@ impl LinkMotion<'_> {
 /// The result of [`FlexibleArm::inverse_dynamics`]: what the motors and the base do so that the
 /// links move as given. Joint quantities are link side (n each); base quantities are in the base
 /// frame, `[angular; linear]`.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, Default, PartialEq)]
 pub struct FlexibleInverse {
     /// Motor angles `θ = q + δ` (rad).
     pub theta: Vec<f64>,

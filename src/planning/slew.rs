@@ -327,8 +327,11 @@ struct Segment {
     binding: Binding,
 }
 
-/// Everything at one instant of a plan ([`Plan::evaluate`]): link-side joint quantities (n
-/// each) and base quantities in the base frame, `[angular; linear]`.
+/// Everything at one instant of a plan ([`Plan::evaluate`]): the link motion and deflection
+/// (n each), and what the motors and the base do for it (`flexible`, the arm's
+/// [`FlexibleInverse`]: `θ`, `θ̇`, `θ̈`, `u`, `τ` per joint, and the base's `V_B`, classical
+/// `α_B` and `f_B` in the base frame, `[angular; linear]`: `V_B` and `α_B` zero unless the base is
+/// free, `f_B` zero unless it is held).
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct PlanPoint {
     /// Time (s).
@@ -339,26 +342,12 @@ pub struct PlanPoint {
     pub qd: Vec<f64>,
     /// `q̈` (rad/s²).
     pub qdd: Vec<f64>,
-    /// `θ` (rad).
-    pub theta: Vec<f64>,
-    /// The deflection `θ − q` (rad) at full precision (not the difference of `theta` and `q`,
-    /// which loses the digits below the angle's rounding); what
+    /// The deflection `θ − q` (rad) at full precision (not the difference of `flexible.theta`
+    /// and `q`, which loses the digits below the angle's rounding); what
     /// [`FlexibleArm::inverse_dynamics`] takes for damped joints.
     pub deflection: Vec<f64>,
-    /// `θ̇` (rad/s).
-    pub theta_dot: Vec<f64>,
-    /// `θ̈` (rad/s²).
-    pub theta_ddot: Vec<f64>,
-    /// `u` (N·m).
-    pub u: Vec<f64>,
-    /// `τ` (N·m).
-    pub tau: Vec<f64>,
-    /// `V_B` (rad/s, m/s; zero unless free).
-    pub base_twist: [f64; 6],
-    /// The classical `α_B` (rad/s², m/s²; zero unless free).
-    pub base_acc: [f64; 6],
-    /// `f_B` (N·m, N; zero unless held).
-    pub base_wrench: [f64; 6],
+    /// The motors and the base at this instant.
+    pub flexible: FlexibleInverse,
 }
 
 /// Everything at one instant of a plan, link side: the link motion, what the motors and the base
@@ -1239,15 +1228,8 @@ impl Plan {
             q: p.q,
             qd: p.qd,
             qdd: p.qdd,
-            theta: p.flexible.theta,
             deflection: p.deflection,
-            theta_dot: p.flexible.theta_dot,
-            theta_ddot: p.flexible.theta_ddot,
-            u: p.flexible.u,
-            tau: p.flexible.tau,
-            base_twist: p.flexible.base_twist,
-            base_acc: p.flexible.base_acc,
-            base_wrench: p.flexible.base_wrench,
+            flexible: p.flexible,
         })
     }
 

@@ -395,6 +395,19 @@ impl PyFlexibleArm {
         Ok((array1(py, &gains.kp), array1(py, &gains.kd)))
     }
 
+    /// The motor servo of a tracking loop, ``(kp, kd)`` (n each): ``kp = j ω²`` (N·m/rad) and
+    /// ``kd = 2 j ω`` (N·m·s/rad), ``ω = 2π bandwidth`` (Hz), ``j`` the motor inertia: each motor
+    /// a critically damped servo on its own inertia (``orbitflex plan``'s tracking PD).
+    /// :meth:`motor_pd_gains` places the loop on the link and the spring as well.
+    fn motor_servo_gains<'py>(
+        &self,
+        py: Python<'py>,
+        bandwidth: &Bound<'py, PyAny>,
+    ) -> PyResult<ArrayPair<'py>> {
+        let (kp, kd) = self.arm.motor_servo_gains(real(bandwidth, "bandwidth")?)?;
+        Ok((array1(py, &kp), array1(py, &kd)))
+    }
+
     /// ``x ⊕ dx``: the state ``x`` moved along the tangent ``dx`` (12+4n): ``r_B + δr_B``
     /// (inertial frame), ``quat_B ⊗ Exp(δφ_B)`` (``δφ_B`` a rotation vector in the base frame,
     /// rad), every other block added.

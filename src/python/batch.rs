@@ -7,6 +7,7 @@ use super::control::PyMotorPD;
 use super::convert::{count, positive_count, real};
 use super::errors::ModelError;
 use super::run::{watched, Progress};
+use super::state_columns::{state_getters, StateRecord};
 use super::trajectory::{freeze, frozen_rows, PyTrajectory};
 use crate::flex::{FlexibleArm, StateLayout};
 use crate::integrate::batch::{
@@ -18,7 +19,7 @@ use numpy::ndarray::Array3;
 use numpy::{PyArray1, PyArray2, PyArray3, PyArrayMethods};
 use pyo3::exceptions::{PyIndexError, PyRuntimeWarning};
 use pyo3::prelude::*;
-use pyo3::types::{PyList, PySequence, PySlice, PyTuple};
+use pyo3::types::{PyList, PySequence};
 use std::ffi::CString;
 use std::sync::atomic::Ordering;
 
@@ -470,31 +471,31 @@ impl PyBatchTrajectory {
         })
     }
 
-    fn view(&self, py: Python<'_>, range: std::ops::Range<usize>) -> PyResult<PyObject> {
-        let columns = PySlice::new(py, range.start as isize, range.end as isize, 1);
-        let all = PySlice::full(py);
-        let key = PyTuple::new(
-            py,
-            [all.clone().into_any(), all.into_any(), columns.into_any()],
-        )?;
-        Ok(self.x.bind(py).get_item(key)?.unbind())
-    }
-
-    /// Columns `range` of the held inputs `[u | applied wheel torques]`, a view.
-    fn inputs_view(&self, py: Python<'_>, range: std::ops::Range<usize>) -> PyResult<PyObject> {
-        let columns = PySlice::new(py, range.start as isize, range.end as isize, 1);
-        let all = PySlice::full(py);
-        let key = PyTuple::new(
-            py,
-            [all.clone().into_any(), all.into_any(), columns.into_any()],
-        )?;
-        Ok(self.u.bind(py).get_item(key)?.unbind())
-    }
-
     fn arm(&self, py: Python<'_>, run: usize) -> Py<PyFlexibleArm> {
         self.arms[if self.arms.len() == 1 { 0 } else { run }].clone_ref(py)
     }
 }
+
+impl StateRecord for PyBatchTrajectory {
+    fn layout(&self) -> StateLayout {
+        self.layout
+    }
+    fn states<'py>(&self, py: Python<'py>) -> Bound<'py, PyAny> {
+        self.x.bind(py).clone().into_any()
+    }
+    fn inputs<'py>(&self, py: Python<'py>) -> Bound<'py, PyAny> {
+        self.u.bind(py).clone().into_any()
+    }
+}
+
+state_getters!(
+    PyBatchTrajectory,
+    rows: "B, rows",
+    u: "Motor torques (N·m, link side) held during the step starting at each row but the last, \
+        (B, rows − 1, n); NaN after a run's failure.",
+    wheel_torque: "Reaction-wheel torques applied (after saturation) during the step starting at \
+                   each row but the last, (B, rows − 1, w) (N·m); w = 0 without wheels."
+);
 
 #[pymethods]
 impl PyBatchTrajectory {
@@ -522,56 +523,6 @@ impl PyBatchTrajectory {
     #[getter]
     fn x(&self, py: Python<'_>) -> Py<PyArray3<f64>> {
         self.x.clone_ref(py)
-    }
-    /// Motor torques (N·m, link side) held during the step starting at each row but the last,
-    /// (B, rows − 1, n); NaN after a run's failure.
-    #[getter]
-    fn u(&self, py: Python<'_>) -> PyResult<PyObject> {
-        if self.layout.wheels == 0 {
-            return Ok(self.u.clone_ref(py).into_any());
-        }
-        self.inputs_view(py, 0..self.layout.n)
-    }
-    /// Reaction-wheel torques applied (after saturation) during the step starting at each row
-    /// but the last, (B, rows − 1, w) (N·m); w = 0 without wheels.
-    #[getter]
-    fn wheel_torque(&self, py: Python<'_>) -> PyResult<PyObject> {
-        self.inputs_view(py, self.layout.n..self.layout.inputs_len())
-    }
-    /// Reaction-wheel speeds relative to the bus (rad/s), (B, rows, w); a view of ``x``.
-    #[getter]
-    fn wheel_speed(&self, py: Python<'_>) -> PyResult<PyObject> {
-        self.view(py, self.layout.wheel_speed())
-    }
-    /// ``[r_B (m); quat_B (x, y, z, w)]``, (B, rows, 7); a view of ``x``.
-    #[getter]
-    fn base_pose(&self, py: Python<'_>) -> PyResult<PyObject> {
-        self.view(py, self.layout.base_pose())
-    }
-    /// Link angles (rad), (B, rows, n); a view of ``x``.
-    #[getter]
-    fn q(&self, py: Python<'_>) -> PyResult<PyObject> {
-        self.view(py, self.layout.q())
-    }
-    /// Motor angles, link side (rad), (B, rows, n); a view of ``x``.
-    #[getter]
-    fn theta(&self, py: Python<'_>) -> PyResult<PyObject> {
-        self.view(py, self.layout.theta())
-    }
-    /// ``[ω_B (rad/s); v_B (m/s)]`` in base-frame components, (B, rows, 6); a view of ``x``.
-    #[getter]
-    fn base_twist(&self, py: Python<'_>) -> PyResult<PyObject> {
-        self.view(py, self.layout.base_twist())
-    }
-    /// Link rates (rad/s), (B, rows, n); a view of ``x``.
-    #[getter]
-    fn qd(&self, py: Python<'_>) -> PyResult<PyObject> {
-        self.view(py, self.layout.qd())
-    }
-    /// Motor rates, link side (rad/s), (B, rows, n); a view of ``x``.
-    #[getter]
-    fn theta_dot(&self, py: Python<'_>) -> PyResult<PyObject> {
-        self.view(py, self.layout.theta_dot())
     }
     /// Whether each run finished, (B,) bool.
     #[getter]

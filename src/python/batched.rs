@@ -7,34 +7,43 @@ use super::errors::ModelError;
 use super::parallel::compute_rows;
 use super::workspaces::Pool;
 use crate::algorithms::Data;
+use crate::integrate::batch::BatchInput;
 use crate::model::Robot;
 use numpy::{PyArrayDyn, PyArrayMethods, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 
-/// One argument of a batched call: a row of `width` numbers shared by every row of the batch,
-/// or one row per batch row.
-struct Column {
+/// One argument of a batched call, as read: its name, shape and values (C order), or zeros.
+struct Column<'a> {
+    what: &'a str,
+    width: usize,
+    shape: Vec<usize>,
     values: Vec<f64>,
-    stride: usize,
 }
 
-/// The arguments of a call with a leading batch axis of `rows` rows.
-pub(crate) struct Batched {
+/// The arguments of a call with a leading batch axis of `rows` rows, each broadcast over the rows
+/// by the batch's rule ([`BatchInput`]): `(width,)`, the same for every row, or `(rows, width)`.
+pub(crate) struct Batched<'a> {
     pub rows: usize,
-    columns: Vec<Column>,
+    columns: Vec<Column<'a>>,
 }
 
-impl Batched {
-    /// Row `row` of argument `k` (in the order given to [`batched`]).
-    #[inline]
-    pub fn arg(&self, k: usize, row: usize) -> &[f64] {
-        let c = &self.columns[k];
-        let width = if c.stride == 0 {
-            c.values.len()
-        } else {
-            c.stride
-        };
-        &c.values[row * c.stride..row * c.stride + width]
+impl Batched<'_> {
+    /// The arguments, in the order given to [`call_args`], as inputs over the rows, for the
+    /// caller to name: `let [q, qd] = b.inputs()?;`, then `q.row_or_empty(r)` is row `r` of `q`.
+    /// An argument whose shape does not broadcast is an error naming it, the shapes expected
+    /// and the one given.
+    pub fn inputs<const N: usize>(&self) -> PyResult<[BatchInput<'_>; N]> {
+        let inputs = self
+            .columns
+            .iter()
+            .map(|c| BatchInput::for_rows(c.what, &c.values, &c.shape, self.rows, c.width))
+            .collect::<crate::Result<Vec<_>>>()?;
+        let given = inputs.len();
+        inputs.try_into().map_err(|_| {
+            pyo3::exceptions::PyRuntimeError::new_err(format!(
+                "internal: {N} arguments asked of a call that read {given}"
+            ))
+        })
     }
 }
 
@@ -42,11 +51,11 @@ impl Batched {
 pub(crate) type Arg<'a, 'py> = (&'a str, Option<&'a Bound<'py, PyAny>>, usize);
 
 /// The arguments of one per-call function call: one vector each (the single call), or a batch.
-pub(crate) enum Call {
+pub(crate) enum Call<'a> {
     /// One vector per argument (zeros for an argument not given), checked: its width, finite.
     Single(Vec<Vec<f64>>),
     /// A leading batch axis on at least one argument.
-    Batch(Batched),
+    Batch(Batched<'a>),
 }
 
 /// Reads the arguments of a per-call function: when every given argument is a contiguous 1-D
@@ -55,7 +64,7 @@ pub(crate) enum Call {
 /// axis on any argument makes a batch, each argument `(width,)` (the same for every row) or
 /// `(B, width)` with one `B` for all. An error names the argument, the shape (or length)
 /// expected and the one given.
-pub(crate) fn call_args(args: &[Arg<'_, '_>]) -> PyResult<Call> {
+pub(crate) fn call_args<'a>(args: &[Arg<'a, '_>]) -> PyResult<Call<'a>> {
     let mut fast = Vec::with_capacity(args.len());
     for (_, obj, width) in args {
         match obj {
@@ -100,7 +109,7 @@ fn checked(what: &str, values: &[f64], width: usize) -> PyResult<()> {
 }
 
 /// The arguments as a batch, or `None` when none has a leading axis (scalars, lists, 1-D).
-fn batched(args: &[Arg<'_, '_>]) -> PyResult<Option<Batched>> {
+fn batched<'a>(args: &[Arg<'a, '_>]) -> PyResult<Option<Batched<'a>>> {
     // each argument's shape and values (C order): float64 arrays are read directly, anything
     // else through numpy.asarray
     let mut shapes = Vec::with_capacity(args.len());
@@ -140,33 +149,27 @@ fn batched(args: &[Arg<'_, '_>]) -> PyResult<Option<Batched>> {
         }
     }
     let rows = rows.map_or(1, |(_, b)| b);
-    let mut columns = Vec::with_capacity(args.len());
-    for (((what, _, width), shape), array) in args.iter().zip(&shapes).zip(arrays) {
-        let column = match (shape, array) {
-            (None, _) | (_, None) => Column {
-                values: vec![0.0; *width],
-                stride: 0,
-            },
-            (Some(shape), Some(values)) => {
-                let ok = match shape.as_slice() {
-                    [w] => *w == *width,
-                    [b, w] => *b == rows && *w == *width,
-                    _ => false,
-                };
-                if !ok {
-                    return Err(ModelError::new_err(format!(
-                        "{what}: expected shape ({width},) or ({rows}, {width}), given shape {}",
-                        shown(shape)
-                    )));
-                }
-                Column {
+    let columns = args
+        .iter()
+        .zip(shapes)
+        .zip(arrays)
+        .map(
+            |((&(what, _, width), shape), values)| match (shape, values) {
+                (Some(shape), Some(values)) => Column {
+                    what,
+                    width,
+                    shape,
                     values,
-                    stride: if shape.len() == 2 { *width } else { 0 },
-                }
-            }
-        };
-        columns.push(column);
-    }
+                },
+                _ => Column {
+                    what,
+                    width,
+                    shape: vec![width],
+                    values: vec![0.0; width],
+                },
+            },
+        )
+        .collect();
     Ok(Some(Batched { rows, columns }))
 }
 

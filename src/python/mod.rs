@@ -43,6 +43,7 @@ mod rotations;
 mod run;
 mod simulator;
 mod stability;
+mod state_columns;
 mod trajectory;
 mod wheels;
 mod workspaces;

@@ -561,18 +561,18 @@ impl PyPlan {
             ("q", &p.q),
             ("qd", &p.qd),
             ("qdd", &p.qdd),
-            ("theta", &p.theta),
+            ("theta", &p.flexible.theta),
             ("deflection", &p.deflection),
-            ("theta_dot", &p.theta_dot),
-            ("theta_ddot", &p.theta_ddot),
-            ("u", &p.u),
-            ("tau", &p.tau),
+            ("theta_dot", &p.flexible.theta_dot),
+            ("theta_ddot", &p.flexible.theta_ddot),
+            ("u", &p.flexible.u),
+            ("tau", &p.flexible.tau),
         ] {
             d.set_item(name, array1(py, v))?;
         }
-        d.set_item("base_twist", array1(py, &p.base_twist))?;
-        d.set_item("base_acc", array1(py, &p.base_acc))?;
-        d.set_item("base_wrench", array1(py, &p.base_wrench))?;
+        d.set_item("base_twist", array1(py, &p.flexible.base_twist))?;
+        d.set_item("base_acc", array1(py, &p.flexible.base_acc))?;
+        d.set_item("base_wrench", array1(py, &p.flexible.base_wrench))?;
         Ok(d)
     }
 

@@ -507,8 +507,10 @@ impl PyRobot {
         let robot = &self.robot;
         match call_args(&[("base_pose", Some(base_pose), 7), ("q", Some(q), n)])? {
             Call::Batch(b) => {
+                let [base_pose, q] = b.inputs()?;
                 let each = |data: &mut Data, r: usize, row: &mut [f64]| {
-                    algorithms::frame_poses(robot, data, b.arg(0, r), b.arg(1, r), row)
+                    let (base_pose, q) = (base_pose.row_or_empty(r), q.row_or_empty(r));
+                    algorithms::frame_poses(robot, data, base_pose, q, row)
                 };
                 let shape = [b.rows, frames, 7];
                 evaluate(py, robot, &self.workspaces, out, &shape, each)
@@ -575,10 +577,11 @@ impl PyRobot {
         let size = 6 + n;
         match call_args(&[("q", Some(q), n)])? {
             Call::Batch(b) => {
+                let [q] = b.inputs()?;
                 let robot = &self.robot;
                 let shape = [b.rows, size, size];
                 let each = |data: &mut Data, r: usize, row: &mut [f64]| {
-                    row_major_into(method.mass_matrix(robot, data, b.arg(0, r))?, row);
+                    row_major_into(method.mass_matrix(robot, data, q.row_or_empty(r))?, row);
                     Ok(())
                 };
                 evaluate(py, robot, &self.workspaces, out, &shape, each)
@@ -617,10 +620,15 @@ impl PyRobot {
         ];
         match call_args(&args)? {
             Call::Batch(b) => {
+                let [q, base_twist, qd] = b.inputs()?;
                 let robot = &self.robot;
                 let shape = [b.rows, 6 + n];
                 evaluate(py, robot, &self.workspaces, out, &shape, |data, r, row| {
-                    let state = RigidState::new(b.arg(0, r), b.arg(1, r), b.arg(2, r));
+                    let state = RigidState::new(
+                        q.row_or_empty(r),
+                        base_twist.row_or_empty(r),
+                        qd.row_or_empty(r),
+                    );
                     row.copy_from_slice(method.bias_forces(robot, data, &state)?.as_slice());
                     Ok(())
                 })
@@ -702,12 +710,21 @@ impl PyRobot {
         ];
         match call_args(&args)? {
             Call::Batch(b) => {
+                let [q, base_twist, qd, tau, base_wrench, ee_wrench] = b.inputs()?;
                 let robot = &self.robot;
                 let shape = [b.rows, 6 + n];
                 evaluate(py, robot, &self.workspaces, out, &shape, |data, r, row| {
-                    let state = RigidState::new(b.arg(0, r), b.arg(1, r), b.arg(2, r));
-                    let loads = Loads::from_slices(Some(b.arg(4, r)), Some(b.arg(5, r)))?;
-                    let acc = method.forward_dynamics(robot, data, &state, b.arg(3, r), &loads)?;
+                    let state = RigidState::new(
+                        q.row_or_empty(r),
+                        base_twist.row_or_empty(r),
+                        qd.row_or_empty(r),
+                    );
+                    let loads = Loads::from_slices(
+                        Some(base_wrench.row_or_empty(r)),
+                        Some(ee_wrench.row_or_empty(r)),
+                    )?;
+                    let tau = tau.row_or_empty(r);
+                    let acc = method.forward_dynamics(robot, data, &state, tau, &loads)?;
                     row.copy_from_slice(acc.as_slice());
                     Ok(())
                 })
@@ -756,17 +773,22 @@ impl PyRobot {
         ];
         match call_args(&args)? {
             Call::Batch(b) => {
+                let [q, base_twist, qd, base_acc, qdd, ee_wrench] = b.inputs()?;
                 let robot = &self.robot;
                 let shape = [b.rows, 6 + n];
                 evaluate(py, robot, &self.workspaces, out, &shape, |data, r, row| {
-                    let state = RigidState::new(b.arg(0, r), b.arg(1, r), b.arg(2, r));
+                    let state = RigidState::new(
+                        q.row_or_empty(r),
+                        base_twist.row_or_empty(r),
+                        qd.row_or_empty(r),
+                    );
                     let gen = method.inverse_dynamics(
                         robot,
                         data,
                         &state,
-                        b.arg(3, r),
-                        b.arg(4, r),
-                        b.arg(5, r),
+                        base_acc.row_or_empty(r),
+                        qdd.row_or_empty(r),
+                        ee_wrench.row_or_empty(r),
                     )?;
                     row.copy_from_slice(gen.as_slice());
                     Ok(())

@@ -3,13 +3,14 @@
 use super::arm::PyFlexibleArm;
 use super::convert::{matrix, row_major, vector};
 use super::errors::ModelError;
+use super::state_columns::{state_getters, StateRecord};
 use crate::flex::StateLayout;
 use crate::integrate::{StateRows, Trajectory};
 use numpy::{PyArray1, PyArray2, PyArrayMethods, PyUntypedArrayMethods};
 use pyo3::exceptions::PyMemoryError;
 use pyo3::prelude::*;
 use pyo3::sync::GILOnceCell;
-use pyo3::types::{PyDict, PySlice, PyTuple};
+use pyo3::types::PyDict;
 use std::io::Write;
 
 /// About how many numbers a diagnostic computes between two looks for Ctrl-C.
@@ -164,24 +165,30 @@ impl PyTrajectory {
         Ok(out)
     }
 
-    fn view<'py>(&self, py: Python<'py>, range: std::ops::Range<usize>) -> PyResult<PyObject> {
-        let columns = PySlice::new(py, range.start as isize, range.end as isize, 1);
-        let all = PySlice::full(py);
-        let key = PyTuple::new(py, [all.into_any(), columns.into_any()])?;
-        Ok(self.x.bind(py).get_item(key)?.unbind())
-    }
-
     fn rows(&self, py: Python<'_>) -> usize {
         self.t.bind(py).len()
     }
+}
 
-    /// Columns `range` of the held inputs `[u | applied wheel torques]`, a view.
-    fn inputs_view(&self, py: Python<'_>, range: std::ops::Range<usize>) -> PyResult<PyObject> {
-        let columns = PySlice::new(py, range.start as isize, range.end as isize, 1);
-        let key = PyTuple::new(py, [PySlice::full(py).into_any(), columns.into_any()])?;
-        Ok(self.u.bind(py).get_item(key)?.unbind())
+impl StateRecord for PyTrajectory {
+    fn layout(&self) -> StateLayout {
+        self.layout
+    }
+    fn states<'py>(&self, py: Python<'py>) -> Bound<'py, PyAny> {
+        self.x.bind(py).clone().into_any()
+    }
+    fn inputs<'py>(&self, py: Python<'py>) -> Bound<'py, PyAny> {
+        self.u.bind(py).clone().into_any()
     }
 }
+
+state_getters!(
+    PyTrajectory,
+    rows: "k",
+    u: "Motor torques (N·m, link side) held during each step, shape (k-1, n).",
+    wheel_torque: "Reaction-wheel torques applied during each step, after saturation (N·m, on each \
+                   wheel about its axis), shape (k-1, w); (k-1, 0) without wheels."
+);
 
 #[pymethods]
 impl PyTrajectory {
@@ -292,55 +299,6 @@ impl PyTrajectory {
     #[getter]
     fn x(&self, py: Python<'_>) -> Py<PyArray2<f64>> {
         self.x.clone_ref(py)
-    }
-    /// Motor torques (N·m, link side) held during each step, shape (k-1, n).
-    #[getter]
-    fn u(&self, py: Python<'_>) -> PyResult<PyObject> {
-        if self.layout.wheels == 0 {
-            return Ok(self.u.clone_ref(py).into_any());
-        }
-        self.inputs_view(py, 0..self.layout.n)
-    }
-    /// Reaction-wheel torques applied during each step, after saturation (N·m, on each wheel
-    /// about its axis), shape (k-1, w); (k-1, 0) without wheels.
-    #[getter]
-    fn wheel_torque(&self, py: Python<'_>) -> PyResult<PyObject> {
-        self.inputs_view(py, self.layout.n..self.layout.inputs_len())
-    }
-    /// Reaction-wheel speeds relative to the bus (rad/s), (k, w); a view of ``x``.
-    #[getter]
-    fn wheel_speed(&self, py: Python<'_>) -> PyResult<PyObject> {
-        self.view(py, self.layout.wheel_speed())
-    }
-    /// ``[r_B (m); quat_B (x, y, z, w)]`` per state, (k, 7); a view of ``x``.
-    #[getter]
-    fn base_pose(&self, py: Python<'_>) -> PyResult<PyObject> {
-        self.view(py, self.layout.base_pose())
-    }
-    /// Link angles (rad), (k, n); a view of ``x``.
-    #[getter]
-    fn q(&self, py: Python<'_>) -> PyResult<PyObject> {
-        self.view(py, self.layout.q())
-    }
-    /// Motor angles, link side (rad), (k, n); a view of ``x``.
-    #[getter]
-    fn theta(&self, py: Python<'_>) -> PyResult<PyObject> {
-        self.view(py, self.layout.theta())
-    }
-    /// ``[ω_B (rad/s); v_B (m/s)]`` in base-frame components, (k, 6); a view of ``x``.
-    #[getter]
-    fn base_twist(&self, py: Python<'_>) -> PyResult<PyObject> {
-        self.view(py, self.layout.base_twist())
-    }
-    /// Link rates (rad/s), (k, n); a view of ``x``.
-    #[getter]
-    fn qd(&self, py: Python<'_>) -> PyResult<PyObject> {
-        self.view(py, self.layout.qd())
-    }
-    /// Motor rates, link side (rad/s), (k, n); a view of ``x``.
-    #[getter]
-    fn theta_dot(&self, py: Python<'_>) -> PyResult<PyObject> {
-        self.view(py, self.layout.theta_dot())
     }
     /// Joint deflection ``θ − q`` (rad), (k, n).
     #[getter]

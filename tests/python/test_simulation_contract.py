@@ -186,3 +186,15 @@ def test_motor_pd_gains_come_from_the_joints_physics_and_say_what_they_cannot_do
         arm.motor_pd_gains(0.25, 0.0)
     with pytest.raises(orbitflex.ModelError, match=r"^q: "):
         arm.motor_pd_gains(0.25, q=np.zeros(3))
+
+
+def test_motor_servo_gains_make_each_motor_a_critically_damped_servo_on_its_own_inertia(arm):
+    # kp = j ω², kd = 2 j ω: the motor alone (j θ̈ = -kp θ - kd θ̇) has the double root -ω
+    j, w = arm.joints.motor_inertia, 2 * np.pi * 5.0
+    kp, kd = arm.motor_servo_gains(5.0)
+    np.testing.assert_array_equal(kp, j * (w * w))
+    np.testing.assert_array_equal(kd, 2 * j * w)
+    assert np.allclose(kd**2, 4 * j * kp, rtol=1e-14)  # discriminant zero: critically damped
+    for bad, shown in ((0.0, "0"), (-1.0, "-1"), (float("nan"), "NaN")):
+        with pytest.raises(orbitflex.ModelError, match=rf"^bandwidth: expected a finite number > 0, given {shown}"):
+            arm.motor_servo_gains(bad)

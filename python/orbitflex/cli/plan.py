@@ -94,10 +94,9 @@ examples:
 
 def servo_gains(arm: FlexibleArm, hz: float = SERVO_HZ) -> Tuple[Array, Array]:
     """``kp = j ω²``, ``kd = 2 j ω`` (ω = 2π hz): each motor a critically damped servo on its own
-    inertia ``j``."""
-    _, j, _, _ = arm.parameters
-    w = 2 * np.pi * hz
-    return j * w**2, 2 * j * w
+    inertia ``j`` (:meth:`FlexibleArm.motor_servo_gains`)."""
+    kp, kd = arm.motor_servo_gains(hz)
+    return kp, kd
 
 
 def tracking_limit(arm: FlexibleArm, stops: Array, kp: Array, kd: Array) -> float:

@@ -65,17 +65,8 @@ impl<'a> BatchInput<'a> {
             expected: expected.clone(),
             given: format!("shape {}", shown(shape)),
         };
-        let run_axis = |r: usize| match r {
-            1 => Ok(0),
-            r if r == runs => Ok(1),
-            _ => Err(wrong()),
-        };
-        let (run_stride, step_stride) = match *shape {
-            [w] if w == width => (0, 0),
-            [r, w] if w == width => (run_axis(r)? * width, 0),
-            [r, s, w] if w == width && Some(s) == steps => (run_axis(r)? * s * width, width),
-            _ => return Err(wrong()),
-        };
+        let (run_stride, step_stride) =
+            Self::strides(shape, runs, steps, width).ok_or_else(wrong)?;
         if values.len() != shape.iter().product::<usize>() {
             return Err(Error::Dimension {
                 what: what.to_string(),
@@ -94,6 +85,58 @@ impl<'a> BatchInput<'a> {
             step_stride,
             runs: (run_stride > 0).then_some(runs),
             steps: (step_stride > 0).then_some(steps).flatten(),
+        })
+    }
+
+    /// The broadcasting rule: the strides (per run, per step) of an input of `shape` read by
+    /// `runs` runs of `steps` steps (`None`: no step axis), rows of `width` numbers, or `None`
+    /// when the shape does not broadcast. A leading axis of 1 (or none) is shared by every run.
+    fn strides(
+        shape: &[usize],
+        runs: usize,
+        steps: Option<usize>,
+        width: usize,
+    ) -> Option<(usize, usize)> {
+        let run_axis = |r: usize| match r {
+            1 => Some(0),
+            r if r == runs => Some(1),
+            _ => None,
+        };
+        match *shape {
+            [w] if w == width => Some((0, 0)),
+            [r, w] if w == width => Some((run_axis(r)? * width, 0)),
+            [r, s, w] if w == width && Some(s) == steps => Some((run_axis(r)? * s * width, width)),
+            _ => None,
+        }
+    }
+
+    /// The argument `what` of a per-call function with a leading batch axis of `rows` rows
+    /// (the rule of [`new`](Self::new) without a step axis), from `values` of shape `(width,)`
+    /// (one vector for every row) or `(rows, width)`. An error names `what`, the shapes
+    /// expected and the one given.
+    pub fn for_rows(
+        what: &str,
+        values: &'a [f64],
+        shape: &[usize],
+        rows: usize,
+        width: usize,
+    ) -> Result<Self> {
+        let wrong = || Error::Dimension {
+            what: what.to_string(),
+            expected: format!("shape ({width},) or ({rows}, {width})"),
+            given: format!("shape {}", crate::args::describe_shape(shape)),
+        };
+        let (run_stride, _) = Self::strides(shape, rows, None, width).ok_or_else(wrong)?;
+        if values.len() != shape.iter().product::<usize>() {
+            return Err(wrong());
+        }
+        Ok(Self {
+            values,
+            width,
+            run_stride,
+            step_stride: 0,
+            runs: (run_stride > 0).then_some(rows),
+            steps: None,
         })
     }
 
@@ -134,6 +177,16 @@ impl<'a> BatchInput<'a> {
     pub fn row(&self, run: usize) -> Option<&'a [f64]> {
         let start = run * self.run_stride;
         (!self.values.is_empty()).then(|| &self.values[start..start + self.width])
+    }
+
+    /// The first row of run `run`, as [`row`](Self::row), empty for [`zero`](Self::zero).
+    #[inline]
+    pub fn row_or_empty(&self, run: usize) -> &'a [f64] {
+        let start = run * self.run_stride;
+        // the rows of an input read by `for_rows` are in its buffer; `zero` has none
+        self.values
+            .get(start..start + self.width)
+            .unwrap_or_default()
     }
 
     /// The schedule of run `run` over `steps` steps (a copy of its rows).

@@ -357,6 +357,30 @@ mod tests {
     }
 
     #[test]
+    fn per_call_arguments_broadcast_by_the_same_rule() {
+        // the batched per-call functions' arguments: (width,) for every row, or (rows, width)
+        let v: Vec<f64> = (0..6).map(f64::from).collect();
+        let each = BatchInput::for_rows("q", &v, &[2, 3], 2, 3).unwrap();
+        assert_eq!(each.row_or_empty(0), &[0.0, 1.0, 2.0]);
+        assert_eq!(each.row_or_empty(1), &[3.0, 4.0, 5.0]);
+        assert!(!each.is_shared());
+        let shared = BatchInput::for_rows("q", &v[3..], &[3], 2, 3).unwrap();
+        assert_eq!(shared.row_or_empty(1), &[3.0, 4.0, 5.0]);
+        assert!(shared.is_shared());
+        assert!(BatchInput::zero(3).row_or_empty(1).is_empty());
+        let message = BatchInput::for_rows("qd", &v, &[2, 3], 2, 2)
+            .unwrap_err()
+            .to_string();
+        assert_eq!(
+            message,
+            "qd: expected shape (2,) or (2, 2), given shape (2, 3)"
+        );
+        assert!(BatchInput::for_rows("q", &v, &[3, 2], 2, 2).is_err()); // 3 rows, not 2
+        assert!(BatchInput::for_rows("q", &v[..5], &[2, 3], 2, 3).is_err()); // 5 numbers, not 6
+        assert!(BatchInput::for_rows("q", &v, &[1, 2, 3], 2, 3).is_err()); // no step axis
+    }
+
+    #[test]
     fn the_pool_has_the_threads_asked_for() {
         // threads = 1 once ran the parallel loops on rayon's global pool (every core)
         assert_eq!(in_pool(Some(1), rayon::current_num_threads).unwrap(), 1);
