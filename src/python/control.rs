@@ -574,7 +574,7 @@ impl PySampled {
 }
 
 /// The wrapped controller, rate and delay of a ``Sampled``, or None.
-fn sampled<'py>(
+pub(crate) fn sampled<'py>(
     obj: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<Option<(Bound<'py, PyAny>, f64, usize)>> {
     match obj {
