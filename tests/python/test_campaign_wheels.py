@@ -7,6 +7,10 @@ tipped by exactly the drawn angle."""
 
 from __future__ import annotations
 
+import subprocess
+import sys
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -137,3 +141,53 @@ def test_a_draw_out_of_the_domain_names_the_run():
     c = wheeled(dispersions=[Dispersion("wheel_max_torque", "normal", std=1e3)])
     with pytest.raises(CampaignError, match=r"wheel_max_torque\[\d\] drew .* N·m \(expected > 0\)"):
         c.run(runs=20)
+
+
+# -- files and the CLI ---------------------------------------------------------------------------
+
+EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
+
+
+def short_file(tmp_path, extra=""):
+    """The example campaign, 0.4 s long, with wheel dispersions (and ``extra`` at the top)."""
+    spec = tmp_path / "c.toml"
+    text = (EXAMPLES / "campaign.toml").read_text().replace("duration = 12.0", "duration = 0.4") \
+        .replace("slew_time = 5.0", "slew_time = 0.3")
+    spec.write_text(extra + text + '\n[[dispersion]]\nparameter = "wheel_max_torque"\ndistribution = "uniform"\n'
+                    'relative = 0.2\n\n[[dispersion]]\nparameter = "attitude_kd"\ndistribution = "lognormal"\n'
+                    'sigma = 0.2\n')
+    return spec
+
+
+def test_a_campaign_file_names_its_wheels_file(tmp_path):
+    (tmp_path / "w.toml").write_text((EXAMPLES / "wheels.toml").read_text())
+    c = Campaign.from_toml(short_file(tmp_path, 'wheels = "w.toml"\n'))
+    assert len(c.wheels) == 4 and c.attitude_kp.tolist() == [2.0e5] * 3
+    again = Campaign.from_toml(short_file(tmp_path), wheels=EXAMPLES / "wheels.toml")
+    pd.testing.assert_frame_equal(c.run(runs=3, threads=1), again.run(runs=3, threads=1), check_exact=True)
+    with pytest.raises(CampaignError, match=r"c.toml: wheel_max_torque: applies to a campaign with reaction wheels"):
+        Campaign.from_toml(short_file(tmp_path))
+    with pytest.raises(CampaignError, match=r"c.toml: wheels: .*nope.toml: cannot read the wheels file"):
+        Campaign.from_toml(short_file(tmp_path, 'wheels = "nope.toml"\n'))
+
+
+def test_cli_campaign_with_wheels(tmp_path):
+    spec = short_file(tmp_path)
+    out = tmp_path / "out"
+    done = subprocess.run([sys.executable, "-m", "orbitflex", "campaign", str(spec), "--runs", "4", "--out", str(out),
+                           "--wheels", str(EXAMPLES / "wheels.toml"), "--no-progress"],
+                          capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    assert "4 runs of 0.4 s (dt = 0.002 s, 200 steps), the bus held by 4 reaction wheels, here" in done.stdout
+    for metric in ("pointing_error", "peak_wheel_speed_fraction", "peak_wheel_torque_fraction"):
+        assert f"\n{metric}" in done.stdout, done.stdout
+    table = pd.read_parquet(out / "runs.parquet")
+    expected = Campaign.from_toml(spec, wheels=EXAMPLES / "wheels.toml").run(runs=4)
+    pd.testing.assert_frame_equal(table, expected, check_exact=True)
+    stats = pd.read_csv(out / "summary.csv", index_col="metric")
+    assert stats.loc["pointing_error", "max"] == pytest.approx(table["pointing_error"].max(), rel=1e-15)
+    bad = subprocess.run([sys.executable, "-m", "orbitflex", "campaign", str(spec), "--wheels", "nope.toml"],
+                         capture_output=True, text=True, timeout=120, cwd=tmp_path)
+    assert bad.returncode == 2 and "orbitflex: error: --wheels: nope.toml: cannot read the wheels file" in bad.stderr, \
+        bad.stderr
+    assert "Traceback" not in bad.stderr

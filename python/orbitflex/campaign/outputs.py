@@ -87,11 +87,13 @@ def histograms(table: "pd.DataFrame", campaign: Campaign, path: Path) -> Path:
             ax.hist(values, bins=min(40, max(5, int(np.sqrt(values.size)) * 2)), color="#4477aa")
             for p, style in ((50, "-"), (95, "--")):
                 ax.axvline(np.percentile(values, p), color="#cc3311", ls=style, lw=1, label=f"p{p}")
+            if metric in WHEEL_METRICS and unit == "1":  # a fraction of the wheels' limit
+                ax.axvline(1.0, color="black", ls=":", lw=1.5, label="limit")
             ax.legend(fontsize=8)
         missing = len(finished) - values.size
         title = {**TITLES, **WHEEL_TITLES}[metric] + (f" ({missing} undefined)" if missing else "")
         ax.set_title(title, fontsize=10)
-        ax.set_xlabel(unit)
+        ax.set_xlabel("fraction of the limit" if metric in WHEEL_METRICS and unit == "1" else unit)
         ax.set_ylabel("runs")
     fig.savefig(path, dpi=110)
     plt.close(fig)

@@ -101,9 +101,11 @@ class Campaign:
                    slew_time=plan.duration, q0=fields.pop("q0", stops[0].copy()), plan=plan, **fields)
 
     @classmethod
-    def from_toml(cls, path: Union[str, "os.PathLike[str]"]) -> "Campaign":
-        """Reads a campaign file (see ``examples/campaign.toml``). A relative ``urdf`` path is
-        taken from the file's folder."""
+    def from_toml(cls, path: Union[str, "os.PathLike[str]"], wheels: Any = None) -> "Campaign":
+        """Reads a campaign file (see ``examples/campaign.toml``). A relative ``urdf`` (or
+        ``wheels``) path is taken from the file's folder. ``wheels``, a wheels file (its path, or
+        a ``WheelsFile``), replaces the file's ``wheels = "PATH"``: the bus held by those wheels
+        under the file's ``AttitudePD`` gains."""
         if sys.version_info >= (3, 11):
             import tomllib
         else:  # pragma: no cover
@@ -117,14 +119,15 @@ class Campaign:
             spec = tomllib.loads(text)
         except tomllib.TOMLDecodeError as e:
             raise CampaignError(f"{path}: malformed TOML: {e}") from None
-        return cls.from_dict(spec, base=path.parent, source=str(path))
+        return cls.from_dict(spec, base=path.parent, source=str(path), wheels=wheels)
 
     @classmethod
     def from_dict(cls, spec: Mapping[str, Any], base: Optional[Path] = None,
-                  source: str = "campaign") -> "Campaign":
-        """A campaign from the tables of a campaign file: top-level ``name``, ``runs``, ``seed``;
-        ``[robot]``, ``[joints]``, ``[simulation]``, ``[slew]`` and ``[[dispersion]]``."""
-        return campaign_from_dict(cls, spec, base, source)
+                  source: str = "campaign", wheels: Any = None) -> "Campaign":
+        """A campaign from the tables of a campaign file: top-level ``name``, ``runs``, ``seed``,
+        ``wheels`` (a wheels file's path); ``[robot]``, ``[joints]``, ``[simulation]``,
+        ``[slew]`` and ``[[dispersion]]``. ``wheels`` as in :meth:`from_toml`."""
+        return campaign_from_dict(cls, spec, base, source, wheels)
 
     def check(self) -> None:
         """Checks the declaration (raises :class:`CampaignError` naming the field)."""

@@ -166,6 +166,10 @@ def build_parser() -> Parser:
                       help="runs per batch (per Dask task); default 256 here, about 4 tasks per worker thread on Dask")
     camp.add_argument("--threads", type=at_least_one, default=None,
                       help="threads per batch (default: every core here, 1 per Dask task)")
+    camp.add_argument("--wheels", metavar="TOML", default=None,
+                      help="reaction wheels holding every run's bus under their AttitudePD (keys: "
+                           "examples/wheels.toml); replaces the file's wheels = PATH. Adds the wheel "
+                           "metrics and lets the file disperse wheel_* and attitude_kp/kd")
     camp.add_argument("--no-plots", action="store_true", help="skip histograms.png")
     camp.add_argument("--no-progress", action="store_true", help="no progress bar")
     from . import modes  # `orbitflex modes` lives in its own module
