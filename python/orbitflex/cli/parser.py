@@ -117,6 +117,11 @@ def plan_options(p: argparse.ArgumentParser) -> None:
     runs.add_argument("--settle", metavar="S", type=non_negative, default=2.0,
                       help="time simulated at rest after each slew, to measure the residual vibration, s "
                            "(default %(default)s)")
+    runs.add_argument("--wheels", metavar="TOML", default=None,
+                      help="reaction wheels on the bus and their AttitudePD (keys: examples/wheels.toml; "
+                           "--base held): reports what holding the bus asks of them (Plan.wheel_demand) "
+                           "and tracks the plan with them holding it, printing the pointing error and "
+                           "the wheels' peak speed and torque against their limits")
     p.add_argument("--out", metavar="DIR", default="orbitflex_out",
                    help="output folder, created if missing (default %(default)s)")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
