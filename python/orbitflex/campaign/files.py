@@ -32,7 +32,7 @@ def _wheels_file(spec: Mapping[str, Any], base: Optional[Path], source: str,
         path = Path(given)
         wheels = path if path.is_absolute() or base is None else base / path
     try:
-        return read_wheels(wheels)
+        return read_wheels(Path(wheels))
     except (WheelsFileError, FileNotFoundError) as e:
         raise CampaignError(f"{source}: wheels: {e}") from None
 
