@@ -45,7 +45,7 @@ fn main() -> orbitflex::Result<()> {
         u: BatchControl::Open(BatchInput::new("u", &u, &[runs, n], runs, Some(steps), n)?),
         base_wrench: BatchInput::zero(6),
         ee_wrench: BatchInput::zero(6),
-        wheel_torque: BatchInput::zero(0),
+        wheel_torque: BatchControl::zero(0),
     };
     let mut times = [Vec::new(), Vec::new()];
     for _ in 0..rounds {

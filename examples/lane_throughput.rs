@@ -41,7 +41,7 @@ fn batch(s: &Setup) {
         ),
         base_wrench: BatchInput::zero(6),
         ee_wrench: BatchInput::zero(6),
-        wheel_torque: BatchInput::zero(0),
+        wheel_torque: BatchControl::zero(0),
     };
     let settings = BatchSettings {
         dt: s.dt,

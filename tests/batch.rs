@@ -198,7 +198,7 @@ fn open_loop_batch_equals_single_runs_for_any_threads_and_record_every() {
         u: BatchControl::Open(BatchInput::new("u", &u, &[4, STEPS, N], 4, Some(STEPS), N).unwrap()),
         base_wrench: BatchInput::new("base_wrench", &fb, &[6], 4, Some(STEPS), 6).unwrap(),
         ee_wrench: BatchInput::zero(6),
-        wheel_torque: BatchInput::zero(0),
+        wheel_torque: BatchControl::zero(0),
     };
     for every in [1, 3, 40, 41] {
         let mut records = Vec::new();
@@ -252,7 +252,7 @@ fn failing_run_leaves_the_others_complete() {
         u: BatchControl::Open(BatchInput::new("u", &u, &[4, STEPS, N], 4, Some(STEPS), N).unwrap()),
         base_wrench: BatchInput::zero(6),
         ee_wrench: BatchInput::zero(6),
-        wheel_torque: BatchInput::zero(0),
+        wheel_torque: BatchControl::zero(0),
     };
     // 17 % 5 != 0 ends the record on the last good state; 17 % 17 == 0 on a kept row
     for (every, threads) in [(1, 2), (5, 1), (5, 2), (17, 2)] {
@@ -324,7 +324,7 @@ fn dispersed_arms_and_controllers_per_run() {
         u: BatchControl::Pd(PerRun::Each(&pds.iter().collect::<Vec<_>>())),
         base_wrench: BatchInput::zero(6),
         ee_wrench: BatchInput::new("ee_wrench", &fee, &[4, 6], 4, Some(STEPS), 6).unwrap(),
-        wheel_torque: BatchInput::zero(0),
+        wheel_torque: BatchControl::zero(0),
     };
     let record = simulate_batch(&batch, &settings(2, 2), &BatchWatch::default()).unwrap();
     for b in 0..4 {
@@ -360,7 +360,7 @@ fn dispersed_arms_and_controllers_per_run() {
     );
     let shared = Batch {
         ee_wrench: BatchInput::zero(6),
-        wheel_torque: BatchInput::zero(0),
+        wheel_torque: BatchControl::zero(0),
         ..shared
     };
     let record = simulate_batch(&shared, &settings(1, 2), &BatchWatch::default()).unwrap();
@@ -382,7 +382,7 @@ fn summaries_only_keeps_no_rows_and_the_same_summaries() {
         u: BatchControl::Open(BatchInput::new("u", &u, &[4, STEPS, N], 4, Some(STEPS), N).unwrap()),
         base_wrench: BatchInput::zero(6),
         ee_wrench: BatchInput::zero(6),
-        wheel_torque: BatchInput::zero(0),
+        wheel_torque: BatchControl::zero(0),
     };
     let full = simulate_batch(&batch, &settings(1, 2), &BatchWatch::default()).unwrap();
     let lean = simulate_batch(
@@ -423,7 +423,7 @@ fn cancelled_batch_stops_every_run() {
         u: BatchControl::Open(BatchInput::zero(N)),
         base_wrench: BatchInput::zero(6),
         ee_wrench: BatchInput::zero(6),
-        wheel_torque: BatchInput::zero(0),
+        wheel_torque: BatchControl::zero(0),
     };
     let watch = BatchWatch::default();
     let steps = 200_000;
@@ -478,7 +478,7 @@ fn runs_not_started_when_cancelled_end_at_their_start() {
         u: BatchControl::Open(BatchInput::zero(N)),
         base_wrench: BatchInput::zero(6),
         ee_wrench: BatchInput::zero(6),
-        wheel_torque: BatchInput::zero(0),
+        wheel_torque: BatchControl::zero(0),
     };
     let watch = BatchWatch::default();
     watch.cancel.store(true, Ordering::Relaxed);
@@ -520,7 +520,7 @@ fn a_table_for_other_steps_is_refused() {
         u: BatchControl::Open(BatchInput::new("u", &u, &[2, 10, N], 2, Some(10), N).unwrap()),
         base_wrench: BatchInput::zero(6),
         ee_wrench: BatchInput::zero(6),
-        wheel_torque: BatchInput::zero(0),
+        wheel_torque: BatchControl::zero(0),
     };
     for steps in [5, 20] {
         let e = simulate_batch(
@@ -563,7 +563,7 @@ fn unstable_runs_are_named_with_their_own_limits() {
         u,
         base_wrench: BatchInput::zero(6),
         ee_wrench: BatchInput::zero(6),
-        wheel_torque: BatchInput::zero(0),
+        wheel_torque: BatchControl::zero(0),
     };
     // arms per run: only the stiff one
     let arms = [&soft, &stiff, &soft];
@@ -641,7 +641,7 @@ fn a_record_too_big_for_memory_is_refused() {
         u: BatchControl::Open(BatchInput::zero(N)),
         base_wrench: BatchInput::zero(6),
         ee_wrench: BatchInput::zero(6),
-        wheel_torque: BatchInput::zero(0),
+        wheel_torque: BatchControl::zero(0),
     };
     // per run: 10⁷ + 1 rows of 25, 10⁷ torque rows of 3, the final state (25) and the two
     // summaries (3 each): 280,000,056 numbers; × 1000 runs × 8 bytes
@@ -695,7 +695,7 @@ fn argument_errors_name_the_run_and_the_shapes() {
         u: BatchControl::Open(BatchInput::zero(N)),
         base_wrench: BatchInput::zero(6),
         ee_wrench: BatchInput::zero(6),
-        wheel_torque: BatchInput::zero(0),
+        wheel_torque: BatchControl::zero(0),
     };
     let e = simulate_batch(&batch, &settings(1, 1), &BatchWatch::default()).unwrap_err();
     assert_eq!(
@@ -744,7 +744,7 @@ fn cancelled_checks_and_stability_limits_stop_with_interrupted() {
         u: BatchControl::Open(BatchInput::zero(N)),
         base_wrench: BatchInput::zero(6),
         ee_wrench: BatchInput::zero(6),
-        wheel_torque: BatchInput::zero(0),
+        wheel_torque: BatchControl::zero(0),
     };
     let watch = BatchWatch::default();
     assert!(batch.check_watched(&settings(1, 2), &watch).is_ok());

@@ -1867,3 +1867,71 @@ fn the_model_s_limits_are_read_planned_under_and_enforced() {
     };
     assert_eq!(bad(fine).unwrap(), fine);
 }
+
+/// Per-axis base bounds (`BaseLimits`), closed forms on a rotor: a disc (`I_l = 3` kg·m² about
+/// its axis) on a joint along the bus's z axis (`I_b = 50`), every centre of mass on that axis.
+/// Free: `ω_z = −I_l/(I_b + I_l) q̇`, so a bound `L` on `|ω_z|` gives
+/// `T = I_l/(I_b + I_l) Δ σ'max / L`, `σ'max = 630/256`. Held: `n_z = I_l q̈`, so
+/// `T = √(I_l Δ σ''max / L)`, `σ''max = 2520 (3/14)³/√7`. The planner bisects to 1e-10 and
+/// refines its samples onto the peak (a parabola's vertex, O(h³) with h = 1/512): 1e-7.
+#[test]
+fn base_axis_limits_closed_forms_on_a_rotor() {
+    use orbitflex::planning::{BaseBound, BaseLimits};
+    let urdf = r#"<robot name="rotor">
+<link name="bus"><inertial><origin xyz="0 0 0"/><mass value="100"/>
+  <inertia ixx="30" iyy="40" izz="50" ixy="0" ixz="0" iyz="0"/></inertial></link>
+<joint name="j" type="revolute"><parent link="bus"/><child link="disc"/><origin xyz="0 0 0.5"/>
+  <axis xyz="0 0 1"/><limit effort="1e6" velocity="1e3" lower="-10" upper="10"/></joint>
+<link name="disc"><inertial><origin xyz="0 0 0.2"/><mass value="10"/>
+  <inertia ixx="2" iyy="2" izz="3" ixy="0" ixz="0" iyz="0"/></inertial></link>
+</robot>"#;
+    let robot = Robot::from_urdf_string(urdf, &orbitflex::UrdfOptions::default()).unwrap();
+    let joints = FlexibleJoints::new(vec![1e4], vec![0.5], vec![0.0], vec![0.0]).unwrap();
+    let arm = FlexibleArm::new(robot, joints).unwrap();
+    let loose = Limits::uniform(1e6, 1e3).unwrap();
+    let (rate, torque) = (0.01, 2.0);
+    let free = loose
+        .clone()
+        .with_base_axes(BaseLimits {
+            rate: Some([1.0, 1.0, rate]),
+            ..Default::default()
+        })
+        .unwrap();
+    let plan = plan_slew(&arm, &[1.0], None, &free, BaseMode::Free, &[]).unwrap();
+    let expected = 3.0 / 53.0 * (630.0 / 256.0) / rate;
+    assert!(
+        (plan.duration() / expected - 1.0).abs() < 1e-7,
+        "{}",
+        plan.duration()
+    );
+    let b = plan.binding();
+    assert_eq!(
+        (b.constraint, b.joint, b.axis),
+        (Constraint::Base(BaseBound::RateAxis), None, Some(2))
+    );
+    assert!((b.value / rate - 1.0).abs() < 1e-7);
+    let held = loose
+        .with_base_axes(BaseLimits {
+            torque: Some([1e3, 1e3, torque]),
+            ..Default::default()
+        })
+        .unwrap();
+    let plan = plan_slew(&arm, &[1.0], None, &held, BaseMode::Held, &[]).unwrap();
+    let sigma2 = 2520.0 * (3.0f64 / 14.0).powi(3) / 7f64.sqrt();
+    let expected = (3.0 * sigma2 / torque).sqrt();
+    assert!(
+        (plan.duration() / expected - 1.0).abs() < 1e-7,
+        "{}",
+        plan.duration()
+    );
+    assert_eq!(plan.binding().axis, Some(2));
+    assert_eq!(plan.binding().constraint.name(), "base_torque_axes");
+    // a free bound on a held plan is refused, naming it
+    let e = plan_slew(&arm, &[1.0], None, &free, BaseMode::Held, &[])
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.starts_with("limits.base_rate_axes: bounds the motion of a free-floating base"),
+        "{e}"
+    );
+}

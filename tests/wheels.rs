@@ -5,10 +5,12 @@
 //! bad input.
 
 use orbitflex::algorithms::{self, Data};
+use orbitflex::control::{AttitudePD, AttitudeTarget, Controller, MotorPD, Sampled};
 use orbitflex::flex::{saturated_torque, ReactionWheels, Wheel};
 use orbitflex::integrate::batch::{
-    simulate_batch, Batch, BatchControl, BatchInput, BatchSettings, BatchWatch, PerRun,
+    simulate_batch, Batch, BatchControl, BatchInput, BatchSettings, BatchWatch, PerRun, SampleClock,
 };
+use orbitflex::integrate::{Drive, Run, Unobserved};
 use orbitflex::spatial::Vec3;
 use orbitflex::testing::{random_chain, random_joints, random_tree_all_leaves, Rng};
 use orbitflex::{
@@ -529,15 +531,17 @@ fn batch_with_wheels_equals_single_runs() {
         u: BatchControl::Open(BatchInput::new("u", &u, &[runs, 7], runs, Some(steps), 7).unwrap()),
         base_wrench: BatchInput::zero(6),
         ee_wrench: BatchInput::zero(6),
-        wheel_torque: BatchInput::new(
-            "wheel_torque",
-            &table,
-            &[runs, steps, 4],
-            runs,
-            Some(steps),
-            4,
-        )
-        .unwrap(),
+        wheel_torque: BatchControl::Open(
+            BatchInput::new(
+                "wheel_torque",
+                &table,
+                &[runs, steps, 4],
+                runs,
+                Some(steps),
+                4,
+            )
+            .unwrap(),
+        ),
     };
     let settings = BatchSettings {
         dt: 2e-3,
@@ -568,6 +572,230 @@ fn batch_with_wheels_equals_single_runs() {
         // near max_speed some commands were cut: the record holds what acted
         assert_eq!(single.u.len(), steps * 11);
     }
+}
+
+/// The controllers of `runs` runs: motor PDs and attitude PDs with gains that differ per run.
+fn controllers(arm: &FlexibleArm, runs: usize) -> (Vec<MotorPD>, Vec<AttitudePD>) {
+    let n = arm.dof();
+    let allocation = arm.wheels().unwrap().allocation().unwrap();
+    let motors = (0..runs)
+        .map(|b| {
+            let kp = vec![20.0 + 5.0 * b as f64; n];
+            let kd = vec![2.0 + b as f64; n];
+            let reference = Schedule::Constant(vec![0.1 * b as f64; n]);
+            MotorPD::new(kp, kd, reference, Schedule::Zero, Schedule::Zero).unwrap()
+        })
+        .collect();
+    let attitudes = (0..runs)
+        .map(|b| {
+            let kp = [0.5 + 0.1 * b as f64, 0.6, 0.7];
+            let kd = [1.5, 1.5 + 0.2 * b as f64, 1.0];
+            AttitudePD::new(kp, kd, AttitudeTarget::Initial, allocation.clone()).unwrap()
+        })
+        .collect();
+    (motors, attitudes)
+}
+
+/// A batch whose wheels are held by an `AttitudePD` (one shared, or one per run) and whose
+/// motors and wheels run at their own rates (`Sampled`, periods of whole and of non-whole steps,
+/// with delays) equals the single runs with the same controllers bit for bit, for 1, 2 and 3
+/// threads; each run starts from a copy (the latched attitude and the held rows are its own).
+#[test]
+fn batch_with_attitude_pd_and_sampled_equals_single_runs() {
+    let arm = FlexibleArm::new(Robot::space_arm(), FlexibleJoints::space_arm())
+        .unwrap()
+        .with_wheels(pyramid())
+        .unwrap();
+    let (runs, steps, dt, len) = (4, 60, 2e-3, arm.layout().len());
+    let x0: Vec<f64> = (0..runs)
+        .flat_map(|b| random_state(&arm, 40 + b as u64, 100.0))
+        .collect();
+    let (motors, attitudes) = controllers(&arm, runs);
+    let motor_refs: Vec<&MotorPD> = motors.iter().collect();
+    let attitude_refs: Vec<&AttitudePD> = attitudes.iter().collect();
+    // 1/(3 dt): a sample every 3 steps; 170 Hz: every 2.94 steps
+    let every3 = SampleClock {
+        rate_hz: 1.0 / (3.0 * dt),
+        delay: 1,
+    };
+    let odd = SampleClock {
+        rate_hz: 170.0,
+        delay: 2,
+    };
+    let u_pd = BatchControl::Pd(PerRun::Each(&motor_refs));
+    let w_pd = BatchControl::Attitude(PerRun::Each(&attitude_refs));
+    let cases: [(
+        BatchControl,
+        BatchControl,
+        Option<SampleClock>,
+        Option<SampleClock>,
+    ); 3] = [
+        (
+            BatchControl::zero(7),
+            BatchControl::Attitude(PerRun::All(&attitudes[1])),
+            None,
+            None,
+        ),
+        (
+            BatchControl::Sampled(&u_pd, every3),
+            BatchControl::Sampled(&w_pd, odd),
+            Some(every3),
+            Some(odd),
+        ),
+        (
+            u_pd,
+            BatchControl::Sampled(&w_pd, every3),
+            None,
+            Some(every3),
+        ),
+    ];
+    for (case, (u, wheel_torque, u_clock, w_clock)) in cases.into_iter().enumerate() {
+        let batch = Batch {
+            runs,
+            arms: PerRun::All(&arm),
+            x0: BatchInput::new("x0s", &x0, &[runs, len], runs, None, len).unwrap(),
+            u,
+            base_wrench: BatchInput::zero(6),
+            ee_wrench: BatchInput::zero(6),
+            wheel_torque,
+        };
+        let mut records = (1..=3).map(|threads| {
+            let settings = BatchSettings {
+                dt,
+                steps,
+                record_every: 1,
+                keep_rows: true,
+                threads: Some(threads),
+            };
+            simulate_batch(&batch, &settings, &BatchWatch::default()).unwrap()
+        });
+        let record = records.next().unwrap();
+        for other in records {
+            assert_eq!(other.x, record.x, "case {case}");
+            assert_eq!(other.u, record.u, "case {case}");
+        }
+        for b in 0..runs {
+            let sampled =
+                |inner: Box<dyn Controller + Send>, clock: Option<SampleClock>| match clock {
+                    Some(c) => Box::new(Sampled::new(inner, c.rate_hz, c.delay).unwrap())
+                        as Box<dyn Controller + Send>,
+                    None => inner,
+                };
+            let mut u: Box<dyn Controller + Send> = match case {
+                0 => Box::new(Schedule::Zero),
+                _ => sampled(Box::new(motors[b].clone()), u_clock),
+            };
+            let attitude = if case == 0 { 1 } else { b };
+            let mut wheels = sampled(Box::new(attitudes[attitude].clone()), w_clock);
+            let single = orbitflex::integrate::simulate(
+                &arm,
+                &Run::new(&x0[b * len..(b + 1) * len], dt, steps),
+                &mut Drive {
+                    u: &mut *u,
+                    base_wrench: &mut Schedule::Zero,
+                    ee_wrench: &mut Schedule::Zero,
+                    wheel_torque: &mut *wheels,
+                },
+                &mut Unobserved,
+            )
+            .unwrap();
+            assert_eq!(record.run(b), Some(single.clone()), "case {case}, run {b}");
+            // the wheels did work: the applied torques are not all zero
+            let applied: Vec<f64> = single.u.chunks(11).flat_map(|r| r[7..].to_vec()).collect();
+            assert!(max_abs(&applied) > 1e-3, "case {case}, run {b}");
+        }
+    }
+}
+
+/// A controller on the wrong channel, a per-run sequence of the wrong length, a sampled
+/// control inside another and a bad rate are each refused before any step, naming the channel.
+#[test]
+fn bad_batch_controllers_are_refused_clearly() {
+    let arm = FlexibleArm::new(Robot::space_arm(), FlexibleJoints::space_arm())
+        .unwrap()
+        .with_wheels(pyramid())
+        .unwrap();
+    let (motors, attitudes) = controllers(&arm, 3);
+    let x0 = arm.rest_state();
+    let len = x0.len();
+    let two: Vec<&AttitudePD> = attitudes.iter().take(2).collect();
+    let inner = BatchControl::Attitude(PerRun::All(&attitudes[0]));
+    let nested = BatchControl::Sampled(
+        &inner,
+        SampleClock {
+            rate_hz: 10.0,
+            delay: 0,
+        },
+    );
+    let settings = BatchSettings {
+        dt: 1e-3,
+        steps: 5,
+        record_every: 1,
+        keep_rows: true,
+        threads: Some(1),
+    };
+    let error = |u: BatchControl, wheel_torque: BatchControl| {
+        let batch = Batch {
+            runs: 3,
+            arms: PerRun::All(&arm),
+            x0: BatchInput::new("x0s", &x0, &[len], 3, None, len).unwrap(),
+            u,
+            base_wrench: BatchInput::zero(6),
+            ee_wrench: BatchInput::zero(6),
+            wheel_torque,
+        };
+        simulate_batch(&batch, &settings, &BatchWatch::default())
+            .unwrap_err()
+            .to_string()
+    };
+    let idle = BatchControl::zero(7);
+    assert_eq!(
+        error(idle, BatchControl::Pd(PerRun::All(&motors[0]))),
+        "wheel_torque: a MotorPD drives the motors (u), not the reaction wheels; give wheel \
+         torques or an AttitudePD"
+    );
+    assert_eq!(
+        error(
+            BatchControl::Attitude(PerRun::All(&attitudes[0])),
+            BatchControl::zero(4)
+        ),
+        "u: an AttitudePD drives the reaction wheels (wheel_torque), not the motors; give motor \
+         torques or a MotorPD"
+    );
+    assert_eq!(
+        error(idle, BatchControl::Attitude(PerRun::Each(&two))),
+        "wheel_torque: expected 3 AttitudePD controllers (one per run), given 2"
+    );
+    let clock = SampleClock {
+        rate_hz: 10.0,
+        delay: 0,
+    };
+    assert_eq!(
+        error(idle, BatchControl::Sampled(&nested, clock)),
+        "wheel_torque: a sampled control inside a sampled control; sample it once, at the rate \
+         it runs at"
+    );
+    let bad = SampleClock {
+        rate_hz: -1.0,
+        delay: 0,
+    };
+    assert_eq!(
+        error(BatchControl::Sampled(&idle, bad), BatchControl::zero(4)),
+        "rate_hz: expected a finite rate > 0 (Hz), given -1"
+    );
+    // an attitude controller for three wheels on arms with four
+    let three = AttitudePD::new(
+        [1.0; 3],
+        [1.0; 3],
+        AttitudeTarget::Initial,
+        vec![1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
+    )
+    .unwrap();
+    let e = error(idle, BatchControl::Attitude(PerRun::All(&three)));
+    assert!(
+        e.starts_with("wheel_torque (run 0): expected an AttitudePD for 4 wheels"),
+        "{e}"
+    );
 }
 
 /// Each bad wheel parameter is named, with what was expected and what was given.

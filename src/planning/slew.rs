@@ -18,6 +18,7 @@
 //! that sample onto it), up to six rounds, so a peak between samples is not missed.
 
 use super::deflection;
+use super::limits::{BaseBound, BaseLimits};
 use crate::args::{check_dt, check_vector, number};
 use crate::error::{Error, Result};
 use crate::flex::inverse::{
@@ -95,6 +96,9 @@ pub struct Limits {
     pub base_force: Option<f64>,
     /// `|n_B| ≤` this (N·m, about the base origin).
     pub base_torque: Option<f64>,
+    /// Bounds per base axis (held: the holding wrench; free: the bus's rates) and on the free
+    /// bus's rates by norm ([`BaseLimits`]); none by default.
+    pub base_axes: BaseLimits,
 }
 
 impl Limits {
@@ -229,7 +233,14 @@ impl Limits {
             joint_speed,
             base_force,
             base_torque,
+            base_axes: BaseLimits::default(),
         })
+    }
+
+    /// These limits with the per-axis (and free-base rate) bounds `base_axes`, checked.
+    pub fn with_base_axes(self, base_axes: BaseLimits) -> Result<Self> {
+        base_axes.check()?;
+        Ok(Self { base_axes, ..self })
     }
 
     /// The same motor-torque and joint-speed bound on all joints, no base limit.
@@ -250,6 +261,7 @@ impl Limits {
                 check_positive(what, &[v])?;
             }
         }
+        self.base_axes.check()?;
         let expand = |what: &str, v: &Vec<f64>| match v.len() {
             1 => Ok(vec![v[0]; n]),
             len if len == n => Ok(v.clone()),
@@ -278,6 +290,8 @@ pub enum Constraint {
     BaseForce,
     /// `|n_B| ≤ base_torque`.
     BaseTorque,
+    /// A bound of [`BaseLimits`] (per base axis, or a free bus's rate by norm).
+    Base(BaseBound),
 }
 
 impl Constraint {
@@ -288,6 +302,12 @@ impl Constraint {
             Constraint::JointSpeed => "joint_speed",
             Constraint::BaseForce => "base_force",
             Constraint::BaseTorque => "base_torque",
+            Constraint::Base(BaseBound::TorqueAxis) => "base_torque_axes",
+            Constraint::Base(BaseBound::ForceAxis) => "base_force_axes",
+            Constraint::Base(BaseBound::RateAxis) => "base_rate_axes",
+            Constraint::Base(BaseBound::SpeedAxis) => "base_speed_axes",
+            Constraint::Base(BaseBound::Rate) => "base_rate",
+            Constraint::Base(BaseBound::Speed) => "base_speed",
         }
     }
 }
@@ -299,6 +319,8 @@ pub struct Binding {
     pub constraint: Constraint,
     /// The joint (0-based) for per-joint limits.
     pub joint: Option<usize>,
+    /// The base axis (0, 1, 2 for x, y, z of the base frame) for per-axis base limits.
+    pub axis: Option<usize>,
     /// The segment (0-based; one per waypoint, plus one).
     pub segment: usize,
     /// When it peaks (s from the start of the plan).
@@ -515,6 +537,20 @@ pub fn plan_slew_watched(
                 .into(),
         });
     }
+    let misplaced = limits.base_axes.given_for(base == BaseMode::Free);
+    if let Some(first) = misplaced.first() {
+        let message = if base == BaseMode::Free {
+            "bounds the wrench that holds a held base; a free base receives none (base = \"free\"): \
+             leave it out"
+        } else {
+            "bounds the motion of a free-floating base; a held base does not move (base = \"held\"): \
+             leave it out, or bound the holding wrench"
+        };
+        return Err(Error::InvalidArgument {
+            what: format!("limits.{first}"),
+            message: message.into(),
+        });
+    }
     let zeros = vec![0.0; n];
     let start = q_start.unwrap_or(&zeros);
     check_vector("q_start", start, n)?;
@@ -625,6 +661,7 @@ impl Plan {
                 binding: Binding {
                     constraint: Constraint::JointSpeed,
                     joint: None,
+                    axis: None,
                     segment: k - 1,
                     time: 0.0,
                     value: 0.0,
@@ -750,6 +787,12 @@ impl Plan {
                 Some(i),
             );
         }
+        self.limits.base_axes.visit(
+            self.base == BaseMode::Held,
+            &p.flexible.base_wrench,
+            &p.flexible.base_twist,
+            |value, limit, which, axis| consider(value, limit, Constraint::Base(which), axis),
+        );
         if self.base == BaseMode::Held {
             let f = &p.flexible.base_wrench;
             if let Some(limit) = self.limits.base_torque {
@@ -877,7 +920,7 @@ impl Plan {
     /// sample.
     fn channel_ratios(&self, seg: &Segment, w: f64) -> Vec<Vec<f64>> {
         let n = seg.start.len();
-        let mut out = vec![Vec::with_capacity(seg.s.len()); 2 * n + 2];
+        let mut out = vec![Vec::with_capacity(seg.s.len()); 2 * n + 2 + BaseLimits::CHANNELS];
         self.walk(seg, w, |_, p| {
             for i in 0..n {
                 out[i].push(p.flexible.u[i].abs() / self.limits.motor_torque[i]);
@@ -893,6 +936,15 @@ impl Plan {
                 (true, Some(l)) => Vec3::new(f[3], f[4], f[5]).norm() / l,
                 _ => 0.0,
             });
+            let mut base = [0.0; BaseLimits::CHANNELS];
+            self.limits
+                .base_axes
+                .visit(held, f, &p.flexible.base_twist, |v, l, which, axis| {
+                    base[BaseLimits::channel(which, axis)] = v / l;
+                });
+            for (c, r) in base.iter().enumerate() {
+                out[2 * n + 2 + c].push(*r);
+            }
             true
         });
         out
@@ -1021,9 +1073,12 @@ impl Plan {
         });
         seg.deflection = deflection;
         seg.duration = 1.0 / w;
+        let per_axis = matches!(constraint, Constraint::Base(_));
         seg.binding = Binding {
             constraint,
-            joint,
+            // the per-axis base bounds report their axis where the joint limits their joint
+            joint: if per_axis { None } else { joint },
+            axis: if per_axis { joint } else { None },
             segment: seg.binding.segment,
             time: seg.t0 + seg.s[j] * seg.duration,
             value,

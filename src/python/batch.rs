@@ -3,16 +3,17 @@
 
 use super::arm::PyFlexibleArm;
 use super::batched::shape_and_values;
-use super::control::PyMotorPD;
+use super::control::{sampled, PyAttitudePD, PyMotorPD, PySampled};
 use super::convert::{count, positive_count, real};
 use super::errors::ModelError;
 use super::run::{watched, Progress};
 use super::state_columns::{state_getters, StateRecord};
 use super::trajectory::{freeze, frozen_rows, PyTrajectory};
+use crate::control::AttitudePD;
 use crate::flex::{FlexibleArm, StateLayout};
 use crate::integrate::batch::{
     simulate_batch, Batch, BatchControl, BatchInput, BatchRecord, BatchSettings, BatchWatch,
-    PerRun, RunRecord, RunStatus,
+    PerRun, RunRecord, RunStatus, SampleClock,
 };
 use crate::MotorPD;
 use numpy::ndarray::Array3;
@@ -123,54 +124,225 @@ fn arms<'py>(obj: &Bound<'py, PyAny>) -> PyResult<Vec<Bound<'py, PyFlexibleArm>>
     Ok(out)
 }
 
-/// The motors' input of a batch, from ``u``.
+/// The Python type name of `obj`, for messages.
+fn type_name(obj: &Bound<'_, PyAny>) -> String {
+    obj.get_type()
+        .name()
+        .map(|n| n.to_string())
+        .unwrap_or_default()
+}
+
+/// One channel of a batch from Python (``u`` or ``wheel_torque``), before it borrows: an array,
+/// a ``MotorPD`` or an ``AttitudePD`` (one shared, or one per run: the flag says shared), at its
+/// own rate when given inside a ``Sampled``.
+struct Channel<'py> {
+    control: Control<'py>,
+    clock: Option<SampleClock>,
+}
+
 enum Control<'py> {
     Open(Option<Array>),
     Pd(Vec<Bound<'py, PyMotorPD>>, bool),
+    Attitude(Vec<Bound<'py, PyAttitudePD>>, bool),
+}
+
+impl<'py> Channel<'py> {
+    /// The channel `what` (`"u"`, width n, or `"wheel_torque"`, width k) from its argument.
+    fn parse(obj: Option<&Bound<'py, PyAny>>, what: &str, width: usize) -> PyResult<Self> {
+        let Some(obj) = obj.filter(|o| !o.is_none()) else {
+            return Ok(Self {
+                control: Control::Open(None),
+                clock: None,
+            });
+        };
+        if let Some((inner, rate_hz, delay)) = sampled(Some(obj))? {
+            if inner.is_instance_of::<PySampled>() {
+                return Err(ModelError::new_err(format!(
+                    "{what}: a Sampled inside a Sampled; sample the controller once, at the rate \
+                     it runs at"
+                )));
+            }
+            return Ok(Self {
+                control: Control::parse(&inner, what, width)?,
+                clock: Some(SampleClock { rate_hz, delay }),
+            });
+        }
+        Ok(Self {
+            control: Control::parse(obj, what, width)?,
+            clock: None,
+        })
+    }
+
+    /// The length of the run axis this channel gives, if any.
+    fn runs(&self) -> Option<usize> {
+        match &self.control {
+            Control::Open(a) => a.as_ref().and_then(|a| a.runs(2)),
+            Control::Pd(pds, false) => Some(pds.len()),
+            Control::Attitude(pds, false) => Some(pds.len()),
+            Control::Pd(_, true) | Control::Attitude(_, true) => None,
+        }
+    }
+
+    /// The `AttitudePD`s bound to the wheels of their runs' arms (`arms`, one per run): none
+    /// for another control, one when both the controller and the arm are shared, else one per
+    /// run. Errors name the run.
+    fn bind(&self, arms: &[&FlexibleArm], shared_arm: bool) -> PyResult<Vec<AttitudePD>> {
+        let Control::Attitude(pds, shared) = &self.control else {
+            return Ok(Vec::new());
+        };
+        if *shared && shared_arm {
+            return Ok(vec![pds[0].get().bind(arms[0])?]);
+        }
+        let mut bound = Vec::with_capacity(arms.len());
+        for (run, arm) in arms.iter().enumerate() {
+            let pd = &pds[if *shared { 0 } else { run }];
+            bound.push(pd.get().bind(arm).map_err(|e| {
+                ModelError::new_err(format!("wheel_torque (run {run}): {}", e.value(pd.py())))
+            })?);
+        }
+        Ok(bound)
+    }
+
+    /// The [`BatchControl`] before sampling, borrowing the controllers in `pds` (the
+    /// `MotorPD`s, as given) and `attitudes` (as bound by [`Channel::bind`]).
+    fn plain<'s>(
+        &'s self,
+        pds: &'s [&'s MotorPD],
+        attitudes: &'s [&'s AttitudePD],
+        what: &str,
+        runs: usize,
+        steps: usize,
+        width: usize,
+    ) -> PyResult<BatchControl<'s>> {
+        let per_run = |len: usize| len != 1 || !self.is_shared();
+        Ok(match &self.control {
+            Control::Open(a) => BatchControl::Open(input_or_zero(a, what, runs, steps, width)?),
+            Control::Pd(..) if per_run(pds.len()) => BatchControl::Pd(PerRun::Each(pds)),
+            Control::Pd(..) => BatchControl::Pd(PerRun::All(pds[0])),
+            Control::Attitude(..) if per_run(attitudes.len()) => {
+                BatchControl::Attitude(PerRun::Each(attitudes))
+            }
+            Control::Attitude(..) => BatchControl::Attitude(PerRun::All(attitudes[0])),
+        })
+    }
+
+    fn is_shared(&self) -> bool {
+        matches!(
+            self.control,
+            Control::Pd(_, true) | Control::Attitude(_, true) | Control::Open(_)
+        )
+    }
+
+    /// `plain`, at its own rate if the channel was sampled.
+    fn wrap<'s>(&self, plain: &'s BatchControl<'s>) -> BatchControl<'s> {
+        match self.clock {
+            Some(clock) => BatchControl::Sampled(plain, clock),
+            None => *plain,
+        }
+    }
 }
 
 impl<'py> Control<'py> {
-    fn parse(u: Option<&Bound<'py, PyAny>>, n: usize) -> PyResult<Self> {
-        let Some(u) = u.filter(|o| !o.is_none()) else {
-            return Ok(Control::Open(None));
+    fn parse(obj: &Bound<'py, PyAny>, what: &str, width: usize) -> PyResult<Self> {
+        let wheels = what == "wheel_torque";
+        let refused = |given: &str| {
+            let (accepted, other) = if wheels {
+                (
+                    "wheel torques (an array) or an AttitudePD",
+                    "the motors (u)",
+                )
+            } else {
+                (
+                    "torques (an array) or a MotorPD",
+                    "the reaction wheels (wheel_torque)",
+                )
+            };
+            ModelError::new_err(format!(
+                "{what}: {given} drives {other}; give {accepted} (one, or one per run), \
+                 optionally inside a Sampled"
+            ))
         };
-        if let Ok(pd) = u.downcast::<PyMotorPD>() {
-            return Ok(Control::Pd(vec![pd.clone()], true));
+        if obj.is_instance_of::<PyMotorPD>() {
+            return match wheels {
+                false => Ok(Control::Pd(
+                    vec![obj.downcast::<PyMotorPD>()?.clone()],
+                    true,
+                )),
+                true => Err(refused("a MotorPD")),
+            };
         }
-        if u.is_callable() {
-            return Err(ModelError::new_err(
-                "u: simulate_batch runs without the GIL, so it cannot call a Python controller; \
-                 give torques (an array) or a MotorPD (one, or one per run), or call \
-                 FlexibleArm.simulate for each run",
-            ));
+        if obj.is_instance_of::<PyAttitudePD>() {
+            return match wheels {
+                true => Ok(Control::Attitude(
+                    vec![obj.downcast::<PyAttitudePD>()?.clone()],
+                    true,
+                )),
+                false => Err(refused("an AttitudePD")),
+            };
         }
-        // a sequence of MotorPD, one per run (a buffer such as a 2-D memoryview is a sequence
-        // whose items cannot be taken: it is an array of torques)
-        if let Ok(seq) = u.downcast::<PySequence>() {
+        if obj.is_callable() {
+            let accepted = if wheels {
+                "wheel torques (an array) or an AttitudePD"
+            } else {
+                "torques (an array) or a MotorPD"
+            };
+            return Err(ModelError::new_err(format!(
+                "{what}: simulate_batch runs without the GIL, so it cannot call a Python \
+                 controller; give {accepted} (one, or one per run, optionally inside a \
+                 Sampled), or call FlexibleArm.simulate for each run"
+            )));
+        }
+        // a sequence of controllers, one per run (a buffer such as a 2-D memoryview is a
+        // sequence whose items cannot be taken: it is an array)
+        if let Ok(seq) = obj.downcast::<PySequence>() {
             let first = seq
                 .len()
                 .ok()
                 .filter(|&len| len > 0)
                 .and_then(|_| seq.get_item(0).ok());
-            if first.is_some_and(|f| f.is_instance_of::<PyMotorPD>()) {
-                let mut pds = Vec::new();
-                for (k, item) in seq.try_iter()?.enumerate() {
-                    let item = item?;
-                    pds.push(item.downcast::<PyMotorPD>().cloned().map_err(|_| {
-                        ModelError::new_err(format!(
-                            "u[{k}]: expected a MotorPD (u[0] is one), given {}",
-                            item.get_type()
-                                .name()
-                                .map(|n| n.to_string())
-                                .unwrap_or_default()
-                        ))
-                    })?);
+            if let Some(first) = first {
+                if first.is_instance_of::<PySampled>() {
+                    return Err(ModelError::new_err(format!(
+                        "{what}: a sequence of Sampled; give one Sampled around the sequence of \
+                         controllers (Sampled([c_0, c_1, …], rate_hz, delay)): the runs share \
+                         one clock"
+                    )));
                 }
-                return Ok(Control::Pd(pds, false));
+                if first.is_instance_of::<PyMotorPD>() {
+                    if wheels {
+                        return Err(refused("a MotorPD"));
+                    }
+                    return Ok(Control::Pd(items(seq, what, "a MotorPD")?, false));
+                }
+                if first.is_instance_of::<PyAttitudePD>() {
+                    if !wheels {
+                        return Err(refused("an AttitudePD"));
+                    }
+                    return Ok(Control::Attitude(items(seq, what, "an AttitudePD")?, false));
+                }
             }
         }
-        Ok(Control::Open(optional(Some(u), "u", n)?))
+        Ok(Control::Open(optional(Some(obj), what, width)?))
     }
+}
+
+/// Every item of `seq`, each a `T` (named `kind` in the message naming the first that is not).
+fn items<'py, T: pyo3::PyClass>(
+    seq: &Bound<'py, PySequence>,
+    what: &str,
+    kind: &str,
+) -> PyResult<Vec<Bound<'py, T>>> {
+    let mut out = Vec::new();
+    for (k, item) in seq.try_iter()?.enumerate() {
+        let item = item?;
+        out.push(item.downcast::<T>().cloned().map_err(|_| {
+            ModelError::new_err(format!(
+                "{what}[{k}]: expected {kind} ({what}[0] is one), given {}",
+                type_name(&item)
+            ))
+        })?);
+    }
+    Ok(out)
 }
 
 /// The number of runs: the length of every leading run axis that is not 1, which must agree.
@@ -233,10 +405,10 @@ fn stability_warning(dt: f64, runs: usize, unstable: &[(usize, f64)]) -> String 
 /// Simulates many runs of the flexible arm at once, over a pool of threads, without the GIL.
 ///
 /// ``simulate_batch(arm_or_arms, x0s, dt, steps, u=None, base_wrench=None, ee_wrench=None,
-/// threads=None, record_every=None, *, keep_rows=True, progress=None)`` returns a
-/// :class:`BatchTrajectory`. Run ``b`` is exactly ``arm.simulate(x0s[b], dt, steps, u[b],
-/// base_wrench[b], ee_wrench[b], record_every=record_every)``, bit for bit, whatever the number
-/// of threads.
+/// threads=None, record_every=None, *, keep_rows=True, progress=None, wheel_torque=None)``
+/// returns a :class:`BatchTrajectory`. Run ``b`` is exactly ``arm.simulate(x0s[b], dt, steps,
+/// u[b], base_wrench[b], ee_wrench[b], wheel_torque=wheel_torque[b],
+/// record_every=record_every)``, bit for bit, whatever the number of threads.
 ///
 /// Inputs broadcast over a leading run axis as numpy does (B runs; each leading axis is 1 or B):
 ///
@@ -252,8 +424,13 @@ fn stability_warning(dt: f64, runs: usize, unstable: &[(usize, f64)]) -> String 
 ///   end-effectors, ``ee_wrench`` rows are (k, 6) (so (runs, k, 6), (runs, steps, k, 6), …), or a
 ///   dict from EE link name to such arrays with 6 in place of (k, 6);
 /// - ``wheel_torque`` (keyword; arms with w reaction wheels, all the same w): the wheel torque
-///   commands, as ``u`` with w in place of n; saturated once per step, and the applied torques
-///   recorded (``BatchTrajectory.wheel_torque``).
+///   commands, as ``u`` with w in place of n; or one ``AttitudePD`` (each run starts from a
+///   copy, bound to its run's wheels as ``arm.simulate`` binds it) or a sequence of B;
+///   saturated once per step, and the applied torques recorded
+///   (``BatchTrajectory.wheel_torque``);
+/// - ``Sampled(c, rate_hz, delay)`` around any of the above on ``u`` or ``wheel_torque`` (``c``
+///   a ``MotorPD``, an ``AttitudePD``, a sequence of B of them, or an array) runs it at its own
+///   rate in every run, exactly as in ``arm.simulate``. Only Python callables are refused.
 ///
 /// ``threads=None`` uses every core (at most 1024 threads). ``record_every=k`` (None: 1) keeps rows 0, k, 2k, … and
 /// the final row. ``keep_rows=False`` keeps only the per-run summaries and final states (no rows), for
@@ -297,7 +474,7 @@ pub(crate) fn py_simulate_batch<'py>(
     let layout = arm_refs[0].layout();
     let n = layout.n;
     let x0 = Array::parse(x0s, "x0s")?;
-    let control = Control::parse(u, n)?;
+    let control = Channel::parse(u, "u", n)?;
     let fb = optional(base_wrench, "base_wrench", 6)?;
     let ee_robot = arm_refs[0].robot();
     let k6 = 6 * ee_robot.end_effectors().len();
@@ -309,37 +486,30 @@ pub(crate) fn py_simulate_batch<'py>(
             "wheel_torque: the arms have no reaction wheels; give none",
         ));
     }
-    let fw = optional(wheel_torque, "wheel_torque", wheels)?;
+    let wheel_control = Channel::parse(wheel_torque, "wheel_torque", wheels)?;
     let shared_arm = arm_or_arms.is_instance_of::<PyFlexibleArm>();
     let runs = count_runs(&[
         ("arm_or_arms", (!shared_arm).then_some(arm_refs.len())),
         ("x0s", x0.runs(2)),
-        (
-            "u",
-            match &control {
-                Control::Open(a) => a.as_ref().and_then(|a| a.runs(2)),
-                Control::Pd(pds, false) => Some(pds.len()),
-                Control::Pd(_, true) => None,
-            },
-        ),
+        ("u", control.runs()),
         ("base_wrench", fb.as_ref().and_then(|a| a.runs(2))),
         ("ee_wrench", fee.as_ref().and_then(|a| a.runs(2))),
-        ("wheel_torque", fw.as_ref().and_then(|a| a.runs(2))),
+        ("wheel_torque", wheel_control.runs()),
     ])?;
     let all_arms: Vec<&FlexibleArm> = if arm_refs.len() == runs {
         arm_refs.clone()
     } else {
         vec![arm_refs[0]; runs]
     };
-    let pd_refs: Vec<&MotorPD> = match &control {
+    let pd_refs: Vec<&MotorPD> = match &control.control {
         Control::Pd(pds, _) => pds.iter().map(|p| &p.get().pd).collect(),
-        Control::Open(_) => Vec::new(),
+        _ => Vec::new(),
     };
-    let all_pds: Vec<&MotorPD> = if pd_refs.len() == runs {
-        pd_refs.clone()
-    } else {
-        pd_refs.first().map(|&p| vec![p; runs]).unwrap_or_default()
-    };
+    let attitudes = wheel_control.bind(&all_arms, arm_refs.len() == 1)?;
+    let attitude_refs: Vec<&AttitudePD> = attitudes.iter().collect();
+    let u_plain = control.plain(&pd_refs, &[], "u", runs, steps, n)?;
+    let wheel_plain =
+        wheel_control.plain(&[], &attitude_refs, "wheel_torque", runs, steps, wheels)?;
     let batch = Batch {
         runs,
         arms: if arm_refs.len() == 1 {
@@ -348,14 +518,10 @@ pub(crate) fn py_simulate_batch<'py>(
             PerRun::Each(&all_arms)
         },
         x0: x0.input("x0s", runs, None, layout.len())?,
-        u: match &control {
-            Control::Open(a) => BatchControl::Open(input_or_zero(a, "u", runs, steps, n)?),
-            Control::Pd(..) if pd_refs.len() == 1 => BatchControl::Pd(PerRun::All(pd_refs[0])),
-            Control::Pd(..) => BatchControl::Pd(PerRun::Each(&all_pds)),
-        },
+        u: control.wrap(&u_plain),
         base_wrench: input_or_zero(&fb, "base_wrench", runs, steps, 6)?,
         ee_wrench: input_or_zero(&fee, "ee_wrench", runs, steps, k6)?,
-        wheel_torque: input_or_zero(&fw, "wheel_torque", runs, steps, wheels)?,
+        wheel_torque: wheel_control.wrap(&wheel_plain),
     };
     let settings = BatchSettings {
         dt,

@@ -14,7 +14,8 @@ use crate::control::Schedule;
 use crate::error::Error;
 use crate::integrate::Run;
 use crate::planning::{
-    plan_slew_watched, BaseMode, Binding, Limits, Plan, Reference, Samples, Tracking, TrackingSetup,
+    plan_slew_watched, BaseLimits, BaseMode, Binding, Limits, Plan, Reference, Samples, Tracking,
+    TrackingSetup,
 };
 use numpy::{PyArray1, PyArray2};
 use pyo3::exceptions::PyTypeError;
@@ -39,6 +40,22 @@ fn limit_values(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<(Vec<f64>, bool)
     }
 }
 
+/// An optional bound per base axis: None, a number (every axis) or three (x, y, z; checked by
+/// [`BaseLimits::check`]).
+fn optional_axes(obj: Option<&Bound<'_, PyAny>>, what: &str) -> PyResult<Option<[f64; 3]>> {
+    let Some(o) = obj.filter(|o| !o.is_none()) else {
+        return Ok(None);
+    };
+    let a = super::convert::as_float_array(o, what)?;
+    let ndim: usize = a.getattr("ndim")?.extract()?;
+    let v = if ndim == 0 {
+        vec![real(&a, what)?; 3]
+    } else {
+        super::convert::vector(&a, what, Some(3))?
+    };
+    Ok(Some([v[0], v[1], v[2]]))
+}
+
 /// An optional scalar bound: None, or a real number (checked by [`Limits::new`]).
 fn optional_bound(obj: Option<&Bound<'_, PyAny>>, what: &str) -> PyResult<Option<f64>> {
     match obj {
@@ -59,6 +76,11 @@ fn optional_bound(obj: Option<&Bound<'_, PyAny>>, what: &str) -> PyResult<Option
 ///   actuators apply (base frame); None: unbounded. Applies to a held base only.
 /// - ``base_torque``: ``|n_B| ≤ base_torque`` (N·m), the norm of their moment about the base
 ///   origin; None: unbounded. Applies to a held base only.
+/// - per base axis (base frame, x, y, z; a number for every axis or three): held base,
+///   ``base_torque_axes`` ``|n_B,k|`` (N·m, about the base origin) and ``base_force_axes``
+///   ``|F_B,k|`` (N); free base, ``base_rate_axes`` ``|ω_B,k|`` (rad/s) and
+///   ``base_speed_axes`` ``|v_B,k|`` (m/s, the velocity of the base origin).
+/// - free base by norm: ``base_rate`` ``|ω_B|`` (rad/s) and ``base_speed`` ``|v_B|`` (m/s).
 ///
 /// Every value must be finite and > 0. Per-joint lengths are checked against the arm when a slew
 /// is planned.
@@ -95,21 +117,36 @@ impl PyLimits {
 #[pymethods]
 impl PyLimits {
     #[new]
-    #[pyo3(signature = (motor_torque, joint_speed, base_force=None, base_torque=None))]
+    #[pyo3(signature = (motor_torque, joint_speed, base_force=None, base_torque=None, base_torque_axes=None, base_force_axes=None, base_rate=None, base_rate_axes=None, base_speed=None, base_speed_axes=None))]
     fn new(
         motor_torque: &Bound<'_, PyAny>,
         joint_speed: &Bound<'_, PyAny>,
         base_force: Option<&Bound<'_, PyAny>>,
         base_torque: Option<&Bound<'_, PyAny>>,
+        base_torque_axes: Option<&Bound<'_, PyAny>>,
+        base_force_axes: Option<&Bound<'_, PyAny>>,
+        base_rate: Option<&Bound<'_, PyAny>>,
+        base_rate_axes: Option<&Bound<'_, PyAny>>,
+        base_speed: Option<&Bound<'_, PyAny>>,
+        base_speed_axes: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Self> {
         let (torque, torque_scalar) = limit_values(motor_torque, "motor_torque")?;
         let (speed, speed_scalar) = limit_values(joint_speed, "joint_speed")?;
+        let axes = BaseLimits {
+            torque: optional_axes(base_torque_axes, "base_torque_axes")?,
+            force: optional_axes(base_force_axes, "base_force_axes")?,
+            rate: optional_axes(base_rate_axes, "base_rate_axes")?,
+            speed: optional_axes(base_speed_axes, "base_speed_axes")?,
+            rate_norm: optional_bound(base_rate, "base_rate")?,
+            speed_norm: optional_bound(base_speed, "base_speed")?,
+        };
         let limits = Limits::new(
             torque,
             speed,
             optional_bound(base_force, "base_force")?,
             optional_bound(base_torque, "base_torque")?,
-        )?;
+        )?
+        .with_base_axes(axes)?;
         Ok(Self {
             limits,
             scalar: [torque_scalar, speed_scalar],
@@ -157,15 +194,53 @@ impl PyLimits {
         self.limits.base_torque
     }
 
+    /// ``|n_B,k|`` bounds (N·m, about the base origin, base frame), (3,), or None; held base.
+    #[getter]
+    fn base_torque_axes(&self) -> Option<[f64; 3]> {
+        self.limits.base_axes.torque
+    }
+    /// ``|F_B,k|`` bounds (N, base frame), (3,), or None; held base.
+    #[getter]
+    fn base_force_axes(&self) -> Option<[f64; 3]> {
+        self.limits.base_axes.force
+    }
+    /// ``|ω_B|`` bound (rad/s), or None; free base.
+    #[getter]
+    fn base_rate(&self) -> Option<f64> {
+        self.limits.base_axes.rate_norm
+    }
+    /// ``|ω_B,k|`` bounds (rad/s, base frame), (3,), or None; free base.
+    #[getter]
+    fn base_rate_axes(&self) -> Option<[f64; 3]> {
+        self.limits.base_axes.rate
+    }
+    /// ``|v_B|`` bound (m/s, the base origin's velocity), or None; free base.
+    #[getter]
+    fn base_speed(&self) -> Option<f64> {
+        self.limits.base_axes.speed_norm
+    }
+    /// ``|v_B,k|`` bounds (m/s, base frame), (3,), or None; free base.
+    #[getter]
+    fn base_speed_axes(&self) -> Option<[f64; 3]> {
+        self.limits.base_axes.speed
+    }
+
     /// Pickle support.
     fn __reduce__<'py>(slf: &Bound<'py, Self>) -> PyResult<(PyObject, PyObject)> {
         let py = slf.py();
         let me = slf.get();
+        let b = &me.limits.base_axes;
         let args = (
             me.values(py, 0),
             me.values(py, 1),
             me.limits.base_force,
             me.limits.base_torque,
+            b.torque,
+            b.force,
+            b.rate_norm,
+            b.rate,
+            b.speed_norm,
+            b.speed,
         );
         Ok((
             slf.get_type().into_any().unbind(),
@@ -182,8 +257,20 @@ impl PyLimits {
             }
         };
         let bound = |b: Option<f64>| b.map_or("None".to_string(), |v| format!("{v:?}"));
+        let b = &self.limits.base_axes;
+        let extra: String = [
+            ("base_torque_axes", b.torque.map(|v| format!("{v:?}"))),
+            ("base_force_axes", b.force.map(|v| format!("{v:?}"))),
+            ("base_rate", b.rate_norm.map(|v| format!("{v:?}"))),
+            ("base_rate_axes", b.rate.map(|v| format!("{v:?}"))),
+            ("base_speed", b.speed_norm.map(|v| format!("{v:?}"))),
+            ("base_speed_axes", b.speed.map(|v| format!("{v:?}"))),
+        ]
+        .iter()
+        .filter_map(|(name, v)| v.as_ref().map(|v| format!(", {name}={v}")))
+        .collect();
         format!(
-            "Limits(motor_torque={}, joint_speed={}, base_force={}, base_torque={})",
+            "Limits(motor_torque={}, joint_speed={}, base_force={}, base_torque={}{extra})",
             show(&self.limits.motor_torque, self.scalar[0]),
             show(&self.limits.joint_speed, self.scalar[1]),
             bound(self.limits.base_force),
@@ -313,6 +400,7 @@ fn binding_dict<'py>(py: Python<'py>, b: &Binding, names: &[&str]) -> PyResult<B
     d.set_item("limit", b.constraint.name())?;
     d.set_item("joint", b.joint)?;
     d.set_item("joint_name", b.joint.map(|j| names[j]))?;
+    d.set_item("axis", b.axis)?;
     d.set_item("segment", b.segment)?;
     d.set_item("time", b.time)?;
     d.set_item("value", b.value)?;
@@ -432,8 +520,10 @@ impl PyPlan {
     }
     /// The limit that sets the duration of the longest segment (each segment's is in
     /// :attr:`bindings`): a dict ``{"limit": "motor_torque" | "joint_speed" |
-    /// "base_force" | "base_torque", "joint": index (0-based) or None, "joint_name": str or
-    /// None, "segment": index, "time": when it peaks (s from the start), "value": the peak
+    /// "base_force" | "base_torque" | "base_torque_axes" | "base_force_axes" | "base_rate" |
+    /// "base_rate_axes" | "base_speed" | "base_speed_axes", "joint": index (0-based) or None,
+    /// "joint_name": str or None, "axis": the base axis (0, 1, 2 for x, y, z) of a per-axis
+    /// limit or None, "segment": index, "time": when it peaks (s from the start), "value": the peak
     /// (magnitude; N·m, rad/s or N), "bound": the limit}``.
     #[getter]
     fn binding<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {

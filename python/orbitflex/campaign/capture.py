@@ -462,16 +462,29 @@ def _read_toml(path: Path) -> Dict[str, Any]:
     return spec
 
 
-def load_campaign(path: Union[str, "os.PathLike[str]"]) -> Any:
+def load_campaign(path: Union[str, "os.PathLike[str]"], wheels: Any = None) -> Any:
     """Reads a campaign file: a :class:`CaptureCampaign` if it has a ``[capture]`` table, else a
-    slew :class:`~orbitflex.campaign.Campaign` (``Campaign.from_toml``)."""
+    slew :class:`~orbitflex.campaign.Campaign` (``Campaign.from_toml``). ``wheels``, a wheels
+    file's path (``orbitflex campaign --wheels``), replaces the file's own: ``[capture] wheels``
+    for a capture campaign, ``wheels`` for a slew campaign (where a ``WheelsFile`` is also
+    accepted)."""
     from .spec import Campaign
 
     path = Path(path)
     spec = _read_toml(path)
     if "capture" in spec:
+        if wheels is not None:
+            if not isinstance(wheels, (str, os.PathLike)):
+                raise CampaignError(f"{path}: wheels: expected a wheels file's path for a capture campaign, "
+                                    f"given {wheels!r}")
+            table = spec["capture"]
+            if not isinstance(table, dict):
+                raise CampaignError(f"{path}: [capture]: expected a table, given {table!r}")
+            given = Path(wheels)
+            named = "pyramid" if str(wheels) == "pyramid" else str(given if given.is_absolute() else given.resolve())
+            spec = {**spec, "capture": {**table, "wheels": named}}
         return CaptureCampaign.from_dict(spec, base=path.parent, source=str(path))
-    return Campaign.from_dict(spec, base=path.parent, source=str(path))
+    return Campaign.from_dict(spec, base=path.parent, source=str(path), wheels=wheels)
 
 
 def _timed_chunk(campaign: CaptureCampaign, start: int, stop: int, threads: Optional[int]) -> Tuple[Any, Dict[str, Any]]:

@@ -12,25 +12,26 @@ import numpy as np
 import numpy.typing as npt
 
 from .. import ModelError
+from .wheels import WHEEL_PARAMETERS, WHEEL_POSITIVE, WHEEL_UNITS
 
 
 Array = npt.NDArray[np.float64]
 
 
 PARAMETERS = ("stiffness", "motor_inertia", "damping", "motor_damping", "kp", "kd", "goal", "q0",
-              "base_rate", "payload_mass")
+              "base_rate", "payload_mass", *WHEEL_PARAMETERS)
 
 
 JOINT_PARAMETERS = ("stiffness", "motor_inertia", "damping", "motor_damping")
 
 
 POSITIVE = {"stiffness": "> 0", "motor_inertia": "> 0", "damping": ">= 0", "motor_damping": ">= 0",
-            "kp": ">= 0", "kd": ">= 0", "payload_mass": ">= 0"}
+            "kp": ">= 0", "kd": ">= 0", "payload_mass": ">= 0", **WHEEL_POSITIVE}
 
 
 UNITS = {"stiffness": "N·m/rad", "motor_inertia": "kg·m²", "damping": "N·m·s/rad",
          "motor_damping": "N·m·s/rad", "kp": "N·m/rad", "kd": "N·m·s/rad", "goal": "rad",
-         "q0": "rad", "base_rate": "rad/s", "payload_mass": "kg"}
+         "q0": "rad", "base_rate": "rad/s", "payload_mass": "kg", **WHEEL_UNITS}
 
 
 DISTRIBUTIONS = ("normal", "lognormal", "uniform")

@@ -4,20 +4,44 @@
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Dict, Mapping, Optional, Sequence, Type, Union
 
 from .. import FlexibleJoints, ModelError, Robot, models
+from ..wheels_file import WheelsFile, WheelsFileError, read_wheels
 from .dispersion import JOINT_PARAMETERS, CampaignError, Dispersion
 
 if TYPE_CHECKING:
     from .spec import Campaign
 
 
+def _wheels_file(spec: Mapping[str, Any], base: Optional[Path], source: str,
+                 wheels: Union[None, str, "os.PathLike[str]", WheelsFile]) -> Optional[WheelsFile]:
+    """The wheels of a campaign: ``wheels`` (a :class:`WheelsFile` or its path) if given, else the
+    file's ``wheels = "PATH"`` (relative to the campaign file's folder), else none."""
+    if isinstance(wheels, WheelsFile):
+        return wheels
+    if wheels is None:
+        given = spec.get("wheels")
+        if given is None:
+            return None
+        if not isinstance(given, str):
+            raise CampaignError(f"{source}: wheels: expected the path of a wheels file (examples/wheels.toml), "
+                                f"given {given!r}")
+        path = Path(given)
+        wheels = path if path.is_absolute() or base is None else base / path
+    try:
+        return read_wheels(Path(wheels))
+    except (WheelsFileError, FileNotFoundError) as e:
+        raise CampaignError(f"{source}: wheels: {e}") from None
+
+
 def campaign_from_dict(cls: Type[Campaign], spec: Mapping[str, Any], base: Optional[Path],
-                       source: str) -> Campaign:
-    """:meth:`Campaign.from_dict`: reads the tables of a campaign file into ``cls``'s fields."""
-    known = {"name", "runs", "seed", "robot", "joints", "simulation", "slew", "dispersion"}
+                       source: str, wheels: Union[None, str, "os.PathLike[str]", WheelsFile] = None) -> Campaign:
+    """:meth:`Campaign.from_dict`: reads the tables of a campaign file into ``cls``'s fields;
+    ``wheels`` (a wheels file or its path) replaces the file's ``wheels`` key."""
+    known = {"name", "runs", "seed", "robot", "joints", "simulation", "slew", "dispersion", "wheels"}
     for key in spec:
         if key not in known:
             raise CampaignError(f"{source}: unknown key {key!r}; expected {', '.join(sorted(known))}")
@@ -99,6 +123,9 @@ def campaign_from_dict(cls: Type[Campaign], spec: Mapping[str, Any], base: Optio
         if "parameter" not in d:
             raise CampaignError(f"{source}: dispersion[{k}]: parameter is required")
         dispersions.append(Dispersion(**d))
+    wheels_file = _wheels_file(spec, base, source, wheels)
+    bus: Dict[str, Any] = {} if wheels_file is None else dict(
+        wheels=wheels_file.wheels, attitude_kp=wheels_file.kp, attitude_kd=wheels_file.kd)
     campaign = cls(goal=slew_t["goal"], kp=slew_t["kp"], kd=slew_t["kd"], dt=sim_t["dt"],
                    duration=sim_t["duration"], slew_time=slew_t["slew_time"],
                    runs=spec.get("runs", 100), seed=spec.get("seed", 0), dispersions=dispersions,
@@ -109,7 +136,7 @@ def campaign_from_dict(cls: Type[Campaign], spec: Mapping[str, Any], base: Optio
                    q0=slew_t.get("q0", 0.0), payload_mass=robot_t.get("payload_mass", 0.0),
                    payload_com=robot_t.get("payload_com", (0.0, 0.0, 0.0)),
                    record_every=sim_t.get("record_every", 10),
-                   settle_tolerance=slew_t.get("settle_tolerance", 5e-3))
+                   settle_tolerance=slew_t.get("settle_tolerance", 5e-3), **bus)
     try:
         campaign.check()
     except CampaignError as e:

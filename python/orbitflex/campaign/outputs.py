@@ -11,10 +11,16 @@ from typing import Any, Dict, List, TYPE_CHECKING, Union
 import numpy as np
 
 from .dispersion import METRICS, TITLES
+from .wheels import WHEEL_METRICS, WHEEL_TITLES
 
 if TYPE_CHECKING:  # pragma: no cover
     import pandas as pd
     from .spec import Campaign
+
+
+def metrics_of(table: "pd.DataFrame") -> Dict[str, str]:
+    """The metrics of ``table`` and their units: the arm's, and the wheels' when it has them."""
+    return {**METRICS, **{m: u for m, u in WHEEL_METRICS.items() if m in table}}
 
 
 def summary(table: "pd.DataFrame") -> "pd.DataFrame":
@@ -24,7 +30,7 @@ def summary(table: "pd.DataFrame") -> "pd.DataFrame":
 
     finished = table[table["ok"]]
     rows = []
-    for metric, unit in METRICS.items():
+    for metric, unit in metrics_of(table).items():
         v = finished[metric].to_numpy(dtype=np.float64)
         v = v[np.isfinite(v)]
         stats: Dict[str, Any] = {"metric": metric, "unit": unit, "count": int(v.size)}
@@ -68,22 +74,26 @@ def histograms(table: "pd.DataFrame", campaign: Campaign, path: Path) -> Path:
     finished = table[table["ok"]]
     failed = int((~table["ok"]).sum())
     robot = campaign._robot()
-    fig, axes = plt.subplots(2, 3, figsize=(11, 6.5), layout="constrained")
+    metrics = metrics_of(table)
+    panels = (len(metrics) + 2) // 3
+    fig, axes = plt.subplots(panels, 3, figsize=(11, 3.25 * panels), layout="constrained")
     caption = (f"campaign {campaign.name}: {len(table)} runs ({failed} failed), model {robot.name}, "
                f"dt = {campaign.dt:g} s, {campaign.duration:g} s each, seed {campaign.seed}")
     fig.suptitle(f"Metrics over the runs that finished\n{caption}", fontsize=11)
-    for ax, (metric, unit) in zip(axes.flat, METRICS.items()):
+    for ax, (metric, unit) in zip(axes.flat, metrics.items()):
         values = finished[metric].to_numpy(dtype=np.float64)
         values = values[np.isfinite(values)]
         if values.size:
             ax.hist(values, bins=min(40, max(5, int(np.sqrt(values.size)) * 2)), color="#4477aa")
             for p, style in ((50, "-"), (95, "--")):
                 ax.axvline(np.percentile(values, p), color="#cc3311", ls=style, lw=1, label=f"p{p}")
+            if metric in WHEEL_METRICS and unit == "1":  # a fraction of the wheels' limit
+                ax.axvline(1.0, color="black", ls=":", lw=1.5, label="limit")
             ax.legend(fontsize=8)
         missing = len(finished) - values.size
-        title = TITLES[metric] + (f" ({missing} undefined)" if missing else "")
+        title = {**TITLES, **WHEEL_TITLES}[metric] + (f" ({missing} undefined)" if missing else "")
         ax.set_title(title, fontsize=10)
-        ax.set_xlabel(unit)
+        ax.set_xlabel("fraction of the limit" if metric in WHEEL_METRICS and unit == "1" else unit)
         ax.set_ylabel("runs")
     fig.savefig(path, dpi=110)
     plt.close(fig)

@@ -18,7 +18,9 @@ from typing import Any, Callable, Dict, List, Mapping, Optional, Sequence, TYPE_
 
 import numpy as np
 
-from .. import FlexibleArm, FlexibleJoints, ModelError, MotorPD, Plan, Robot, Trajectory, models, simulate_batch
+from .. import (AttitudePD, FlexibleArm, FlexibleJoints, ModelError, MotorPD, Plan, ReactionWheels, Robot, Trajectory,
+                models, simulate_batch)
+from . import wheels as bus
 from .._reference import quintic
 from .dispersion import CampaignError, Dispersion, JOINT_PARAMETERS, POSITIVE, UNITS, _vector
 from .files import campaign_from_dict
@@ -39,7 +41,11 @@ class Campaign:
     (N·m/rad), ``kd`` (N·m·s/rad) and ``q0`` (rad) are scalars or per joint; the reference moves
     from ``q0`` to ``goal`` on a quintic over ``slew_time`` seconds, then holds. The runs last
     ``duration`` seconds in steps of ``dt``, and keep every ``record_every``-th row for the
-    settling time. With ``plan`` (see :meth:`from_plan`) the runs follow that plan instead."""
+    settling time. With ``plan`` (see :meth:`from_plan`) the runs follow that plan instead.
+    With ``wheels`` (a ``ReactionWheels``) every run's bus is held at its initial attitude by
+    ``AttitudePD(attitude_kp, attitude_kd)`` (N·m/rad, N·m·s/rad; one number or three) in place of
+    any open-loop base wrench; the wheel parameters and gains can be dispersed and the table gets
+    the wheel metrics (:mod:`orbitflex.campaign.wheels`)."""
 
     goal: Any
     kp: Any
@@ -63,6 +69,9 @@ class Campaign:
     record_every: int = 10
     settle_tolerance: float = 5e-3
     plan: Optional[Plan] = None
+    wheels: Optional[ReactionWheels] = None
+    attitude_kp: Any = None
+    attitude_kd: Any = None
     log: "ChunkLog" = field(default_factory=lambda: ChunkLog(), compare=False, repr=False)
     # the plan's per-step tables at (dt, steps), made once per process (not sent to workers)
     _tables: Optional[Dict[str, Array]] = field(default=None, init=False, compare=False, repr=False)
@@ -92,9 +101,11 @@ class Campaign:
                    slew_time=plan.duration, q0=fields.pop("q0", stops[0].copy()), plan=plan, **fields)
 
     @classmethod
-    def from_toml(cls, path: Union[str, "os.PathLike[str]"]) -> "Campaign":
-        """Reads a campaign file (see ``examples/campaign.toml``). A relative ``urdf`` path is
-        taken from the file's folder."""
+    def from_toml(cls, path: Union[str, "os.PathLike[str]"], wheels: Any = None) -> "Campaign":
+        """Reads a campaign file (see ``examples/campaign.toml``). A relative ``urdf`` (or
+        ``wheels``) path is taken from the file's folder. ``wheels``, a wheels file (its path, or
+        a ``WheelsFile``), replaces the file's ``wheels = "PATH"``: the bus held by those wheels
+        under the file's ``AttitudePD`` gains."""
         if sys.version_info >= (3, 11):
             import tomllib
         else:  # pragma: no cover
@@ -108,14 +119,15 @@ class Campaign:
             spec = tomllib.loads(text)
         except tomllib.TOMLDecodeError as e:
             raise CampaignError(f"{path}: malformed TOML: {e}") from None
-        return cls.from_dict(spec, base=path.parent, source=str(path))
+        return cls.from_dict(spec, base=path.parent, source=str(path), wheels=wheels)
 
     @classmethod
     def from_dict(cls, spec: Mapping[str, Any], base: Optional[Path] = None,
-                  source: str = "campaign") -> "Campaign":
-        """A campaign from the tables of a campaign file: top-level ``name``, ``runs``, ``seed``;
-        ``[robot]``, ``[joints]``, ``[simulation]``, ``[slew]`` and ``[[dispersion]]``."""
-        return campaign_from_dict(cls, spec, base, source)
+                  source: str = "campaign", wheels: Any = None) -> "Campaign":
+        """A campaign from the tables of a campaign file: top-level ``name``, ``runs``, ``seed``,
+        ``wheels`` (a wheels file's path); ``[robot]``, ``[joints]``, ``[simulation]``,
+        ``[slew]`` and ``[[dispersion]]``. ``wheels`` as in :meth:`from_toml`."""
+        return campaign_from_dict(cls, spec, base, source, wheels)
 
     def check(self) -> None:
         """Checks the declaration (raises :class:`CampaignError` naming the field)."""
@@ -144,6 +156,7 @@ class Campaign:
                 raise CampaignError(f"dispersion: {p!r} is dispersed {seen.count(p)} times; give it once")
         if self.plan is not None:
             self._check_plan()
+        self._check_wheels()
         robot = self._robot()
         n = robot.dof
         for name in ("goal", "kp", "kd", "q0"):
@@ -183,6 +196,23 @@ class Campaign:
             raise CampaignError(f"{given[0]}: applies when the robot is read from a URDF file (urdf = PATH); "
                                 f"{what} is loaded already")
 
+    def _check_wheels(self) -> None:
+        """Wheels come with the gains of their ``AttitudePD``; wheel dispersions need wheels."""
+        if self.wheels is None:
+            wheel = [d.parameter for d in self.dispersions if d.parameter in bus.WHEEL_PARAMETERS]
+            given = [n for n in ("attitude_kp", "attitude_kd") if getattr(self, n) is not None]
+            if wheel or given:
+                raise CampaignError(f"{(wheel + given)[0]}: applies to a campaign with reaction wheels; give "
+                                    "wheels (a ReactionWheels, or --wheels wheels.toml)")
+            return
+        if not isinstance(self.wheels, ReactionWheels):
+            raise CampaignError(f"wheels: expected an orbitflex.ReactionWheels, given {type(self.wheels).__name__}")
+        for name in ("attitude_kp", "attitude_kd"):
+            value = _vector(getattr(self, name), name)
+            if value is None or value.shape not in ((), (3,)) or (value < 0).any():
+                raise CampaignError(f"{name}: a campaign with wheels holds the bus with an AttitudePD; expected "
+                                    f"one gain >= 0 or three (x, y, z), given {getattr(self, name)!r}")
+
     def _check_plan(self) -> None:
         """A campaign on a plan: the plan's robot, joints and goal, a duration that covers it,
         and no dispersion of the goal."""
@@ -212,8 +242,9 @@ class Campaign:
         return self._tables
 
     def _base_wrench(self) -> Optional[Array]:
-        """The base wrench of every run, (1, steps, 6): a held base's plan holds it; else none."""
-        if self.plan is None or self.plan.base != "held":
+        """The base wrench of every run, (1, steps, 6): a held base's plan holds it (unless the
+        wheels do); else none."""
+        if self.plan is None or self.plan.base != "held" or self.wheels is not None:
             return None
         return self._plan_tables()["base_wrench"][None]
 
@@ -254,7 +285,8 @@ class Campaign:
 
         return {"stiffness": full(k), "motor_inertia": full(j), "damping": full(d), "motor_damping": full(b),
                 "kp": full(self.kp), "kd": full(self.kd), "goal": full(self.goal), "q0": full(self.q0),
-                "base_rate": np.zeros(3), "payload_mass": np.asarray(float(self.payload_mass))}
+                "base_rate": np.zeros(3), "payload_mass": np.asarray(float(self.payload_mass)),
+                **bus.nominal(self.wheels, self.attitude_kp, self.attitude_kd)}
 
     def parameters(self, run: int, robot: Optional[Robot] = None) -> Dict[str, Array]:
         """Every parameter of run ``run``: the nominal values, with the dispersed ones drawn from
@@ -309,6 +341,7 @@ class Campaign:
         """The arm, start and controller of one run. Arms are shared between runs with the same
         joint parameters and payload (``arms`` caches them)."""
         key = tuple(np.concatenate([values[p].ravel() for p in (*JOINT_PARAMETERS, "payload_mass")]).tolist())
+        key += bus.key(values)
         arm = arms.get(key)
         if arm is None:
             loaded = robot
@@ -316,7 +349,8 @@ class Campaign:
                 loaded = robot.with_payload(float(values["payload_mass"]), com=np.asarray(self.payload_com, float),
                                             ee=self.payload_ee)
             joints = FlexibleJoints(*(values[p] for p in JOINT_PARAMETERS))
-            arm = arms[key] = FlexibleArm(loaded, joints)
+            wheels = None if self.wheels is None else bus.run_wheels(self.wheels, values)
+            arm = arms[key] = FlexibleArm(loaded, joints, wheels=wheels)
         x0 = arm.state(q=values["q0"], base_twist=np.r_[values["base_rate"], 0.0, 0.0, 0.0])
         if self.plan is not None:
             tables = self._plan_tables()
@@ -326,12 +360,18 @@ class Campaign:
         pd = MotorPD(values["kp"], values["kd"], theta_ref, theta_dot_ref)
         return arm, x0, pd
 
+    def _wheel_torque(self, values: Sequence[Dict[str, Array]]) -> Optional[List[AttitudePD]]:
+        """The ``AttitudePD`` of each run (``values``: their parameters), or None without wheels."""
+        if self.wheels is None:
+            return None
+        return [bus.controller(self.wheels, v) for v in values]
+
     def _invalid_draw(self, run: int, values: Dict[str, Array], error: Exception) -> str:
         """Why run ``run`` cannot be set up: the model's error, and the dispersions whose draws
         went into the model (the payload, the joint parameters)."""
         drawn = []
         for k, d in enumerate(self.dispersions):
-            if d.parameter in (*JOINT_PARAMETERS, "payload_mass", "kp", "kd"):
+            if d.parameter in (*JOINT_PARAMETERS, "payload_mass", "kp", "kd", *bus.WHEEL_PARAMETERS):
                 v = np.asarray(values[d.parameter])
                 shown = f"{float(v):.6g} {UNITS[d.parameter]}" if v.ndim == 0 else \
                     f"{np.abs(v).min():.3g} to {np.abs(v).max():.3g} {UNITS[d.parameter]}"
@@ -344,9 +384,10 @@ class Campaign:
         """The EE positions (m, inertial frame) at the end of the nominal run (no dispersion),
         (k, 3), one row per end-effector in ``robot.ee_links`` order."""
         robot = self._robot()
-        arm, x0, pd = self._setup(robot, self._nominal(robot), {})
+        values = self._nominal(robot)
+        arm, x0, pd = self._setup(robot, values, {})
         batch = simulate_batch(arm, x0, self.dt, self.steps, u=pd, base_wrench=self._base_wrench(), threads=1,
-                               keep_rows=False)
+                               keep_rows=False, wheel_torque=self._wheel_torque([values]))
         if not batch.ok[0]:
             raise CampaignError(f"the nominal run (no dispersion) failed: {batch.messages[0]}")
         return _ee_positions(arm, batch.final_state[0])
@@ -371,7 +412,8 @@ class Campaign:
             warnings.simplefilter("always", RuntimeWarning)
             batch = simulate_batch([s[0] for s in setups], np.stack([s[1] for s in setups]), self.dt,
                                    self.steps, u=[s[2] for s in setups], base_wrench=self._base_wrench(),
-                                   threads=threads, record_every=self.record_every, progress=progress)
+                                   threads=threads, record_every=self.record_every, progress=progress,
+                                   wheel_torque=self._wheel_torque(values))
         for w in caught:
             warnings.warn(_campaign_numbers(str(w.message), start), w.category, stacklevel=2)
         n = robot.dof
@@ -420,7 +462,8 @@ class Campaign:
                 "final_error": nan_if_failed(final_error),
                 "settling_time": settling,
                 "base_attitude_change": nan_if_failed(attitude),
-                "ee_error": nan_if_failed(ee_error)}
+                "ee_error": nan_if_failed(ee_error),
+                **({} if self.wheels is None else bus.metrics(batch, [s[0] for s in setups]))}
 
     def trajectory(self, run: int, record_every: int = 1) -> Trajectory:
         """Run ``run`` again, alone, as a :class:`~orbitflex.Trajectory` keeping one row in
@@ -433,9 +476,10 @@ class Campaign:
             raise CampaignError(f"run: expected an integer >= 0 (a run's index), given {run!r}")
         self.check()
         robot = self._robot()
-        arm, x0, pd = self._setup(robot, self.parameters(int(run), robot), {})
+        values = self.parameters(int(run), robot)
+        arm, x0, pd = self._setup(robot, values, {})
         batch = simulate_batch(arm, x0, self.dt, self.steps, u=pd, base_wrench=self._base_wrench(), threads=1,
-                               record_every=record_every)
+                               record_every=record_every, wheel_torque=self._wheel_torque([values]))
         traj: Trajectory = batch.run(0)
         return traj
 

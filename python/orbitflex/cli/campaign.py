@@ -21,10 +21,13 @@ def campaign_command(args: argparse.Namespace) -> int:
     except ImportError as e:
         raise CliError("campaign", f"needs pandas and pyarrow ({e}); pip install 'orbitflex[campaign]'") from None
     try:
-        campaign = campaigns.load_campaign(args.file)  # a slew Campaign, or a CaptureCampaign ([capture])
+        # a slew Campaign, or a CaptureCampaign when the file has a [capture] table
+        campaign = campaigns.load_campaign(args.file, wheels=args.wheels)
     except FileNotFoundError as e:
         raise CliError("FILE", str(e)) from None
     except ModelError as e:
+        if args.wheels is not None and ": wheels: " in str(e):
+            raise CliError("--wheels", str(e).split(": wheels: ", 1)[1]) from None
         raise CliError("FILE", f"{args.file}: {e}" if not str(e).startswith(args.file) else str(e)) from None
     runs = args.runs if args.runs is not None else campaign.runs
     if args.scheduler:
@@ -34,8 +37,9 @@ def campaign_command(args: argparse.Namespace) -> int:
             message = re.sub(r"^scheduler: ", "", str(e)).replace("a longer timeout", "a longer --scheduler-timeout")
             raise CliError("--scheduler", message) from None
     where = f"on the Dask cluster at {args.scheduler}" if args.scheduler else "here"
+    held = "" if campaign.wheels is None else f", the bus held by {len(campaign.wheels)} reaction wheels"
     print(f"campaign {campaign.name}: {runs} runs of {campaign.duration:g} s (dt = {campaign.dt:g} s, "
-          f"{campaign.steps} steps), {where}")
+          f"{campaign.steps} steps){held}, {where}")
     bar = None if args.no_progress else ProgressBar(runs, unit="run", desc="campaign")
     progress = None if bar is None else bar.to
     started = time.time()

@@ -110,6 +110,11 @@ def plan_options(p: argparse.ArgumentParser) -> None:
     runs.add_argument("--settle", metavar="S", type=non_negative, default=2.0,
                       help="time simulated at rest after each slew, to measure the residual vibration, s "
                            "(default %(default)s)")
+    runs.add_argument("--wheels", metavar="TOML", default=None,
+                      help="reaction wheels on the bus and their AttitudePD (keys: examples/wheels.toml; "
+                           "--base held): reports what holding the bus asks of them (Plan.wheel_demand) "
+                           "and tracks the plan with them holding it, printing the pointing error and "
+                           "the wheels' peak speed and torque against their limits")
     p.add_argument("--out", metavar="DIR", default="orbitflex_out",
                    help="output folder, created if missing (default %(default)s)")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
@@ -159,6 +164,10 @@ def build_parser() -> Parser:
                       help="runs per batch (per Dask task); default 256 here, about 4 tasks per worker thread on Dask")
     camp.add_argument("--threads", type=at_least_one, default=None,
                       help="threads per batch (default: every core here, 1 per Dask task)")
+    camp.add_argument("--wheels", metavar="TOML", default=None,
+                      help="reaction wheels holding every run's bus under their AttitudePD (keys: "
+                           "examples/wheels.toml); replaces the file's wheels = PATH. Adds the wheel "
+                           "metrics and lets the file disperse wheel_* and attitude_kp/kd")
     camp.add_argument("--no-plots", action="store_true", help="skip histograms.png")
     camp.add_argument("--no-progress", action="store_true", help="no progress bar")
     from . import modes  # `orbitflex modes` lives in its own module

@@ -22,6 +22,7 @@ from .errors import CliError, output_folder
 from .jobs import Job, WarningPrinter, failure_reason
 from .memory import check_memory
 from .plan_plots import plot_plan
+from .plan_wheels import print_wheel_plan, wheel_plan
 from .plots import seconds
 from .robots import load_arm
 from .slew import DT_MARGIN, per_joint, round_down
@@ -347,11 +348,16 @@ def plan_command(args: argparse.Namespace) -> int:
         print(f"orbitflex: the tracking run failed: {failure_reason(e)}; no outputs written (exit code 1)",
               file=sys.stderr)
         return 1
+    wheels = wheel_plan(args, plan, dt, kp, kd, args.settle)
     summary = {"model": job.name, "joints": robot.joint_names, "base": plan.base,
                "stops": plan.stops.tolist(), "segment_durations_s": plan.segment_durations.tolist(),
                "limits": {**limits_dict(plan.limits), "source": limits_source(args)}, **comparison_summary(comparison)}
+    if wheels is not None:
+        summary["wheels"] = wheels.summary()
     files = write_plan_outputs(comparison, summary, out, args.no_plots)
     print_plan_summary(comparison, limits_source(args))
+    if wheels is not None:
+        print_wheel_plan(wheels)
     width = max(len(str(f)) for f in files)
     print(f"\nwrote {len(files)} files:")
     for f in files:

@@ -5,7 +5,7 @@
 use super::pool::{in_pool, interrupted};
 use super::{Batch, BatchControl, BatchSettings, BatchWatch, PerRun};
 use crate::args::check_dt;
-use crate::control::{Controller, MotorPD, Schedule, Wrenches};
+use crate::control::{AttitudePD, Controller, MotorPD, Sampled, Schedule};
 use crate::error::{Error, Result};
 use crate::flex::FlexibleArm;
 use crate::integrate::record::check_record_every;
@@ -210,10 +210,12 @@ pub(super) fn in_run(run: usize, error: Error) -> Error {
     error.in_context(&format!("run {run}"))
 }
 
-/// The owned inputs of run `run`: its controller and wrenches.
+/// The owned controller of one channel of one run, a copy of the batch's.
 enum RunControl {
     Open(Schedule),
     Pd(Box<MotorPD>),
+    Attitude(Box<AttitudePD>),
+    Sampled(Box<Sampled<'static>>),
 }
 
 impl RunControl {
@@ -221,6 +223,93 @@ impl RunControl {
         match self {
             RunControl::Open(s) => s,
             RunControl::Pd(pd) => pd.as_mut(),
+            RunControl::Attitude(pd) => pd.as_mut(),
+            RunControl::Sampled(s) => s.as_mut(),
+        }
+    }
+
+    fn into_boxed(self) -> Box<dyn Controller + Send> {
+        match self {
+            RunControl::Open(s) => Box::new(s),
+            RunControl::Pd(pd) => pd,
+            RunControl::Attitude(pd) => pd,
+            RunControl::Sampled(s) => s,
+        }
+    }
+}
+
+impl BatchControl<'_> {
+    /// Run `run`'s own copy of the controller, over `steps` steps.
+    fn for_run(&self, run: usize, steps: usize) -> Result<RunControl> {
+        Ok(match self {
+            BatchControl::Open(input) => RunControl::Open(input.schedule(run, steps)),
+            BatchControl::Pd(pd) => RunControl::Pd(Box::new(pd.get(run).clone())),
+            BatchControl::Attitude(pd) => RunControl::Attitude(Box::new(pd.get(run).clone())),
+            BatchControl::Sampled(inner, clock) => {
+                let inner = inner.for_run(run, steps)?.into_boxed();
+                RunControl::Sampled(Box::new(Sampled::new(inner, clock.rate_hz, clock.delay)?))
+            }
+        })
+    }
+
+    /// Checks, before the runs, that this control can drive the channel `what` (`"u"`: not an
+    /// [`AttitudePD`]; `"wheel_torque"`: not a [`MotorPD`]), that a per-run sequence has one
+    /// element per run, the shapes of a table, and the clock of a sampled control.
+    fn check(&self, what: &str, width: usize, runs: usize, steps: usize) -> Result<()> {
+        let per_run = |given: usize, kind: &str| {
+            if given == runs {
+                Ok(())
+            } else {
+                Err(Error::Dimension {
+                    what: what.into(),
+                    expected: format!("{runs} {kind} controllers (one per run)"),
+                    given: format!("{given}"),
+                })
+            }
+        };
+        match (self, what) {
+            (BatchControl::Open(input), _) => input.check(what, width, runs, steps),
+            (BatchControl::Pd(_), "wheel_torque") => Err(Error::InvalidArgument {
+                what: what.into(),
+                message: "a MotorPD drives the motors (u), not the reaction wheels; give wheel \
+                          torques or an AttitudePD"
+                    .into(),
+            }),
+            (BatchControl::Attitude(_), "u") => Err(Error::InvalidArgument {
+                what: what.into(),
+                message: "an AttitudePD drives the reaction wheels (wheel_torque), not the \
+                          motors; give motor torques or a MotorPD"
+                    .into(),
+            }),
+            (BatchControl::Pd(PerRun::Each(pds)), _) => per_run(pds.len(), "MotorPD"),
+            (BatchControl::Attitude(PerRun::Each(pds)), _) => per_run(pds.len(), "AttitudePD"),
+            (BatchControl::Pd(PerRun::All(_)) | BatchControl::Attitude(PerRun::All(_)), _) => {
+                Ok(())
+            }
+            (BatchControl::Sampled(BatchControl::Sampled(..), _), _) => {
+                Err(Error::InvalidArgument {
+                    what: what.into(),
+                    message: "a sampled control inside a sampled control; sample it once, at \
+                              the rate it runs at"
+                        .into(),
+                })
+            }
+            (BatchControl::Sampled(inner, clock), _) => {
+                Sampled::new(Box::new(Schedule::Zero), clock.rate_hz, clock.delay)?;
+                inner.check(what, width, runs, steps)
+            }
+        }
+    }
+
+    /// Whether every run's control has the same [`Feedback`](crate::control::Feedback) for the
+    /// stability limit: open loop, one shared PD, PDs with the same gains, or a sampled control
+    /// (whose feedback is not known, whatever it wraps).
+    fn same_feedback(&self) -> bool {
+        match self {
+            BatchControl::Pd(PerRun::Each(pds)) => pds
+                .iter()
+                .all(|pd| pd.kp == pds[0].kp && pd.kd == pds[0].kd),
+            _ => true,
         }
     }
 }
@@ -229,7 +318,9 @@ pub(super) struct RunInputs<'a> {
     pub(super) arm: &'a FlexibleArm,
     pub(super) x0: &'a [f64],
     control: RunControl,
-    wrenches: Wrenches,
+    wheels: RunControl,
+    base: Schedule,
+    ee: Schedule,
 }
 
 impl RunInputs<'_> {
@@ -237,43 +328,32 @@ impl RunInputs<'_> {
     pub(super) fn drive(&mut self) -> Drive<'_> {
         Drive {
             u: self.control.controller(),
-            base_wrench: &mut self.wrenches.base,
-            ee_wrench: &mut self.wrenches.ee,
-            wheel_torque: &mut self.wrenches.wheel_torque,
+            base_wrench: &mut self.base,
+            ee_wrench: &mut self.ee,
+            wheel_torque: self.wheels.controller(),
         }
     }
 }
 
 impl<'a> Batch<'a> {
-    pub(super) fn inputs(&self, run: usize, steps: usize) -> RunInputs<'a> {
-        RunInputs {
+    /// Run `run`'s own inputs over `steps` steps (the batch checked: a sampled control's clock
+    /// is valid).
+    pub(super) fn inputs(&self, run: usize, steps: usize) -> Result<RunInputs<'a>> {
+        Ok(RunInputs {
             arm: self.arms.get(run),
             x0: self.x0.row(run).unwrap_or(&[]),
-            control: match &self.u {
-                BatchControl::Open(u) => RunControl::Open(u.schedule(run, steps)),
-                BatchControl::Pd(pd) => RunControl::Pd(Box::new(pd.get(run).clone())),
-            },
-            wrenches: Wrenches {
-                base: self.base_wrench.schedule(run, steps),
-                ee: self.ee_wrench.schedule(run, steps),
-                wheel_torque: self.wheel_torque.schedule(run, steps),
-            },
-        }
+            control: self.u.for_run(run, steps)?,
+            wheels: self.wheel_torque.for_run(run, steps)?,
+            base: self.base_wrench.schedule(run, steps),
+            ee: self.ee_wrench.schedule(run, steps),
+        })
     }
 
     /// The runs whose stability limit can differ from run 0's: all of them, or only run 0 when
     /// every run has the same arm, start and feedback gains (open-loop torques, whatever their
     /// values, have no feedback).
     fn distinct_starts(&self) -> usize {
-        let shared = self.arms.is_shared()
-            && self.x0.is_shared()
-            && match &self.u {
-                BatchControl::Open(_) => true,
-                BatchControl::Pd(PerRun::All(_)) => true,
-                BatchControl::Pd(PerRun::Each(pds)) => pds
-                    .iter()
-                    .all(|pd| pd.kp == pds[0].kp && pd.kd == pds[0].kd),
-            };
+        let shared = self.arms.is_shared() && self.x0.is_shared() && self.u.same_feedback();
         if shared {
             self.runs.min(1)
         } else {
@@ -315,15 +395,6 @@ impl<'a> Batch<'a> {
                 });
             }
         }
-        if let BatchControl::Pd(PerRun::Each(pds)) = &self.u {
-            if pds.len() != self.runs {
-                return Err(Error::Dimension {
-                    what: "u".into(),
-                    expected: format!("{} MotorPD controllers (one per run)", self.runs),
-                    given: format!("{}", pds.len()),
-                });
-            }
-        }
         let n = self.arms.get(0).dof();
         if let PerRun::Each(arms) = &self.arms {
             if let Some((run, arm)) = arms.iter().enumerate().find(|(_, a)| a.dof() != n) {
@@ -357,16 +428,15 @@ impl<'a> Batch<'a> {
                 &self.ee_wrench,
                 6 * self.arms.get(0).robot().end_effectors().len(),
             ),
-            ("wheel_torque", &self.wheel_torque, wheels),
         ] {
             input.check(what, w, self.runs, settings.steps)?;
         }
-        if let BatchControl::Open(u) = &self.u {
-            u.check("u", n, self.runs, settings.steps)?;
-        }
+        self.u.check("u", n, self.runs, settings.steps)?;
+        self.wheel_torque
+            .check("wheel_torque", wheels, self.runs, settings.steps)?;
         (0..self.runs).into_par_iter().try_for_each(|run| {
             interrupted(cancel, "the checks of the runs")?;
-            let mut inputs = self.inputs(run, settings.steps);
+            let mut inputs = self.inputs(run, settings.steps)?;
             let x0 = inputs.x0;
             Run::new(x0, settings.dt, settings.steps)
                 .check(inputs.arm, &inputs.drive())
@@ -395,7 +465,7 @@ impl<'a> Batch<'a> {
                 .into_par_iter()
                 .map(|run| {
                     interrupted(&watch.cancel, "the stability limits of the runs")?;
-                    let mut inputs = self.inputs(run, 0);
+                    let mut inputs = self.inputs(run, 0)?;
                     inputs
                         .arm
                         .rk4_stability_limit(inputs.x0, inputs.control.controller())

@@ -12,8 +12,9 @@
 //! | `(B, w)` or `(1, w)` | a constant row per run (or one for all) |
 //! | `(B, steps, w)` or `(1, steps, w)` | a table per run (or one for all), one row per step |
 //!
-//! Arms and motor-side PD controllers are [`PerRun`]: one shared by every run, or one per run
-//! (dispersed stiffness, payloads, gains).
+//! Arms and controllers ([`BatchControl`]: a [`MotorPD`] on the motors, an [`AttitudePD`] on the
+//! reaction wheels, either at its own rate) are [`PerRun`]: one shared by every run, or one per
+//! run (dispersed stiffness, payloads, wheels, gains).
 //!
 //! **Record.** With `record_every = k` every run keeps rows `0, k, 2k, …` and the final row (the
 //! rule of [`record`](super::record)); the rows of all runs live in one buffer `(B, rows, 13+4n)`.
@@ -43,7 +44,7 @@
 //!     u: BatchControl::Open(BatchInput::new("u", &u, &[3, 7], 3, Some(100), 7)?),
 //!     base_wrench: BatchInput::zero(6),
 //!     ee_wrench: BatchInput::zero(6),
-//!     wheel_torque: BatchInput::zero(0),
+//!     wheel_torque: BatchControl::zero(0),
 //! };
 //! let settings = BatchSettings { dt: 1e-3, steps: 100, record_every: 10, keep_rows: true, threads: Some(2) };
 //! let record = simulate_batch(&batch, &settings, &BatchWatch::default())?;
@@ -66,7 +67,7 @@ pub use record::{BatchRecord, RunRecord, RunStatus};
 use super::record::{is_recorded, recorded_rows, Recorder};
 use super::run::Run;
 use super::simulate::simulate_into;
-use crate::control::MotorPD;
+use crate::control::{AttitudePD, MotorPD};
 use crate::error::{Error, Result};
 use crate::flex::FlexibleArm;
 use rayon::prelude::*;
@@ -106,14 +107,56 @@ impl<'a, T> PerRun<'a, T> {
     }
 }
 
-/// What drives the motors of each run.
+/// What drives one channel (the motors `u`, or the reaction wheels `wheel_torque`) of each run.
+///
+/// Every controller is copied for each run, which starts from its copy (its state, such as an
+/// [`AttitudePD`]'s latched attitude or a [`Sampled`](crate::control::Sampled) hold, is the
+/// run's own): run `b` is exactly the single run driven by the same controller.
+///
+/// | variant | channel |
+/// |---|---|
+/// | [`Open`](Self::Open) | either: a table (or constant) per run |
+/// | [`Pd`](Self::Pd) | `u`: a motor-side PD |
+/// | [`Attitude`](Self::Attitude) | `wheel_torque`: the bus's attitude held by the wheels |
+/// | [`Sampled`](Self::Sampled) | either: one of the above at its own rate |
 #[derive(Debug, Clone, Copy)]
 pub enum BatchControl<'a> {
-    /// Open loop: motor torques `u` (N·m) per run and step.
+    /// Open loop: the rows (N·m) per run and step.
     Open(BatchInput<'a>),
     /// A motor-side PD ([`MotorPD`]) shared by every run (each run starts from a copy), or one
-    /// per run.
+    /// per run. Drives `u` only.
     Pd(PerRun<'a, MotorPD>),
+    /// An [`AttitudePD`] on the bus, shared by every run (each run starts from a copy), or one
+    /// per run (each bound to its run's wheels: `k` rows of allocation). Drives
+    /// `wheel_torque` only.
+    Attitude(PerRun<'a, AttitudePD>),
+    /// The control inside run at its own rate, with zero-order hold and a delay of whole
+    /// samples, as [`Sampled`](crate::control::Sampled) runs it in a single run. The control
+    /// inside is not itself sampled.
+    Sampled(&'a BatchControl<'a>, SampleClock),
+}
+
+impl<'a> BatchControl<'a> {
+    /// Zeros of `width` numbers for every run and step: an idle channel (`BatchInput::zero`).
+    pub const fn zero(width: usize) -> Self {
+        BatchControl::Open(BatchInput::zero(width))
+    }
+}
+
+impl<'a> From<BatchInput<'a>> for BatchControl<'a> {
+    fn from(input: BatchInput<'a>) -> Self {
+        BatchControl::Open(input)
+    }
+}
+
+/// The clock of a sampled controller: `rate_hz` (finite, > 0) and a delay of `delay` whole
+/// samples (see [`Sampled`](crate::control::Sampled)).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SampleClock {
+    /// Samples per second (Hz).
+    pub rate_hz: f64,
+    /// Whole samples between computing a row and applying it.
+    pub delay: usize,
 }
 
 /// The inputs of a batch of `runs` runs (module docs for the broadcasting rule).
@@ -131,9 +174,9 @@ pub struct Batch<'a> {
     pub base_wrench: BatchInput<'a>,
     /// `f` (EE frame, exerted by the EE on its environment), width 6.
     pub ee_wrench: BatchInput<'a>,
-    /// Reaction-wheel torque commands (N·m), width `k` (every arm must have `k` wheels); zero
-    /// for arms without wheels.
-    pub wheel_torque: BatchInput<'a>,
+    /// Reaction-wheel torque commands (N·m), width `k` (every arm must have `k` wheels), or
+    /// their controller; [`BatchControl::zero`] for arms without wheels.
+    pub wheel_torque: BatchControl<'a>,
 }
 
 /// How a batch runs.
@@ -264,8 +307,7 @@ fn one_run(
     rows: usize,
     cancel: &AtomicBool,
 ) -> RunStatus {
-    let mut inputs = batch.inputs(run, settings.steps);
-    let layout = inputs.arm.layout();
+    let layout = batch.arms.get(run).layout();
     let mut recorder = SlotRecorder {
         deflection: vec![0.0; layout.n],
         torque: vec![0.0; layout.n],
@@ -280,7 +322,7 @@ fn one_run(
     };
     if cancel.load(Ordering::Relaxed) {
         // cancelled before it started: its start is its last good state
-        let mut x0 = inputs.x0.to_vec();
+        let mut x0 = batch.x0.row(run).unwrap_or(&[]).to_vec();
         crate::flex::normalise_quaternion(&mut x0[layout.quaternion()]);
         let _ = recorder.state(0.0, &x0).and_then(|_| recorder.finish());
         return RunStatus::Failed {
@@ -289,14 +331,16 @@ fn one_run(
             message: "interrupted by the caller".into(),
         };
     }
-    let (arm, x0) = (inputs.arm, inputs.x0);
-    let outcome = simulate_into(
-        arm,
-        &Run::new(x0, settings.dt, settings.steps),
-        &mut inputs.drive(),
-        &mut Cancel(cancel),
-        &mut recorder,
-    );
+    let outcome = batch.inputs(run, settings.steps).and_then(|mut inputs| {
+        let (arm, x0) = (inputs.arm, inputs.x0);
+        simulate_into(
+            arm,
+            &Run::new(x0, settings.dt, settings.steps),
+            &mut inputs.drive(),
+            &mut Cancel(cancel),
+            &mut recorder,
+        )
+    });
     match outcome {
         Ok(()) => RunStatus::Finished,
         Err(Error::Simulation {
@@ -420,7 +464,7 @@ mod tests {
             u: BatchControl::Open(BatchInput::zero(7)),
             base_wrench: BatchInput::zero(6),
             ee_wrench: BatchInput::zero(6),
-            wheel_torque: BatchInput::zero(0),
+            wheel_torque: BatchControl::zero(0),
         };
         let settings = BatchSettings {
             dt: 1e-3,
