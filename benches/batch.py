@@ -63,6 +63,58 @@ def batch_rows(n: int, runs: int, steps: int, rounds: int) -> list[str]:
     ]
 
 
+def lanes_rows(n: int, runs: int, steps: int, rounds: int) -> list[str]:
+    """``simulate_batch`` on one thread with SIMD lanes against the scalar path (``lanes=False``),
+    open-loop torques and per-run ``MotorPD`` controllers; the records are checked equal first."""
+    arm = arm_for(n)
+    dt = 0.5 * arm.rk4_stability_limit().dt
+    x0 = arm.state()
+    u = np.stack([np.full(arm.dof, 0.1 * (b + 1)) for b in range(runs)])
+    pds = [orbitflex.MotorPD(kp=np.full(n, 50.0 + b), kd=np.full(n, 5.0), theta_ref=np.full(n, 0.1))
+           for b in range(runs)]
+    rows = []
+    for label, control in (("torques", u), ("MotorPD per run", pds)):
+        run = lambda lanes: orbitflex.simulate_batch(arm, x0, dt, steps, u=control, threads=1,  # noqa: E731
+                                                     keep_rows=False, lanes=lanes)
+        a, b = run(False), run(None)
+        assert np.array_equal(a.final_state, b.final_state), "lanes and scalar records differ"
+        scalar, lanes = [], []
+        for _ in range(rounds):
+            scalar.append(timed(lambda: run(False)))
+            lanes.append(timed(lambda: run(None)))
+        s, v = statistics.median(scalar), statistics.median(lanes)
+        per = lambda t: t / (runs * steps) * 1e6  # noqa: E731
+        rows.append(f"| n = {n}, {label} | {runs} runs × {steps} steps | {per(s):.2f} µs | {per(v):.2f} µs | "
+                    f"**{s / v:.2f}×** |")
+    return rows
+
+
+def campaign_lanes_row(runs: int, rounds: int) -> list[str]:
+    """The example campaign run locally (2 threads) with the lanes and with ``ORBITFLEX_LANES=1``
+    (the scalar path), alternating; the tables are checked equal first."""
+    from orbitflex.campaign import Campaign
+
+    campaign = Campaign.from_toml(HERE.parent / "examples" / "campaign.toml")
+    campaign.duration, campaign.slew_time = 2.0, 1.0
+
+    def run(scalar: bool):
+        if scalar:
+            os.environ["ORBITFLEX_LANES"] = "1"
+        try:
+            return campaign.run(runs=runs, threads=2)
+        finally:
+            os.environ.pop("ORBITFLEX_LANES", None)
+
+    a, b = run(True), run(False)
+    assert a.equals(b), "lanes and scalar campaign tables differ"
+    scalar, lanes = [], []
+    for _ in range(rounds):
+        scalar.append(timed(lambda: run(True)))
+        lanes.append(timed(lambda: run(False)))
+    s, v = statistics.median(scalar), statistics.median(lanes)
+    return [f"| {runs} runs × {campaign.steps} steps, 2 threads | {s:.2f} s | {v:.2f} s | **{s / v:.2f}×** |"]
+
+
 def campaign_row(runs: int, rounds: int) -> list[str]:
     from dask.distributed import Client, LocalCluster
 
@@ -148,7 +200,7 @@ def main() -> None:
     parser.add_argument("--campaign-runs", type=int, default=1000)
     parser.add_argument("--rust-bin", default=str(HERE.parent / "target" / "release" / "examples" / "bench_cpp_match"),
                         help="bench_cpp_match (cargo build --release --example bench_cpp_match)")
-    parser.add_argument("--only", default="batch,calls,campaign")
+    parser.add_argument("--only", default="batch,calls,lanes,campaign")
     args = parser.parse_args()
     only = args.only.split(",")
     print(f"orbitflex {orbitflex.__version__}, Python {platform.python_version()}, "
@@ -168,6 +220,18 @@ def main() -> None:
         for n in (7, 28):
             for row in batch_rows(n, args.runs, args.steps, args.rounds):
                 print(row, flush=True)
+    if "lanes" in only:
+        print()
+        print("| lanes, 1 thread | work | scalar, per run-step | lanes, per run-step | lanes speed-up |")
+        print("|---|---|---|---|---|")
+        for n in (7, 28):
+            for row in lanes_rows(n, args.runs, args.steps, args.rounds):
+                print(row, flush=True)
+        print()
+        print("| campaign (examples/campaign.toml, 2 s runs) | scalar (`ORBITFLEX_LANES=1`) | lanes | speed-up |")
+        print("|---|---|---|---|")
+        for row in campaign_lanes_row(args.campaign_runs, max(1, args.rounds // 2)):
+            print(row, flush=True)
     if "campaign" not in only:
         return
     print()

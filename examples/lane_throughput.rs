@@ -12,9 +12,14 @@
 //! - **MotorPD**: `FlexibleArm::simulate` run by run against lane groups with the PD law in
 //!   lanes (states gathered as above).
 //!
-//! ONLY = `batch`, `lanes`, `simulate` or `lanes_pd` times one side alone (for callgrind).
+//! - **the batch**: `simulate_batch` on one thread on the scalar path (`Lanes::Off`) against
+//!   the same batch in lanes of W (`Lanes::Width(W)`), bookkeeping and recording included.
+//!
+//! ONLY = `batch`, `batch_lanes`, `lanes`, `simulate` or `lanes_pd` times one side alone (for
+//! callgrind).
 use orbitflex::integrate::batch::{
-    simulate_batch, Batch, BatchControl, BatchInput, BatchSettings, BatchWatch, PerRun,
+    simulate_batch_with_lanes, Batch, BatchControl, BatchInput, BatchSettings, BatchWatch, Lanes,
+    PerRun,
 };
 use orbitflex::lanes::{LaneGroup, LaneInputs, Sv, L};
 use orbitflex::{FlexibleArm, FlexibleJoints, MotorPD, Robot, Schedule, Wrenches};
@@ -30,7 +35,7 @@ struct Setup {
     steps: usize,
 }
 
-fn batch(s: &Setup) {
+fn batch(s: &Setup, lanes: Lanes) {
     let (n, len) = (s.arm.dof(), s.x0.len());
     let batch = Batch {
         runs: s.runs,
@@ -50,7 +55,8 @@ fn batch(s: &Setup) {
         keep_rows: false,
         threads: Some(1),
     };
-    let record = simulate_batch(&batch, &settings, &BatchWatch::default()).unwrap();
+    let record =
+        simulate_batch_with_lanes(&batch, &settings, &BatchWatch::default(), lanes).unwrap();
     assert!(record.status.iter().all(|st| st.failed_step().is_none()));
     black_box(&record);
 }
@@ -171,7 +177,8 @@ fn main() -> orbitflex::Result<()> {
     };
     if let Some(only) = only {
         match only.as_str() {
-            "batch" => batch(&s),
+            "batch" => batch(&s, Lanes::Off),
+            "batch_lanes" => batch(&s, Lanes::Width(w)),
             "lanes" => lanes_any(None),
             "simulate" => simulate(&s, kp, kd, reference),
             "lanes_pd" => lanes_any(Some((kp, kd, reference))),
@@ -180,26 +187,27 @@ fn main() -> orbitflex::Result<()> {
         return Ok(());
     }
     let per = (runs * steps) as f64;
-    let mut rows: Vec<[f64; 4]> = Vec::new();
+    let mut rows: Vec<[f64; 5]> = Vec::new();
     for round in 0..rounds {
-        let mut t = [0.0; 4];
-        let order: [usize; 4] = if round % 2 == 0 {
-            [0, 1, 2, 3]
+        let mut t = [0.0; 5];
+        let order: [usize; 5] = if round % 2 == 0 {
+            [0, 1, 2, 3, 4]
         } else {
-            [3, 2, 1, 0]
+            [4, 3, 2, 1, 0]
         };
         for side in order {
             t[side] = time(|| match side {
-                0 => batch(&s),
+                0 => batch(&s, Lanes::Off),
                 1 => lanes_any(None),
                 2 => simulate(&s, kp, kd, reference),
-                _ => lanes_any(Some((kp, kd, reference))),
+                3 => lanes_any(Some((kp, kd, reference))),
+                _ => batch(&s, Lanes::Width(w)),
             }) / per
                 * 1e9;
         }
         rows.push(t);
     }
-    let median = |f: &dyn Fn(&[f64; 4]) -> f64| {
+    let median = |f: &dyn Fn(&[f64; 5]) -> f64| {
         let mut v: Vec<f64> = rows.iter().map(f).collect();
         v.sort_by(f64::total_cmp);
         v[v.len() / 2]
@@ -213,6 +221,12 @@ fn main() -> orbitflex::Result<()> {
         median(&|t| t[0]),
         median(&|t| t[1]),
         median(&|t| t[0] / t[1])
+    );
+    println!(
+        "simulate_batch, 1 thread: scalar {:.0}, lanes {:.0}, speed-up {:.2}",
+        median(&|t| t[0]),
+        median(&|t| t[4]),
+        median(&|t| t[0] / t[4])
     );
     println!(
         "MotorPD:   simulate {:.0}, lanes {:.0}, speed-up {:.2}",

@@ -2,8 +2,8 @@
 //! threads; inputs broadcast over the run axis; a failing run leaves the others complete.
 
 use orbitflex::integrate::batch::{
-    simulate_batch, Batch, BatchControl, BatchInput, BatchRecord, BatchSettings, BatchWatch,
-    PerRun, RunStatus,
+    simulate_batch, simulate_batch_with_lanes, Batch, BatchControl, BatchInput, BatchRecord,
+    BatchSettings, BatchWatch, Lanes, PerRun, RunStatus,
 };
 use orbitflex::integrate::{is_recorded, Controller, Drive, Run, Schedule, Wrenches};
 use orbitflex::testing::random_chain;
@@ -451,7 +451,8 @@ fn cancelled_batch_stops_every_run() {
             watch.cancel.store(true, Ordering::Relaxed);
         });
         let _over = Over(&over);
-        simulate_batch(&batch, &settings, &watch).unwrap()
+        // one run after another: the scalar path (tests/batch_lanes.rs cancels a lane group)
+        simulate_batch_with_lanes(&batch, &settings, &watch, Lanes::Off).unwrap()
     });
     assert_eq!(record.status[0], RunStatus::Finished);
     match &record.status[1] {

@@ -95,6 +95,23 @@ impl Stepper {
         k: usize,
         dt: f64,
     ) -> std::result::Result<(), String> {
+        let ee_given = self.prepare(arm, drive, x, k, dt)?;
+        self.advance(arm, x, dt, ee_given)
+    }
+
+    /// The first half of step `k`: the rows of the channels of `drive` at `(k, k dt, x)`, checked
+    /// finite, the wheel torques saturated, all held in `self` ([`Stepper::inputs`],
+    /// [`Stepper::held_wrenches`]). Returns whether the EE wrenches are given (a zero channel is
+    /// skipped). Errors are the message of step `k`'s [`Error::Simulation`].
+    #[inline]
+    pub(crate) fn prepare(
+        &mut self,
+        arm: &FlexibleArm,
+        drive: &mut Drive<'_>,
+        x: &[f64],
+        k: usize,
+        dt: f64,
+    ) -> std::result::Result<bool, String> {
         let t = k as f64 * dt;
         let wheels = self.wheel_start();
         let (u, applied) = self.inputs.split_at_mut(wheels);
@@ -112,21 +129,41 @@ impl Stepper {
             )?;
             wheels.saturate(&self.wheel_command, &x[arm.layout().wheel_speed()], applied);
         }
-        let ee_wrench: &[f64] = if drive.ee_wrench.is_zero() {
-            &[]
-        } else {
+        let ee_given = !drive.ee_wrench.is_zero();
+        if ee_given {
             wrench_row(
                 drive.ee_wrench.output(k, t, x, &mut self.ee_wrench),
                 "ee_wrench",
                 &self.ee_wrench,
             )?;
-            &self.ee_wrench
-        };
+        }
         wrench_row(
             drive.base_wrench.output(k, t, x, &mut self.base_wrench),
             "base_wrench",
             &self.base_wrench,
         )?;
+        Ok(ee_given)
+    }
+
+    /// The wrenches held by the last [`Stepper::prepare`]: `f_B` and `[f_1; …; f_k]` (stale
+    /// when that step's EE channel was zero).
+    #[inline]
+    pub(crate) fn held_wrenches(&self) -> (&[f64; 6], &[f64]) {
+        (&self.base_wrench, &self.ee_wrench)
+    }
+
+    /// The second half of a step: one RK4 step of `x` in place with the inputs held by
+    /// [`Stepper::prepare`] (`ee_given` as it returned), then the state check.
+    #[inline]
+    pub(crate) fn advance(
+        &mut self,
+        arm: &FlexibleArm,
+        x: &mut [f64],
+        dt: f64,
+        ee_given: bool,
+    ) -> std::result::Result<(), String> {
+        let wheels = self.wheel_start();
+        let ee_wrench: &[f64] = if ee_given { &self.ee_wrench } else { &[] };
         let (u, wheel_torque) = self.inputs.split_at(wheels);
         let inputs = Inputs {
             u,
@@ -142,12 +179,23 @@ impl Stepper {
                  stability limit"
             )
         })?;
-        match state_defect(&arm.layout(), x) {
-            Some(defect) => Err(format!(
-                "the state diverged: {defect}; dt = {dt} s may be past the RK4 stability limit"
-            )),
-            None => Ok(()),
-        }
+        checked_state(arm, x, dt)
+    }
+}
+
+/// The state check after a step: the message of a state that turned non-finite or whose
+/// quaternion collapsed.
+#[inline]
+pub(crate) fn checked_state(
+    arm: &FlexibleArm,
+    x: &[f64],
+    dt: f64,
+) -> std::result::Result<(), String> {
+    match state_defect(&arm.layout(), x) {
+        Some(defect) => Err(format!(
+            "the state diverged: {defect}; dt = {dt} s may be past the RK4 stability limit"
+        )),
+        None => Ok(()),
     }
 }
 

@@ -30,6 +30,10 @@ impl<const W: usize> V3<W> {
     pub fn splat(v: &Vec3) -> Self {
         Self::new(L::splat(v.x), L::splat(v.y), L::splat(v.z))
     }
+    /// Lane `k` set to lane `k` of `v`.
+    pub fn set_lane(&mut self, k: usize, v: &Self) {
+        (self.x.0[k], self.y.0[k], self.z.0[k]) = (v.x.0[k], v.y.0[k], v.z.0[k]);
+    }
     /// `a + b`.
     #[inline(always)]
     pub fn add(&self, o: &Self) -> Self {
@@ -350,14 +354,45 @@ impl<const W: usize> Xf<W> {
     }
 }
 
-/// `b_i` (A.10) at the angular velocity `w` ([`crate::spatial::bias_force`]).
+/// A rigid-body inertia in lanes, each lane its run's ([`Inertia`]): mass, centre of mass and
+/// rotational inertia about the frame origin.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct In<const W: usize> {
+    pub rotational: M3<W>,
+    pub com: V3<W>,
+    pub mass: L<W>,
+}
+
+impl<const W: usize> In<W> {
+    /// `i` in every lane.
+    pub fn splat(i: &Inertia) -> Self {
+        Self {
+            rotational: M3::splat(&i.rotational),
+            com: V3::splat(&i.com),
+            mass: L::splat(i.mass),
+        }
+    }
+
+    /// Lane `k` set to `i`.
+    pub fn set_lane(&mut self, k: usize, i: &Inertia) {
+        let one = Self::splat(i);
+        for r in 0..3 {
+            for c in 0..3 {
+                self.rotational.m[r][c].0[k] = one.rotational.m[r][c].0[0];
+            }
+        }
+        self.com.set_lane(k, &one.com);
+        self.mass.0[k] = i.mass;
+    }
+}
+
+/// `b_i` (A.10) at the angular velocity `w` ([`crate::spatial::bias_force`]), the inertia in
+/// lanes.
 #[inline(always)]
-pub fn bias_force<const W: usize>(inertia: &Inertia, w: &V3<W>) -> Sv<W> {
-    let rotational = M3::splat(&inertia.rotational);
-    let com = V3::splat(&inertia.com);
+pub fn bias_force<const W: usize>(inertia: &In<W>, w: &V3<W>) -> Sv<W> {
     Sv::new(
-        w.cross(&rotational.mul_vec(w)),
-        w.cross(&w.cross(&com)).scale(L::splat(inertia.mass)),
+        w.cross(&inertia.rotational.mul_vec(w)),
+        w.cross(&w.cross(&inertia.com)).scale(inertia.mass),
     )
 }
 
@@ -376,6 +411,30 @@ impl<const W: usize> Art<W> {
             angular: S3::splat(&a.angular),
             coupling: M3::splat(&a.coupling),
             linear: S3::splat(&a.linear),
+        }
+    }
+    /// Lane `k` set to `a`.
+    pub fn set_lane(&mut self, k: usize, a: &ArticulatedInertia) {
+        let one = Self::splat(a);
+        for (to, from) in [
+            (&mut self.angular, &one.angular),
+            (&mut self.linear, &one.linear),
+        ] {
+            for (t, f) in [
+                (&mut to.xx, from.xx),
+                (&mut to.xy, from.xy),
+                (&mut to.xz, from.xz),
+                (&mut to.yy, from.yy),
+                (&mut to.yz, from.yz),
+                (&mut to.zz, from.zz),
+            ] {
+                t.0[k] = f.0[k];
+            }
+        }
+        for r in 0..3 {
+            for c in 0..3 {
+                self.coupling.m[r][c].0[k] = one.coupling.m[r][c].0[k];
+            }
         }
     }
     #[inline(always)]

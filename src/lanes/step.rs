@@ -2,8 +2,8 @@
 //! [`crate::integrate::step`].
 
 use super::lane::L;
-use super::spatial::{bias_force, Art, Sv, Xf, M3, V3};
-use crate::flex::{normalise_quaternion, FlexibleArm, StateLayout};
+use super::spatial::{bias_force, Art, In, Sv, Xf, M3, V3};
+use crate::flex::{normalise_quaternion, FlexibleArm, FlexibleJoints, StateLayout};
 
 /// The inputs of one step in lanes, held over the step: motor torques `u` (n), `f_B` and the
 /// end-effector wrenches (one per end-effector, or none), each lane its run's.
@@ -51,6 +51,9 @@ pub struct LaneGroup<const W: usize> {
     ddq: Vec<L<W>>,
     aba: AbaLanes<W>,
     joints: [Vec<L<W>>; 4],
+    /// Each body's inertia and articulated inertia (joint frames), each lane its run's.
+    inertias: Vec<In<W>>,
+    articulated: Vec<Art<W>>,
 }
 
 impl<const W: usize> LaneGroup<W> {
@@ -86,6 +89,13 @@ impl<const W: usize> LaneGroup<W> {
                 lanes(&p.motor_inertia),
                 lanes(&p.motor_damping),
             ],
+            inertias: arm.robot().frame_inertias().iter().map(In::splat).collect(),
+            articulated: arm
+                .robot()
+                .frame_articulated()
+                .iter()
+                .map(Art::splat)
+                .collect(),
         };
         let rest = arm.rest_state();
         for k in 0..W {
@@ -111,6 +121,43 @@ impl<const W: usize> LaneGroup<W> {
         normalise_quaternion(&mut quat);
         for (j, v) in q.zip(quat) {
             self.x[j].0[k] = v;
+        }
+    }
+
+    /// Puts state `x` in lane `k` as it is (a state the scalar step computed).
+    pub fn put_state(&mut self, k: usize, x: &[f64]) {
+        for (lane, v) in self.x.iter_mut().zip(x) {
+            lane.0[k] = *v;
+        }
+    }
+
+    /// Gives lane `k` the joint parameters and the body inertias of `arm`, an arm of this
+    /// group's structure ([`super::shares_kernel`]: the same joints and frames; masses,
+    /// inertias, stiffness, damping and motor parameters may differ).
+    pub fn set_arm(&mut self, k: usize, arm: &FlexibleArm) {
+        self.set_joints(k, arm.joints());
+        let robot = arm.robot();
+        for (lanes, one) in self.inertias.iter_mut().zip(robot.frame_inertias()) {
+            lanes.set_lane(k, one);
+        }
+        for (lanes, one) in self.articulated.iter_mut().zip(robot.frame_articulated()) {
+            lanes.set_lane(k, one);
+        }
+    }
+
+    /// Gives lane `k` the joint parameters `joints` (of an arm with this group's robot): runs
+    /// of one robot with dispersed stiffness, damping, motor inertia or friction share a group.
+    pub fn set_joints(&mut self, k: usize, joints: &FlexibleJoints) {
+        let [stiffness, damping, motor_inertia, motor_damping] = &mut self.joints;
+        for (lanes, values) in [
+            (stiffness, &joints.stiffness),
+            (damping, &joints.damping),
+            (motor_inertia, &joints.motor_inertia),
+            (motor_damping, &joints.motor_damping),
+        ] {
+            for (lane, v) in lanes.iter_mut().zip(values) {
+                lane.0[k] = *v;
+            }
         }
     }
 
@@ -316,13 +363,12 @@ impl<const W: usize> LaneGroup<W> {
     ) {
         let robot = arm.robot();
         let n = robot.dof();
-        let articulated = robot.frame_articulated();
-        let inertias = robot.frame_inertias();
+        let (articulated, inertias) = (&self.articulated, &self.inertias);
         let parents = robot.parents();
         let s = &mut self.aba;
         s.omega[0] = omega_b;
         s.c[0] = Sv::default();
-        s.ia[0] = Art::splat(&articulated[0]);
+        s.ia[0] = articulated[0];
         s.pa[0] = bias_force(&inertias[0], &omega_b);
         for i in 1..=n {
             // (A.5) Φ_{i,λ}(q) as `joint_transform` builds it, one libm sin_cos per lane
@@ -371,7 +417,7 @@ impl<const W: usize> LaneGroup<W> {
                 x.rotation.mul_vec(&parent.cross(&w_cross_p)),
             );
             s.x[i] = x;
-            s.ia[i] = Art::splat(&articulated[i]);
+            s.ia[i] = articulated[i];
             s.pa[i] = bias_force(&inertias[i], &omega);
         }
         for (e, w) in inputs.ee_wrench.iter().enumerate() {

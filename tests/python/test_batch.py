@@ -1,6 +1,6 @@
 """``orbitflex.simulate_batch``: a batch equals its runs made one by one with ``arm.simulate``,
 bit for bit, for any thread count and every broadcast shape; a failing run leaves the others
-complete; bad shapes name themselves; Ctrl-C, progress and the stability warning work."""
+complete; bad shapes name themselves; Ctrl-C, progress and the stability warning work. Each test\nruns in SIMD lanes and on the scalar path."""
 
 from __future__ import annotations
 
@@ -21,6 +21,17 @@ DT = 2e-3
 STEPS = 60
 B = 4
 N = 7
+
+
+@pytest.fixture(autouse=True, params=["lanes", "scalar"])
+def batch_path(request, monkeypatch):
+    """Every test of this file twice: batches in SIMD lanes (the default) and on the scalar
+    path (``ORBITFLEX_LANES=1``, read at each call)."""
+    if request.param == "scalar":
+        monkeypatch.setenv("ORBITFLEX_LANES", "1")
+    else:
+        monkeypatch.delenv("ORBITFLEX_LANES", raising=False)
+    return request.param
 
 
 @pytest.fixture(scope="module")

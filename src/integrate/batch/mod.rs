@@ -70,6 +70,8 @@ use super::simulate::simulate_into;
 use crate::control::{AttitudePD, MotorPD};
 use crate::error::{Error, Result};
 use crate::flex::FlexibleArm;
+pub use crate::lanes::Lanes;
+use crate::lanes::{lane_groups, simulate_lanes, LaneRun};
 use rayon::prelude::*;
 use record::{buffer, per_run, Slot, SlotRecorder};
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
@@ -218,6 +220,19 @@ pub fn simulate_batch(
     settings: &BatchSettings,
     watch: &BatchWatch,
 ) -> Result<BatchRecord> {
+    simulate_batch_with_lanes(batch, settings, watch, Lanes::Auto)
+}
+
+/// [`simulate_batch`] with the lanes chosen: runs of one robot driven by torque tables or
+/// [`MotorPD`]s go `W` at a time through one RK4 step in SIMD lanes ([`crate::lanes`]), each
+/// lane bit for bit its scalar run; `Lanes::Off` runs every run on the scalar path. The record
+/// is the same whatever the choice.
+pub fn simulate_batch_with_lanes(
+    batch: &Batch<'_>,
+    settings: &BatchSettings,
+    watch: &BatchWatch,
+    lanes: Lanes,
+) -> Result<BatchRecord> {
     batch.check(settings)?;
     let layout = batch.arms.get(0).layout();
     let (runs, steps, every) = (batch.runs, settings.steps, settings.record_every);
@@ -266,18 +281,7 @@ pub fn simulate_batch(
             torque,
         })
         .collect();
-    let status = in_pool(settings.threads, || {
-        slots
-            .into_par_iter()
-            .enumerate()
-            .with_max_len(1)
-            .map(|(run, slot)| {
-                let status = one_run(batch, settings, run, slot, rows, &watch.cancel);
-                watch.done.fetch_add(1, Ordering::Relaxed);
-                status
-            })
-            .collect::<Vec<_>>()
-    })?;
+    let status = run_all(batch, settings, slots, rows, watch, lanes.width())?;
     let t = (0..=steps)
         .filter(|&j| settings.keep_rows && is_recorded(j, steps, every))
         .map(|j| j as f64 * settings.dt)
@@ -298,17 +302,78 @@ pub fn simulate_batch(
     })
 }
 
-/// Run `run` of a checked batch into its slot.
-fn one_run(
+/// The arm of run `run` when the lanes may integrate it (the kind of controller the lanes call
+/// per lane; [`crate::lanes::lane_groups`] then checks the arm), `None` for the scalar path.
+fn lane_arm<'a>(batch: &Batch<'a>, run: usize) -> Option<&'a FlexibleArm> {
+    let lanes = matches!(batch.u, BatchControl::Open(_) | BatchControl::Pd(_))
+        && matches!(batch.wheel_torque, BatchControl::Open(_));
+    lanes.then(|| batch.arms.get(run))
+}
+
+/// A piece of work for one thread: a lane group, or one run on the scalar path.
+enum Task<'s> {
+    Lanes(Vec<(usize, Slot<'s>)>),
+    One(usize, Slot<'s>),
+}
+
+/// Every run of a checked batch into its slot, lane groups of `width` first (the heavier
+/// tasks), then the runs left to the scalar path; the statuses in run order.
+fn run_all(
     batch: &Batch<'_>,
     settings: &BatchSettings,
-    run: usize,
-    slot: Slot<'_>,
+    slots: Vec<Slot<'_>>,
     rows: usize,
-    cancel: &AtomicBool,
-) -> RunStatus {
+    watch: &BatchWatch,
+    width: usize,
+) -> Result<Vec<RunStatus>> {
+    let (groups, scalar) = lane_groups(batch.runs, width, |run| lane_arm(batch, run));
+    let mut slots: Vec<Option<Slot<'_>>> = slots.into_iter().map(Some).collect();
+    let mut take = |run: usize| (run, slots[run].take().expect("each run in one task"));
+    let mut tasks: Vec<Task<'_>> = Vec::with_capacity(groups.len() + scalar.len());
+    for g in &groups {
+        tasks.push(Task::Lanes(g.iter().map(|&run| take(run)).collect()));
+    }
+    for &run in &scalar {
+        let (run, slot) = take(run);
+        tasks.push(Task::One(run, slot));
+    }
+    let done = in_pool(settings.threads, || {
+        tasks
+            .into_par_iter()
+            .with_max_len(1)
+            .flat_map_iter(|task| {
+                let statuses = match task {
+                    Task::Lanes(runs) => lane_runs(batch, settings, runs, rows, width, watch),
+                    Task::One(run, slot) => {
+                        vec![(
+                            run,
+                            one_run(batch, settings, run, slot, rows, &watch.cancel),
+                        )]
+                    }
+                };
+                watch.done.fetch_add(statuses.len(), Ordering::Relaxed);
+                statuses
+            })
+            .collect::<Vec<_>>()
+    })?;
+    let mut status = vec![RunStatus::Finished; batch.runs];
+    for (run, s) in done {
+        status[run] = s;
+    }
+    Ok(status)
+}
+
+/// Run `run`'s inputs (an error when its controllers cannot be bound to its arm) and the
+/// recorder of its slot.
+fn prepared<'a, 's>(
+    batch: &Batch<'a>,
+    settings: &BatchSettings,
+    run: usize,
+    slot: Slot<'s>,
+    rows: usize,
+) -> (Result<input::RunInputs<'a>>, SlotRecorder<'s>) {
     let layout = batch.arms.get(run).layout();
-    let mut recorder = SlotRecorder {
+    let recorder = SlotRecorder {
         deflection: vec![0.0; layout.n],
         torque: vec![0.0; layout.n],
         last: vec![f64::NAN; layout.len()],
@@ -320,27 +385,24 @@ fn one_run(
         keep: settings.keep_rows,
         next: 0,
     };
-    if cancel.load(Ordering::Relaxed) {
-        // cancelled before it started: its start is its last good state
-        let mut x0 = batch.x0.row(run).unwrap_or(&[]).to_vec();
-        crate::flex::normalise_quaternion(&mut x0[layout.quaternion()]);
-        let _ = recorder.state(0.0, &x0).and_then(|_| recorder.finish());
-        return RunStatus::Failed {
-            step: 0,
-            time: 0.0,
-            message: "interrupted by the caller".into(),
-        };
+    (batch.inputs(run, settings.steps), recorder)
+}
+
+/// Run `run` cancelled before it started: its start is its last good state.
+fn cancelled(batch: &Batch<'_>, run: usize, recorder: &mut SlotRecorder<'_>) -> RunStatus {
+    let layout = batch.arms.get(run).layout();
+    let mut x0 = batch.x0.row(run).unwrap_or(&[]).to_vec();
+    crate::flex::normalise_quaternion(&mut x0[layout.quaternion()]);
+    let _ = recorder.state(0.0, &x0).and_then(|_| recorder.finish());
+    RunStatus::Failed {
+        step: 0,
+        time: 0.0,
+        message: "interrupted by the caller".into(),
     }
-    let outcome = batch.inputs(run, settings.steps).and_then(|mut inputs| {
-        let (arm, x0) = (inputs.arm, inputs.x0);
-        simulate_into(
-            arm,
-            &Run::new(x0, settings.dt, settings.steps),
-            &mut inputs.drive(),
-            &mut Cancel(cancel),
-            &mut recorder,
-        )
-    });
+}
+
+/// The status of a run from the outcome of its [`simulate_into`].
+fn status_of(outcome: Result<()>) -> RunStatus {
     match outcome {
         Ok(()) => RunStatus::Finished,
         Err(Error::Simulation {
@@ -359,6 +421,76 @@ fn one_run(
             message: other.to_string(),
         },
     }
+}
+
+/// Run `run` of a checked batch into its slot.
+fn one_run(
+    batch: &Batch<'_>,
+    settings: &BatchSettings,
+    run: usize,
+    slot: Slot<'_>,
+    rows: usize,
+    cancel: &AtomicBool,
+) -> RunStatus {
+    let (inputs, mut recorder) = prepared(batch, settings, run, slot, rows);
+    if cancel.load(Ordering::Relaxed) {
+        return cancelled(batch, run, &mut recorder);
+    }
+    status_of(inputs.and_then(|mut inputs| {
+        let (arm, x0) = (inputs.arm, inputs.x0);
+        simulate_into(
+            arm,
+            &Run::new(x0, settings.dt, settings.steps),
+            &mut inputs.drive(),
+            &mut Cancel(cancel),
+            &mut recorder,
+        )
+    }))
+}
+
+/// The runs of one lane group ([`crate::lanes::simulate_lanes`]), each into its slot.
+fn lane_runs(
+    batch: &Batch<'_>,
+    settings: &BatchSettings,
+    runs: Vec<(usize, Slot<'_>)>,
+    rows: usize,
+    width: usize,
+    watch: &BatchWatch,
+) -> Vec<(usize, RunStatus)> {
+    let mut statuses = Vec::with_capacity(runs.len());
+    let (mut ids, mut inputs, mut recorders) = (Vec::new(), Vec::new(), Vec::new());
+    for (run, slot) in runs {
+        match prepared(batch, settings, run, slot, rows) {
+            (Ok(i), recorder) => {
+                ids.push(run);
+                inputs.push(i);
+                recorders.push(recorder);
+            }
+            // as on the scalar path: the run fails before its first step
+            (Err(e), _) => statuses.push((run, status_of(Err(e)))),
+        }
+    }
+    if watch.cancel.load(Ordering::Relaxed) {
+        statuses.extend(
+            ids.into_iter()
+                .zip(&mut recorders)
+                .map(|(run, r)| (run, cancelled(batch, run, r))),
+        );
+        return statuses;
+    }
+    let mut lanes: Vec<LaneRun<'_>> = inputs
+        .iter_mut()
+        .zip(&mut recorders)
+        .map(|(i, recorder)| LaneRun {
+            arm: i.arm,
+            run: Run::new(i.x0, settings.dt, settings.steps),
+            drive: i.drive(),
+            recorder,
+        })
+        .collect();
+    let outcomes = simulate_lanes(&mut lanes, width, &mut Cancel(&watch.cancel));
+    statuses.extend(ids.into_iter().zip(outcomes.into_iter().map(status_of)));
+    statuses
 }
 
 #[cfg(test)]
