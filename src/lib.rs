@@ -33,7 +33,7 @@ pub mod testing;
 pub use algorithms::Data;
 pub use args::{Loads, RigidState};
 pub use capture::{capture, Capture, Target};
-pub use control::{Controller, MotorPD, Schedule, Wrenches};
+pub use control::{Controller, MotorPD, Quintic, Schedule, Wrenches};
 pub use dynamics::Method;
 pub use error::{Error, Result};
 pub use flex::{

@@ -36,6 +36,8 @@ __all__ = [
     "CaptureWhen",
     "CaptureEvent",
     "plan_slew",
+    "quintic_reference",
+    "_quintic_profile",
     "rotation_matrix",
     "euler_zyx",
     "rotation_angle",
@@ -591,6 +593,11 @@ def euler_zyx(quat: _ArrayLike) -> npt.NDArray[np.float64]:
 def rotation_angle(q0: _ArrayLike, q1: _ArrayLike) -> Any:
     """The angle (rad, in [0, π]) of the rotation from attitude ``q0`` to ``q1``, accurate for tiny
     angles; a float for two (4,), else (k,)."""
+def quintic_reference(start: _ArrayLike, goal: _ArrayLike, duration: float, dt: float, steps: int) -> Tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
+    """The quintic rest-to-rest reference from ``start`` to ``goal`` (rad, (n,)) over ``duration``
+    s, then held, tabulated for ``steps`` steps of ``dt`` (row k at t = k·dt): ``(theta_ref,
+    theta_dot_ref)``, each (steps, n), rad and rad/s; the same bits on every processor."""
+def _quintic_profile(s: _ArrayLike) -> Tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]: ...
 def plan_slew(arm: FlexibleArm, q_goal: _ArrayLike, q_start: Optional[_ArrayLike] = None, limits: Optional[Limits] = None, base: str = "held", waypoints: Optional[_ArrayLike] = None) -> Plan: ...
 def simulate_batch(arm_or_arms: Union[FlexibleArm, Sequence[FlexibleArm]], x0s: _ArrayLike, dt: float, steps: int, u: Union[None, _ArrayLike, MotorPD, Sequence[MotorPD], Sampled] = None, base_wrench: Optional[_ArrayLike] = None, ee_wrench: Optional[_Wrench] = None, threads: Optional[int] = None, record_every: Optional[int] = None, *, keep_rows: bool = True, progress: Optional[Callable[[int, int], Any]] = None, wheel_torque: Union[None, _ArrayLike, AttitudePD, Sequence[AttitudePD], Sampled] = None, lanes: Union[None, bool, int] = None) -> BatchTrajectory: ...
 def simulate_capture_batch(arms: Union[FlexibleArm, Sequence[FlexibleArm]], x0s: _ArrayLike, dt: float, steps: int, controllers: Union[MotorPD, Sequence[MotorPD]], targets: Sequence[Target], capture: CaptureWhen, *, capture_ee: Union[str, int, None] = None, record_every: Optional[int] = None, threads: Optional[int] = None, wheel_torque: Union[None, AttitudePD, Sequence[AttitudePD]] = None) -> List[Trajectory]: ...

@@ -1,6 +1,6 @@
 //! What drives a run, below the model: the [`Controller`] trait (one row of a channel per step,
 //! from the step, the time and the state), the [`Feedback`] a controller declares, the input
-//! holders ([`Schedule`], [`Wrenches`]), the built-in [`MotorPD`] (the joints) and
+//! holders ([`Schedule`], [`Wrenches`]), the [`Quintic`] reference slew, the built-in [`MotorPD`] (the joints) and
 //! [`AttitudePD`] (the bus, through its reaction wheels).
 //!
 //! A controller knows nothing of the arm it drives but the state layout ([`crate::state`]); the
@@ -10,6 +10,7 @@
 mod attitude_pd;
 mod controller;
 mod motor_pd;
+mod quintic;
 mod sampled;
 mod schedule;
 mod wrenches;
@@ -17,6 +18,7 @@ mod wrenches;
 pub use attitude_pd::{min_norm_allocation, AttitudePD, AttitudeTarget};
 pub use controller::{Controller, Feedback};
 pub use motor_pd::MotorPD;
+pub use quintic::{quintic_profile, Quintic};
 pub use sampled::Sampled;
 pub use schedule::Schedule;
 pub use wrenches::Wrenches;

@@ -3,10 +3,12 @@
 use super::convert::{array1, as_float_array, matrix, real, row_major, vector};
 use super::errors::ModelError;
 use super::joints::Param;
-use crate::control::{AttitudePD, AttitudeTarget, Controller, MotorPD, Sampled, Schedule};
+use crate::control::{
+    quintic_profile, AttitudePD, AttitudeTarget, Controller, MotorPD, Quintic, Sampled, Schedule,
+};
 use crate::error::Error;
 use crate::flex::FlexibleArm;
-use numpy::PyArray1;
+use numpy::{PyArray1, PyArrayMethods};
 use pyo3::prelude::*;
 use pyo3::types::PyTuple;
 
@@ -599,4 +601,48 @@ fn wrap<'a>(
     delay: usize,
 ) -> PyResult<Box<dyn Controller + Send + 'a>> {
     Ok(Box::new(Sampled::new(inner, rate_hz, delay)?))
+}
+
+/// The quintic rest-to-rest reference of the joints from ``start`` to ``goal`` (rad, (n,)) over
+/// ``duration`` seconds, then held at ``goal``, tabulated for ``steps`` steps of ``dt`` (row ``k``
+/// at ``t = k·dt``): ``(theta_ref, theta_dot_ref)``, each (steps, n), in rad and rad/s, ready for
+/// :class:`MotorPD`. Evaluated in factored form (the same bits on every processor).
+#[pyfunction]
+#[pyo3(name = "quintic_reference", signature = (start, goal, duration, dt, steps))]
+pub(crate) fn py_quintic_reference<'py>(
+    py: Python<'py>,
+    start: &Bound<'py, PyAny>,
+    goal: &Bound<'py, PyAny>,
+    duration: &Bound<'py, PyAny>,
+    dt: &Bound<'py, PyAny>,
+    steps: &Bound<'py, PyAny>,
+) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>)> {
+    let start = vector(start, "start", None)?;
+    let goal = vector(goal, "goal", Some(start.len()))?;
+    let quintic = Quintic::new(&start, &goal, real(duration, "duration")?)?;
+    let steps = super::convert::count(steps, "steps")?;
+    let (theta, theta_dot) = quintic.schedules(real(dt, "dt")?, steps)?;
+    let shape = [steps, start.len()];
+    let array = |s: Schedule| -> PyResult<Bound<'py, PyAny>> {
+        let values = match s {
+            Schedule::Table { values, .. } => values,
+            _ => unreachable!("Quintic::schedules gives tables"),
+        };
+        Ok(PyArray1::from_vec(py, values).reshape(shape)?.into_any())
+    };
+    Ok((array(theta)?, array(theta_dot)?))
+}
+
+/// The quintic profile ``p(s) = 10s³ − 15s⁴ + 6s⁵`` and ``dp/ds`` at each ``s`` (a 1-D array,
+/// clamped to [0, 1]); private, wrapped by ``orbitflex._reference.quintic``.
+#[pyfunction]
+#[pyo3(name = "_quintic_profile")]
+pub(crate) fn py_quintic_profile<'py>(
+    py: Python<'py>,
+    s: &Bound<'py, PyAny>,
+) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>)> {
+    let s = vector(s, "s", None)?;
+    let (p, dp): (Vec<f64>, Vec<f64>) = s.iter().map(|&s| quintic_profile(s)).unzip();
+    let array = |v| PyArray1::from_vec(py, v).into_any();
+    Ok((array(p), array(dp)))
 }

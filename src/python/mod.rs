@@ -91,5 +91,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(rotations::euler_zyx, m)?)?;
     m.add_function(wrap_pyfunction!(rotations::rotation_angle, m)?)?;
     m.add_function(wrap_pyfunction!(fmu::py_fmu_files, m)?)?;
+    m.add_function(wrap_pyfunction!(control::py_quintic_reference, m)?)?;
+    m.add_function(wrap_pyfunction!(control::py_quintic_profile, m)?)?;
     Ok(())
 }

@@ -79,11 +79,9 @@ def test_columns_and_a_row_made_by_hand(reference):
     assert len(set(p["damping"])) == 1 and len(set(p["kp"])) == 1  # one draw for all joints
     robot = orbitflex.models.space_arm().with_payload(float(p["payload_mass"]), com=[0, 0, 0.1])
     arm = FlexibleArm(robot, FlexibleJoints(p["stiffness"], p["motor_inertia"], p["damping"], p["motor_damping"]))
-    t = np.arange(c.steps) * c.dt
-    s = np.clip(t / c.slew_time, 0, 1)
-    shape, dshape = 10 * s**3 - 15 * s**4 + 6 * s**5, 30 * s**2 - 60 * s**3 + 30 * s**4
-    delta = p["goal"] - p["q0"]
-    pd_ = MotorPD(p["kp"], p["kd"], p["q0"] + np.outer(shape, delta), np.outer(dshape / c.slew_time, delta))
+    # the quintic slew from q0 to goal (its values against the closed form: test_quintic.py)
+    theta_ref, theta_dot_ref = orbitflex.quintic_reference(p["q0"], p["goal"], c.slew_time, c.dt, c.steps)
+    pd_ = MotorPD(p["kp"], p["kd"], theta_ref, theta_dot_ref)
     x0 = arm.state(q=p["q0"], base_twist=np.r_[p["base_rate"], 0, 0, 0])
     traj = arm.simulate(x0, c.dt, c.steps, u=pd_)
     assert row["peak_deflection"] == np.abs(traj.deflection).max()

@@ -19,9 +19,8 @@ from typing import Any, Callable, Dict, List, Mapping, Optional, Sequence, TYPE_
 import numpy as np
 
 from .. import (AttitudePD, FlexibleArm, FlexibleJoints, ModelError, MotorPD, Plan, ReactionWheels, Robot, Trajectory,
-                models, simulate_batch)
+                models, quintic_reference, simulate_batch)
 from . import wheels as bus
-from .._reference import quintic
 from .dispersion import CampaignError, Dispersion, JOINT_PARAMETERS, POSITIVE, UNITS, _vector
 from .files import campaign_from_dict
 from .execute import ChunkLog, _Table, _campaign_numbers, _ee_positions, _offset, _run_chunk_task, reachable
@@ -326,10 +325,7 @@ class Campaign:
         return names
 
     def _reference(self, n: int, q0: Array, goal: Array, steps: int) -> Tuple[Array, Array]:
-        t = np.arange(steps, dtype=np.float64) * self.dt
-        shape, dshape = quintic(t / self.slew_time)
-        delta = goal - q0
-        return q0 + np.outer(shape, delta), np.outer(dshape / self.slew_time, delta)
+        return quintic_reference(q0, goal, self.slew_time, self.dt, steps)
 
     @property
     def steps(self) -> int:

@@ -12,8 +12,7 @@ from typing import Any, Dict, Optional, Sequence, Tuple
 import numpy as np
 import numpy.typing as npt
 
-from .. import FlexibleArm, MotorPD, Robot
-from .._reference import quintic
+from .. import FlexibleArm, MotorPD, Robot, quintic_reference
 from .errors import CliError, cli_words
 
 
@@ -65,10 +64,7 @@ def slew_controller(arm: FlexibleArm, slew: Array, steps: int, dt: float, slew_t
                     gains: Gains) -> MotorPD:
     """The motor PD with ``gains`` that follows a quintic slew of ``slew`` (rad per joint) over
     ``slew_time`` seconds, tabulated for ``steps`` steps of ``dt``."""
-    t = np.arange(steps, dtype=np.float64) * dt
-    shape, dshape = quintic(t / slew_time)
-    theta_ref = np.outer(shape, slew)
-    theta_dot_ref = np.outer(dshape / slew_time, slew)
+    theta_ref, theta_dot_ref = quintic_reference(np.zeros_like(slew), slew, slew_time, dt, steps)
     return MotorPD(gains.kp, gains.kd, theta_ref, theta_dot_ref)
 
 
