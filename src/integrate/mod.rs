@@ -30,6 +30,7 @@
 
 pub mod arm;
 pub mod batch;
+pub mod energy_balance;
 pub mod record;
 pub mod rk4;
 pub mod run;
@@ -42,6 +43,7 @@ pub use batch::{simulate_batch, Batch, BatchRecord, BatchSettings, RunRecord, Ru
 // the controllers live below the model (`crate::control`); re-exported where runs are made
 pub use crate::control::{Controller, Feedback, MotorPD, Schedule, Wrenches};
 pub use arm::ArmWorkspace;
+pub use energy_balance::EnergyBalance;
 pub use record::{is_recorded, recorded_rows, Chunk, Chunks, Recorder};
 pub use rk4::{OdeSystem, Rk4};
 pub use run::{Drive, Run};

@@ -116,6 +116,25 @@ impl PyTrajectory {
 
     /// A diagnostic of `per_row` numbers per stored row, computed without the GIL by `f` over
     /// a range of rows ([`Self::in_chunks`]).
+    /// The record as a Rust [`crate::Trajectory`] (a copy), for the analyses that need rows and
+    /// inputs together; refused for a run with a target (its energy is not the arm's alone).
+    fn record(&self, py: Python<'_>) -> PyResult<crate::Trajectory> {
+        if self.capture.is_some() {
+            return Err(super::errors::ModelError::new_err(
+                "energy balance: a run with a target exchanges energy with it; not available",
+            ));
+        }
+        let t = self.t.bind(py).readonly();
+        let x = self.x.bind(py).readonly();
+        let u = self.u.bind(py).readonly();
+        Ok(crate::Trajectory {
+            t: t.as_slice()?.to_vec(),
+            x: x.as_slice()?.to_vec(),
+            u: u.as_slice()?.to_vec(),
+            layout: self.layout,
+        })
+    }
+
     fn along(
         &self,
         py: Python<'_>,
@@ -327,6 +346,26 @@ impl PyTrajectory {
             })
             .map(|a| a.clone_ref(py))
     }
+    /// Each step's energy flows (J), (steps, 3): the change of the arm's energy ``E(t_{k+1}) −
+    /// E(t_k)``, the motors' work (trapezoid rule on ``u·θ̇``) and the energy the joint and motor
+    /// damping dissipated (trapezoid rule on ``Σ d (θ̇ − q̇)² + β θ̇²``), for the steps whose torque
+    /// the record holds. Needs every step recorded (``record_every=1``); not for runs with a
+    /// target.
+    fn energy_steps<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let steps = self.record(py)?.energy_steps(&self.arm.get().arm)?;
+        let rows = steps.len();
+        let values = steps.into_iter().flatten().collect();
+        Ok(row_major(py, rows, 3, values).into_any())
+    }
+
+    /// ``(E(T) − E(0), motor work, dissipated)`` (J) over the steps whose torque the record
+    /// holds (:meth:`energy_steps`, the works summed in step order with compensation); the
+    /// residual ``E(T) − E(0) − (work − dissipated)`` is the quadrature's error, O(dt²).
+    fn energy_balance(&self, py: Python<'_>) -> PyResult<(f64, f64, f64)> {
+        let b = self.record(py)?.energy_balance(&self.arm.get().arm)?;
+        Ok((b.change, b.motor_work, b.dissipated))
+    }
+
     /// Total energy (J): rigid kinetic + motor kinetic + spring, (k,). In a run with a target,
     /// plus the free target's kinetic energy before the capture (the combined arm's after).
     #[getter]

@@ -25,23 +25,17 @@ def rotation_angle_deg(q0: Array, q1: Array) -> Array:
 def energy_steps(traj: Trajectory) -> Tuple[Array, Array, Array]:
     """Per step of the record, the power balance's terms (docs/model.md, section 6) by the
     trapezoid rule (``traj.u`` held over each step): ``(ΔE, motor work, dissipated energy)``,
-    (rows − 1,) each. With no external wrench, ``ΔE = motor work − dissipated`` up to the
-    quadrature and RK4 errors."""
-    u = traj.u
-    _, _, d, beta = traj.arm.parameters
-    td, qd = traj.theta_dot, traj.qd
-    rows = len(u)
-    dt = np.diff(traj.t[: rows + 1])
-    dissipation = ((td - qd) ** 2 * d).sum(axis=1) + (td**2 * beta).sum(axis=1)
-    motor = 0.5 * ((u * td[:rows]).sum(axis=1) + (u * td[1 : rows + 1]).sum(axis=1))
-    return np.diff(traj.energy[: rows + 1]), dt * motor, 0.5 * dt * (dissipation[:rows] + dissipation[1 : rows + 1])
+    (rows − 1,) each (:meth:`Trajectory.energy_steps`). With no external wrench, ``ΔE = motor
+    work − dissipated`` up to the quadrature and RK4 errors."""
+    steps = traj.energy_steps()
+    return steps[:, 0], steps[:, 1], steps[:, 2]
 
 
 def energy_balance(traj: Trajectory) -> Tuple[float, float, float]:
-    """``(E(T) - E(0), motor work, dissipated energy)`` over the record (:func:`energy_steps`)."""
-    _, work, dissipated = energy_steps(traj)
-    rows = len(traj.u)
-    return float(traj.energy[rows] - traj.energy[0]), float(np.sum(work)), float(np.sum(dissipated))
+    """``(E(T) - E(0), motor work, dissipated energy)`` over the record
+    (:meth:`Trajectory.energy_balance`)."""
+    change, work, dissipated = traj.energy_balance()
+    return change, work, dissipated
 
 
 # A run whose energy balance misses by more than this share of the energy that flowed has left
