@@ -287,4 +287,34 @@ mod tests {
         assert_eq!(limits.given_for(true), ["base_torque_axes"]);
         assert_eq!(limits.given_for(false), ["base_rate_axes", "base_speed"]);
     }
+
+    #[test]
+    fn the_point_moves_the_moment_and_not_the_force() {
+        let wrench = [1.0, -2.0, 3.0, 4.0, 5.0, -6.0];
+        let com = [0.5, -0.25, 2.0];
+        assert_eq!(BasePoint::Origin.wrench(&wrench, &com), wrench);
+        // r_c × F = (−0.25·−6 − 2·5, 2·4 − 0.5·−6, 0.5·5 − −0.25·4) = (−8.5, 11, 3.5)
+        assert_eq!(
+            BasePoint::SystemCom.wrench(&wrench, &com),
+            [9.5, -13.0, -0.5, 4.0, 5.0, -6.0]
+        );
+        for point in [BasePoint::Origin, BasePoint::SystemCom] {
+            assert_eq!(BasePoint::from_name(point.name()).unwrap(), point);
+        }
+        assert_eq!(BasePoint::default(), BasePoint::Origin);
+        let e = BasePoint::from_name("cog").unwrap_err().to_string();
+        assert_eq!(
+            e,
+            "base_point: expected \"origin\" (the base origin) or \"com\" (the system centre of \
+             mass), given \"cog\""
+        );
+        let com = BaseLimits {
+            point: BasePoint::SystemCom,
+            ..Default::default()
+        };
+        assert_eq!(com.given_for(true), ["base_point"]);
+        assert!(
+            com.given_for(false).is_empty() && BaseLimits::default().given_for(true).is_empty()
+        );
+    }
 }
