@@ -1935,3 +1935,119 @@ fn base_axis_limits_closed_forms_on_a_rotor() {
         "{e}"
     );
 }
+
+/// Held moment bounds about the system centre of mass (`BasePoint::SystemCom`), closed form on a
+/// one-link arm: a bus of mass `M = 100` kg with its centre at its origin, and a link on a joint
+/// at the origin along `z_B`, of mass `m = 10` kg, centre at `l = 0.5` m from the axis and
+/// `I_l = 0.2` kg·m² about its centre. The link's centre `p = l (cos q, sin q, 0)` moves on a
+/// circle, so the holding force is `F_B = m p̈` and its moment about the origin is
+/// `n_B = (I_l + m l²) q̈ ẑ`. The system COM is `r_c = m p / (M + m)`, and with
+/// `p × p̈ = l² q̈ ẑ` the moment about it is
+/// `n_C = n_B − r_c × F_B = (I_l + μ l²) q̈ ẑ`, `μ = m M / (M + m)` the reduced mass: the link
+/// turns about the shared centre, not about the joint. A bound `L` on `|n_z|` gives
+/// `T = √(I Δ σ''max / L)` with `I = I_l + μ l²` about the COM and `I_l + m l²` about the origin
+/// (tolerance as in the rotor test above).
+#[test]
+fn held_moment_bounds_about_the_system_com_closed_form() {
+    use orbitflex::planning::{BaseBound, BaseLimits, BasePoint};
+    let urdf = r#"<robot name="one_link">
+<link name="bus"><inertial><origin xyz="0 0 0"/><mass value="100"/>
+  <inertia ixx="30" iyy="40" izz="50" ixy="0" ixz="0" iyz="0"/></inertial></link>
+<joint name="j" type="revolute"><parent link="bus"/><child link="link"/><origin xyz="0 0 0"/>
+  <axis xyz="0 0 1"/><limit effort="1e6" velocity="1e3" lower="-10" upper="10"/></joint>
+<link name="link"><inertial><origin xyz="0.5 0 0"/><mass value="10"/>
+  <inertia ixx="0.1" iyy="0.2" izz="0.2" ixy="0" ixz="0" iyz="0"/></inertial></link>
+</robot>"#;
+    let robot = Robot::from_urdf_string(urdf, &orbitflex::UrdfOptions::default()).unwrap();
+    let joints = FlexibleJoints::new(vec![1e4], vec![0.5], vec![0.0], vec![0.0]).unwrap();
+    let arm = FlexibleArm::new(robot, joints).unwrap();
+    let (big_m, m, l, i_l) = (100.0, 10.0, 0.5, 0.2);
+    let mu = m * big_m / (big_m + m);
+    let sigma2 = 2520.0 * (3.0f64 / 14.0).powi(3) / 7f64.sqrt();
+    let (delta, torque) = (1.2, 0.8);
+    for (point, inertia) in [
+        (BasePoint::Origin, i_l + m * l * l),
+        (BasePoint::SystemCom, i_l + mu * l * l),
+    ] {
+        for norm in [false, true] {
+            let mut limits = Limits::uniform(1e6, 1e3)
+                .unwrap()
+                .with_base_axes(BaseLimits {
+                    torque: (!norm).then_some([1e3, 1e3, torque]),
+                    point,
+                    ..Default::default()
+                })
+                .unwrap();
+            if norm {
+                limits.base_torque = Some(torque);
+            }
+            let plan = plan_slew(&arm, &[delta], None, &limits, BaseMode::Held, &[]).unwrap();
+            let expected = (inertia * delta * sigma2 / torque).sqrt();
+            assert!(
+                (plan.duration() / expected - 1.0).abs() < 1e-7,
+                "{point:?} norm {norm}: {} against {expected}",
+                plan.duration()
+            );
+            let b = plan.binding();
+            let want = if norm {
+                (Constraint::BaseTorque, None)
+            } else {
+                (Constraint::Base(BaseBound::TorqueAxis), Some(2))
+            };
+            assert_eq!(
+                (b.constraint, b.axis, b.point),
+                (want.0, want.1, Some(point))
+            );
+            assert!((b.value / torque - 1.0).abs() < 1e-7, "{}", b.value);
+            // at every sample the transferred moment is the closed form, and within the bound
+            let s = plan.samples();
+            for k in 0..s.t.len() {
+                let f: [f64; 6] = s.base_wrench[6 * k..6 * k + 6].try_into().unwrap();
+                let q = s.q[k];
+                let com = [
+                    m * l * q.cos() / (big_m + m),
+                    m * l * q.sin() / (big_m + m),
+                    0.0,
+                ];
+                let n = point.wrench(&f, &com);
+                // round-off: a few ulps of the largest terms, `m l² (|q̈| + q̇²)`
+                let scale = (i_l + m * l * l) * (s.qdd[k].abs() + s.qd[k] * s.qd[k]);
+                let err = (n[2] - inertia * s.qdd[k]).abs();
+                assert!(
+                    err <= 1e-14 * scale + 1e-300,
+                    "{point:?} sample {k}: {err:e}"
+                );
+                assert!(n[2].abs() <= torque * (1.0 + 1e-9));
+                assert_eq!(&n[3..], &f[3..]);
+            }
+        }
+    }
+    // the origin's bindings name no point for the other limits
+    let plain = plan_slew(
+        &arm,
+        &[delta],
+        None,
+        &Limits::uniform(1.0, 1e3).unwrap(),
+        BaseMode::Held,
+        &[],
+    )
+    .unwrap();
+    assert_eq!(plain.binding().point, None);
+    // a free base refuses the COM, saying why
+    let com = Limits::uniform(1e6, 1e3)
+        .unwrap()
+        .with_base_axes(BaseLimits {
+            rate_norm: Some(0.1),
+            point: BasePoint::SystemCom,
+            ..Default::default()
+        })
+        .unwrap();
+    let e = plan_slew(&arm, &[delta], None, &com, BaseMode::Free, &[])
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.starts_with("limits.base_point: \"com\" names the point a held base's moment bounds")
+            && e.contains("the system COM stays still"),
+        "{e}"
+    );
+}

@@ -298,6 +298,24 @@ pub(crate) fn rigid_jets(robot: &Robot, s: &mut JetScratch, base: BaseMode) -> R
     })
 }
 
+/// The system centre of mass relative to the base origin, base frame (m), at the joint angles
+/// whose rotation jets `s` holds (set by [`rigid_jets`]). A unit base translation `v = e_k` with
+/// the joints still moves every body at `e_k`, so the momentum about the base origin is
+/// `[m r_c × e_k; m e_k]`: `m r_c × e_x = m (0, c_z, −c_y)` and `m r_c × e_y = m (−c_z, 0, c_x)`.
+pub(crate) fn system_com(robot: &Robot, s: &mut JetScratch) -> Vec3 {
+    let mut unit_momentum = |k: usize| {
+        let mut twist = [Motion::zero(); TERMS];
+        let mut unit = [0.0; 6];
+        unit[3 + k] = 1.0;
+        twist[0] = Motion::from_slice(&unit);
+        velocities(robot, s, twist, false);
+        momentum(robot, s)[0]
+    };
+    let (hx, hy) = (unit_momentum(0), unit_momentum(1));
+    let mass = hx.linear.x;
+    Vec3::new(hy.angular.z, -hx.angular.z, hx.angular.y) / mass
+}
+
 /// `V_B` with zero total momentum: `M_b(t) V_B(t) = −h_arm(t)`, where `M_b` is the composite
 /// inertia of all bodies about the base (its columns are the momenta of unit base twists) and
 /// `h_arm` the momentum of the joint rates with the base still; solved order by order.

@@ -107,8 +107,8 @@ pub struct Outputs {
     /// Reaction-wheel speeds `Ω` relative to the bus (k, rad/s; empty without wheels).
     pub wheel_speed: Vec<f64>,
     /// The torques the wheel motors applied over the last step (k, N·m, after saturation;
-    /// zero before the first step; empty without wheels): row `k` of a run's
-    /// [`Trajectory::wheel_torque`](crate::Trajectory::wheel_torque) after step `k`.
+    /// zero before the first step; empty without wheels): after step `k`, the wheel columns of
+    /// row `k` of a run's held inputs ([`Trajectory::u`](crate::Trajectory::u)).
     pub applied_wheel_torque: Vec<f64>,
 }
 

@@ -14,14 +14,84 @@
 //!
 //! The held bounds apply to a held base only and the free ones to a free-floating base only: a
 //! plan refuses the others, naming them.
+//!
+//! **The point the held moment is taken about** ([`BasePoint`], `point`): the base origin `B`
+//! (default) or the system centre of mass `C`. With `r_c(q)` the position of `C` relative to
+//! `B` (base frame, a function of the joint angles), the same wrench `[n_B; F_B]` about `C` has
+//! the moment `n_C = n_B − r_c × F_B`: a force `F` at a point `P` gives the moment
+//! `(P − B) × F` about `B` and `(P − C) × F = (P − B) × F − r_c × F` about `C`. The force does
+//! not depend on the point. The point applies to the per-axis torque bounds (`torque`) and to
+//! the norm bound [`Limits::base_torque`](super::Limits).
+//!
+//! A free-floating base takes no point: it receives no wrench, its rates are those of a rigid
+//! body (the same about every point), and with the zero momentum a plan starts from, the system
+//! COM does not move, so the velocity of the base origin relative to the COM is `v_B` itself. A
+//! COM option there would bound exactly what the origin's does; a plan refuses it, saying so.
 
 use crate::error::{Error, Result};
+
+/// The point a held base's moment bounds are taken about (module docs).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub enum BasePoint {
+    /// The base origin `B`: the moment `n_B` as the plan reports it (the default).
+    #[default]
+    Origin,
+    /// The system centre of mass `C` (base, links, wheels' locked parts) at the current joint
+    /// angles: `n_C = n_B − r_c(q) × F_B`.
+    SystemCom,
+}
+
+impl BasePoint {
+    /// `"origin"` or `"com"` (the Python keyword's values).
+    pub fn name(self) -> &'static str {
+        match self {
+            BasePoint::Origin => "origin",
+            BasePoint::SystemCom => "com",
+        }
+    }
+
+    /// The point named `"origin"` or `"com"`; the error names the choices.
+    pub fn from_name(name: &str) -> Result<Self> {
+        match name {
+            "origin" => Ok(BasePoint::Origin),
+            "com" => Ok(BasePoint::SystemCom),
+            other => Err(Error::InvalidArgument {
+                what: "base_point".into(),
+                message: format!(
+                    "expected \"origin\" (the base origin) or \"com\" (the system centre of \
+                     mass), given {other:?}"
+                ),
+            }),
+        }
+    }
+
+    /// The wrench `[n; F]` about this point, from `wrench = [n_B; F_B]` about the base origin and
+    /// `com = r_c`, the system COM relative to the base origin (base frame): the origin's is
+    /// returned as it is, the COM's moment is `n_B − r_c × F_B`.
+    pub fn wrench(self, wrench: &[f64; 6], com: &[f64; 3]) -> [f64; 6] {
+        match self {
+            BasePoint::Origin => *wrench,
+            BasePoint::SystemCom => {
+                let [n0, n1, n2, f0, f1, f2] = *wrench;
+                let [c0, c1, c2] = *com;
+                [
+                    n0 - (c1 * f2 - c2 * f1),
+                    n1 - (c2 * f0 - c0 * f2),
+                    n2 - (c0 * f1 - c1 * f0),
+                    f0,
+                    f1,
+                    f2,
+                ]
+            }
+        }
+    }
+}
 
 /// Per-axis (and free-base rate) bounds on the bus (module docs); `None` leaves a quantity
 /// unbounded. Every value finite and `> 0`.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct BaseLimits {
-    /// Held base: `|n_B,k| ≤ torque[k]` (N·m, about the base origin, base frame).
+    /// Held base: `|n_k| ≤ torque[k]` (N·m, base frame), the holding moment about `point`.
     pub torque: Option<[f64; 3]>,
     /// Held base: `|F_B,k| ≤ force[k]` (N, base frame).
     pub force: Option<[f64; 3]>,
@@ -33,6 +103,9 @@ pub struct BaseLimits {
     pub rate_norm: Option<f64>,
     /// Free base: `|v_B| ≤ speed_norm` (m/s).
     pub speed_norm: Option<f64>,
+    /// Held base: the point the moment bounds (`torque` and
+    /// [`Limits::base_torque`](super::Limits)) are taken about; the base origin by default.
+    pub point: BasePoint,
 }
 
 /// Which per-axis (or rate) bound; `axis` is 0, 1, 2 for x, y, z (None for a norm).
@@ -100,6 +173,7 @@ impl BaseLimits {
             ("base_speed_axes", self.speed.is_some(), false),
             ("base_rate", self.rate_norm.is_some(), false),
             ("base_speed", self.speed_norm.is_some(), false),
+            ("base_point", self.point != BasePoint::Origin, true),
         ];
         all.iter()
             .filter(|(_, given, h)| *given && *h == held)
@@ -108,7 +182,8 @@ impl BaseLimits {
     }
 
     /// Calls `visit(value, bound, which, axis)` for every bound given that applies: on a held
-    /// base to its holding wrench `wrench = [n_B; F_B]`, on a free one to its twist
+    /// base to its holding wrench `wrench = [n; F]` (about [`point`](Self::point): the caller
+    /// transfers it, [`BasePoint::wrench`]), on a free one to its twist
     /// `twist = [ω_B; v_B]` (base frame). Values are magnitudes.
     pub fn visit(
         &self,
@@ -211,5 +286,35 @@ mod tests {
         assert_eq!(seen[3], (5.0, 7.0, BaseBound::Speed, None));
         assert_eq!(limits.given_for(true), ["base_torque_axes"]);
         assert_eq!(limits.given_for(false), ["base_rate_axes", "base_speed"]);
+    }
+
+    #[test]
+    fn the_point_moves_the_moment_and_not_the_force() {
+        let wrench = [1.0, -2.0, 3.0, 4.0, 5.0, -6.0];
+        let com = [0.5, -0.25, 2.0];
+        assert_eq!(BasePoint::Origin.wrench(&wrench, &com), wrench);
+        // r_c × F = (−0.25·−6 − 2·5, 2·4 − 0.5·−6, 0.5·5 − −0.25·4) = (−8.5, 11, 3.5)
+        assert_eq!(
+            BasePoint::SystemCom.wrench(&wrench, &com),
+            [9.5, -13.0, -0.5, 4.0, 5.0, -6.0]
+        );
+        for point in [BasePoint::Origin, BasePoint::SystemCom] {
+            assert_eq!(BasePoint::from_name(point.name()).unwrap(), point);
+        }
+        assert_eq!(BasePoint::default(), BasePoint::Origin);
+        let e = BasePoint::from_name("cog").unwrap_err().to_string();
+        assert_eq!(
+            e,
+            "base_point: expected \"origin\" (the base origin) or \"com\" (the system centre of \
+             mass), given \"cog\""
+        );
+        let com = BaseLimits {
+            point: BasePoint::SystemCom,
+            ..Default::default()
+        };
+        assert_eq!(com.given_for(true), ["base_point"]);
+        assert!(
+            com.given_for(false).is_empty() && BaseLimits::default().given_for(true).is_empty()
+        );
     }
 }

@@ -13,7 +13,7 @@ pub use crate::flex::jets as taylor;
 pub use crate::flex::{BaseMode, FlexibleInverse, LinkMotion};
 pub mod limits;
 pub mod slew;
-pub use limits::{BaseBound, BaseLimits};
+pub use limits::{BaseBound, BaseLimits, BasePoint};
 pub use slew::{
     plan_slew, plan_slew_watched, sigma, Binding, Constraint, Limits, Plan, PlanPoint, Reference,
     Samples,

@@ -18,11 +18,11 @@
 //! that sample onto it), up to six rounds, so a peak between samples is not missed.
 
 use super::deflection;
-use super::limits::{BaseBound, BaseLimits};
+use super::limits::{BaseBound, BaseLimits, BasePoint};
 use crate::args::{check_dt, check_vector, number};
 use crate::error::{Error, Result};
 use crate::flex::inverse::{
-    classical, rigid_jets, BaseMode, FlexibleInverse, JetScratch, RigidJets,
+    classical, rigid_jets, system_com, BaseMode, FlexibleInverse, JetScratch, RigidJets,
 };
 use crate::flex::FlexibleArm;
 use crate::integrate::{OdeSystem, Rk4};
@@ -321,6 +321,9 @@ pub struct Binding {
     pub joint: Option<usize>,
     /// The base axis (0, 1, 2 for x, y, z of the base frame) for per-axis base limits.
     pub axis: Option<usize>,
+    /// The point a held moment bound is taken about (`base_torque`, `base_torque_axes`); `None`
+    /// for every other limit.
+    pub point: Option<BasePoint>,
     /// The segment (0-based; one per waypoint, plus one).
     pub segment: usize,
     /// When it peaks (s from the start of the plan).
@@ -342,6 +345,9 @@ struct Segment {
     /// Sorted samples of `s ∈ [0, 1]` with the unit-duration inverse dynamics at each.
     s: Vec<f64>,
     jets: Vec<RigidJets>,
+    /// `r_c`, the system COM relative to the base origin (base frame, m), at each sample when
+    /// the held moment is bounded about it ([`BasePoint::SystemCom`]); empty otherwise.
+    com: Vec<[f64; 3]>,
     /// `δ` at each sample for the solved duration (n per sample; zero for a rigid plan).
     deflection: Vec<f64>,
     /// `δ` at `s = 0`.
@@ -385,6 +391,8 @@ struct Point {
     /// Scaled `[τ, τ̇, τ̈]` per joint, for the deflection integration.
     tau_jet: Vec<[f64; 3]>,
     deflection: Vec<f64>,
+    /// `r_c` at this sample (zero unless [`Segment::com`] is kept).
+    com: [f64; 3],
 }
 
 impl Point {
@@ -396,6 +404,7 @@ impl Point {
             flexible: FlexibleInverse::zeros(n),
             tau_jet: vec![[0.0; 3]; n],
             deflection: vec![0.0; n],
+            com: [0.0; 3],
         }
     }
 }
@@ -537,6 +546,19 @@ pub fn plan_slew_watched(
                 .into(),
         });
     }
+    if base == BaseMode::Free && limits.base_axes.point != BasePoint::Origin {
+        return Err(Error::InvalidArgument {
+            what: "limits.base_point".into(),
+            message: format!(
+                "{:?} names the point a held base's moment bounds are taken about; a free base \
+                 (base = \"free\") receives no wrench, its rates are the same about every point, \
+                 and from rest (zero momentum) the system COM stays still, so the base origin's \
+                 velocity relative to it is v_B itself: the COM would bound exactly what \
+                 \"origin\" does. Leave base_point at \"origin\"",
+                limits.base_axes.point.name()
+            ),
+        });
+    }
     let misplaced = limits.base_axes.given_for(base == BaseMode::Free);
     if let Some(first) = misplaced.first() {
         let message = if base == BaseMode::Free {
@@ -656,12 +678,14 @@ impl Plan {
                 duration: 0.0,
                 s: Vec::new(),
                 jets: Vec::new(),
+                com: Vec::new(),
                 deflection: Vec::new(),
                 deflection0: deflection0.clone(),
                 binding: Binding {
                     constraint: Constraint::JointSpeed,
                     joint: None,
                     axis: None,
+                    point: None,
                     segment: k - 1,
                     time: 0.0,
                     value: 0.0,
@@ -676,6 +700,9 @@ impl Plan {
                 let jets = plan.unit_jets(&mut scratch, &segment, s)?;
                 segment.s.push(s);
                 segment.jets.push(jets);
+                if let Some(com) = plan.sample_com(&mut scratch) {
+                    segment.com.push(com);
+                }
             }
             plan.solve_segment(&mut scratch, &mut segment, cancel)?;
             t0 += segment.duration;
@@ -702,6 +729,23 @@ impl Plan {
             );
         }
         rigid_jets(self.arm.rigid_model(), scratch, self.base)
+    }
+
+    /// `r_c` at the sample [`unit_jets`](Self::unit_jets) just computed, when the held moment is
+    /// bounded about the system COM; `None` otherwise (nothing is computed).
+    fn sample_com(&self, scratch: &mut JetScratch) -> Option<[f64; 3]> {
+        let about_com = self.limits.base_axes.point == BasePoint::SystemCom;
+        (about_com && self.base == BaseMode::Held)
+            .then(|| system_com(self.arm.rigid_model(), scratch).into())
+    }
+
+    /// The holding wrench at `p` about the point the limits name (the base origin: `f_B` as it
+    /// is).
+    fn bounded_wrench(&self, p: &Point) -> [f64; 6] {
+        self.limits
+            .base_axes
+            .point
+            .wrench(&p.flexible.base_wrench, &p.com)
     }
 
     /// Fills `p` for sample `j` of `seg` at duration `T = 1/w`. `previous` is the point at sample
@@ -787,14 +831,15 @@ impl Plan {
                 Some(i),
             );
         }
+        let wrench = self.bounded_wrench(p);
         self.limits.base_axes.visit(
             self.base == BaseMode::Held,
-            &p.flexible.base_wrench,
+            &wrench,
             &p.flexible.base_twist,
             |value, limit, which, axis| consider(value, limit, Constraint::Base(which), axis),
         );
         if self.base == BaseMode::Held {
-            let f = &p.flexible.base_wrench;
+            let f = &wrench;
             if let Some(limit) = self.limits.base_torque {
                 consider(
                     Vec3::new(f[0], f[1], f[2]).norm(),
@@ -823,6 +868,9 @@ impl Plan {
         for j in 0..seg.s.len() {
             let prev = (j > 0).then(|| (seg.s[j] - seg.s[j - 1], &before));
             self.point(seg, seg.s[j], &seg.jets[j], w, prev, &mut now);
+            if let Some(com) = seg.com.get(j) {
+                now.com = *com;
+            }
             if !visit(j, &now) {
                 return;
             }
@@ -892,6 +940,9 @@ impl Plan {
                         let jets = self.unit_jets(scratch, seg, s)?;
                         seg.s.insert(at, s);
                         seg.jets.insert(at, jets);
+                        if let Some(com) = self.sample_com(scratch) {
+                            seg.com.insert(at, com);
+                        }
                         changed = true;
                     }
                     Some(j) => {
@@ -902,6 +953,9 @@ impl Plan {
                             && (seg.s[j] - s).abs() > MOVE_AT_LEAST;
                         if movable {
                             seg.jets[j] = self.unit_jets(scratch, seg, s)?;
+                            if let Some(com) = self.sample_com(scratch) {
+                                seg.com[j] = com;
+                            }
                             seg.s[j] = s;
                             changed = true;
                         }
@@ -926,7 +980,7 @@ impl Plan {
                 out[i].push(p.flexible.u[i].abs() / self.limits.motor_torque[i]);
                 out[n + i].push(p.qd[i].abs() / self.limits.joint_speed[i]);
             }
-            let f = &p.flexible.base_wrench;
+            let f = &self.bounded_wrench(p);
             let held = self.base == BaseMode::Held;
             out[2 * n].push(match (held, self.limits.base_torque) {
                 (true, Some(l)) => Vec3::new(f[0], f[1], f[2]).norm() / l,
@@ -1079,6 +1133,12 @@ impl Plan {
             // the per-axis base bounds report their axis where the joint limits their joint
             joint: if per_axis { None } else { joint },
             axis: if per_axis { joint } else { None },
+            point: match constraint {
+                Constraint::BaseTorque | Constraint::Base(BaseBound::TorqueAxis) => {
+                    Some(self.limits.base_axes.point)
+                }
+                _ => None,
+            },
             segment: seg.binding.segment,
             time: seg.t0 + seg.s[j] * seg.duration,
             value,

@@ -14,8 +14,8 @@ use crate::control::Schedule;
 use crate::error::Error;
 use crate::integrate::Run;
 use crate::planning::{
-    plan_slew_watched, BaseLimits, BaseMode, Binding, Limits, Plan, Reference, Samples, Tracking,
-    TrackingSetup,
+    plan_slew_watched, BaseLimits, BaseMode, BasePoint, Binding, Limits, Plan, Reference, Samples,
+    Tracking, TrackingSetup,
 };
 use numpy::{PyArray1, PyArray2};
 use pyo3::exceptions::PyTypeError;
@@ -81,6 +81,11 @@ fn optional_bound(obj: Option<&Bound<'_, PyAny>>, what: &str) -> PyResult<Option
 ///   ``|F_B,k|`` (N); free base, ``base_rate_axes`` ``|ω_B,k|`` (rad/s) and
 ///   ``base_speed_axes`` ``|v_B,k|`` (m/s, the velocity of the base origin).
 /// - free base by norm: ``base_rate`` ``|ω_B|`` (rad/s) and ``base_speed`` ``|v_B|`` (m/s).
+/// - ``base_point``: ``"origin"`` (default) or ``"com"``, the point a held base's moment bounds
+///   (``base_torque``, ``base_torque_axes``) are taken about. About the system centre of mass
+///   the moment is ``n_C = n_B − r_c(q) × F_B``, ``r_c`` the COM relative to the base origin
+///   (base frame). A free-floating plan refuses ``"com"``: its rates are the same about every
+///   point and, from rest, the COM stays still, so it would bound what ``"origin"`` does.
 ///
 /// Every value must be finite and > 0. Per-joint lengths are checked against the arm when a slew
 /// is planned.
@@ -117,7 +122,7 @@ impl PyLimits {
 #[pymethods]
 impl PyLimits {
     #[new]
-    #[pyo3(signature = (motor_torque, joint_speed, base_force=None, base_torque=None, base_torque_axes=None, base_force_axes=None, base_rate=None, base_rate_axes=None, base_speed=None, base_speed_axes=None))]
+    #[pyo3(signature = (motor_torque, joint_speed, base_force=None, base_torque=None, base_torque_axes=None, base_force_axes=None, base_rate=None, base_rate_axes=None, base_speed=None, base_speed_axes=None, base_point="origin"))]
     fn new(
         motor_torque: &Bound<'_, PyAny>,
         joint_speed: &Bound<'_, PyAny>,
@@ -129,6 +134,7 @@ impl PyLimits {
         base_rate_axes: Option<&Bound<'_, PyAny>>,
         base_speed: Option<&Bound<'_, PyAny>>,
         base_speed_axes: Option<&Bound<'_, PyAny>>,
+        base_point: &str,
     ) -> PyResult<Self> {
         let (torque, torque_scalar) = limit_values(motor_torque, "motor_torque")?;
         let (speed, speed_scalar) = limit_values(joint_speed, "joint_speed")?;
@@ -139,6 +145,7 @@ impl PyLimits {
             speed: optional_axes(base_speed_axes, "base_speed_axes")?,
             rate_norm: optional_bound(base_rate, "base_rate")?,
             speed_norm: optional_bound(base_speed, "base_speed")?,
+            point: BasePoint::from_name(base_point)?,
         };
         let limits = Limits::new(
             torque,
@@ -224,6 +231,12 @@ impl PyLimits {
     fn base_speed_axes(&self) -> Option<[f64; 3]> {
         self.limits.base_axes.speed
     }
+    /// ``"origin"`` or ``"com"``: the point the held moment bounds (``base_torque``,
+    /// ``base_torque_axes``) are taken about.
+    #[getter]
+    fn base_point(&self) -> &'static str {
+        self.limits.base_axes.point.name()
+    }
 
     /// Pickle support.
     fn __reduce__<'py>(slf: &Bound<'py, Self>) -> PyResult<(PyObject, PyObject)> {
@@ -241,6 +254,7 @@ impl PyLimits {
             b.rate,
             b.speed_norm,
             b.speed,
+            b.point.name(),
         );
         Ok((
             slf.get_type().into_any().unbind(),
@@ -265,6 +279,10 @@ impl PyLimits {
             ("base_rate_axes", b.rate.map(|v| format!("{v:?}"))),
             ("base_speed", b.speed_norm.map(|v| format!("{v:?}"))),
             ("base_speed_axes", b.speed.map(|v| format!("{v:?}"))),
+            (
+                "base_point",
+                (b.point != BasePoint::Origin).then(|| format!("{:?}", b.point.name())),
+            ),
         ]
         .iter()
         .filter_map(|(name, v)| v.as_ref().map(|v| format!(", {name}={v}")))
@@ -401,6 +419,7 @@ fn binding_dict<'py>(py: Python<'py>, b: &Binding, names: &[&str]) -> PyResult<B
     d.set_item("joint", b.joint)?;
     d.set_item("joint_name", b.joint.map(|j| names[j]))?;
     d.set_item("axis", b.axis)?;
+    d.set_item("point", b.point.map(BasePoint::name))?;
     d.set_item("segment", b.segment)?;
     d.set_item("time", b.time)?;
     d.set_item("value", b.value)?;
@@ -523,7 +542,7 @@ impl PyPlan {
     /// "base_force" | "base_torque" | "base_torque_axes" | "base_force_axes" | "base_rate" |
     /// "base_rate_axes" | "base_speed" | "base_speed_axes", "joint": index (0-based) or None,
     /// "joint_name": str or None, "axis": the base axis (0, 1, 2 for x, y, z) of a per-axis
-    /// limit or None, "segment": index, "time": when it peaks (s from the start), "value": the peak
+    /// limit or None, "point": ``"origin"`` or ``"com"`` for a moment limit (else None), "segment": index, "time": when it peaks (s from the start), "value": the peak
     /// (magnitude; N·m, rad/s or N), "bound": the limit}``.
     #[getter]
     fn binding<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {

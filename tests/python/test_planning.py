@@ -316,7 +316,7 @@ def test_demo_plan_duration_and_binding_limit(demo_plan):
     assert demo_plan.duration == pytest.approx(5.7894809, rel=1e-7)
     assert demo_plan.binding == {"limit": "motor_torque", "joint": 3, "joint_name": "elbow_pitch", "segment": 0,
                                  "time": pytest.approx(4.12941, abs=1e-4), "value": pytest.approx(30.0, rel=1e-9),
-                                 "bound": 30.0, "axis": None}
+                                 "bound": 30.0, "axis": None, "point": None}
     assert demo_plan.bindings == [demo_plan.binding]
     assert demo_plan.base == "free" and not demo_plan.is_rigid
     np.testing.assert_array_equal(demo_plan.segment_durations, [demo_plan.duration])
@@ -765,8 +765,8 @@ def test_plan_command_writes_its_outputs(plan_run, model_files):
     summary = json.loads((out / "plan_summary.json").read_text())
     assert summary["flexible"]["duration_s"] == plan.duration
     assert summary["segment_durations_s"] == plan.segment_durations.tolist()
-    # the summary names the joint limits; "axis" (per-axis base limits) is not among them here
-    assert summary["flexible"]["binding"] == {k: v for k, v in plan.binding.items() if k != "axis"}
+    # the summary names the joint limits; "axis" and "point" (base limits) are not among them here
+    assert summary["flexible"]["binding"] == {k: v for k, v in plan.binding.items() if k not in ("axis", "point")}
     text = result.stdout
     assert f"duration            {plan.duration:.4f} s (2 segments: " in text
     assert "segment 1         motor_torque on shoulder (joint index 0): 2 of 2 N·m at t = 1.282 s" in text

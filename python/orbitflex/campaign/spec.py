@@ -44,7 +44,7 @@ class Campaign:
     With ``wheels`` (a ``ReactionWheels``) every run's bus is held at its initial attitude by
     ``AttitudePD(attitude_kp, attitude_kd)`` (N·m/rad, N·m·s/rad; one number or three) in place of
     any open-loop base wrench; the wheel parameters and gains can be dispersed and the table gets
-    the wheel metrics (:mod:`orbitflex.campaign.wheels`)."""
+    the wheel metrics (``orbitflex.campaign.wheels``)."""
 
     goal: Any
     kp: Any
