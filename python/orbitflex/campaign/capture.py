@@ -68,7 +68,6 @@ import functools
 import math
 import os
 import socket
-import sys
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -80,6 +79,7 @@ from .. import AttitudePD, ReactionWheels, Target, Trajectory, detumble_metrics,
 from ..models import CaptureScenario, capture_scenario
 from .dispersion import CampaignError, Dispersion
 from .execute import ChunkLog
+from .files import read_campaign_toml
 
 CAPTURE_PARAMETERS = ("target_mass", "target_inertia", "tumble_rate", "grasp_time")
 CAPTURE_METRICS = ("ok", "captured", "capture_time", "energy_loss", "impulse_force", "bus_kick",
@@ -215,7 +215,7 @@ class CaptureCampaign:
     def from_toml(cls, path: Union[str, "os.PathLike[str]"]) -> "CaptureCampaign":
         """Reads a capture campaign file (module docs; ``examples/capture_campaign.toml``)."""
         path = Path(path)
-        return cls.from_dict(_read_toml(path), base=path.parent, source=str(path))
+        return cls.from_dict(read_campaign_toml(path), base=path.parent, source=str(path))
 
     @classmethod
     def from_dict(cls, spec: Mapping[str, Any], base: Optional[Path] = None,
@@ -446,22 +446,6 @@ class CaptureCampaign:
         return path
 
 
-def _read_toml(path: Path) -> Dict[str, Any]:
-    if sys.version_info >= (3, 11):
-        import tomllib
-    else:  # pragma: no cover
-        import tomli as tomllib
-    try:
-        text = path.read_text()
-    except OSError as e:
-        raise FileNotFoundError(f"{path}: cannot read the campaign file ({e.strerror})") from None
-    try:
-        spec: Dict[str, Any] = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as e:
-        raise CampaignError(f"{path}: malformed TOML: {e}") from None
-    return spec
-
-
 def load_campaign(path: Union[str, "os.PathLike[str]"], wheels: Any = None) -> Any:
     """Reads a campaign file: a :class:`CaptureCampaign` if it has a ``[capture]`` table, else a
     slew :class:`~orbitflex.campaign.Campaign` (``Campaign.from_toml``). ``wheels``, a wheels
@@ -471,7 +455,7 @@ def load_campaign(path: Union[str, "os.PathLike[str]"], wheels: Any = None) -> A
     from .spec import Campaign
 
     path = Path(path)
-    spec = _read_toml(path)
+    spec = read_campaign_toml(path)
     if "capture" in spec:
         if wheels is not None:
             if not isinstance(wheels, (str, os.PathLike)):

@@ -5,6 +5,7 @@
 from __future__ import annotations
 
 import os
+import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Dict, Mapping, Optional, Sequence, Type, Union
 
@@ -35,6 +36,24 @@ def _wheels_file(spec: Mapping[str, Any], base: Optional[Path], source: str,
         return read_wheels(Path(wheels))
     except (WheelsFileError, FileNotFoundError) as e:
         raise CampaignError(f"{source}: wheels: {e}") from None
+
+
+def read_campaign_toml(path: Path) -> Dict[str, Any]:
+    """The tables of a campaign file (slew or capture): ``FileNotFoundError`` when it cannot be
+    read, ``CampaignError`` for malformed TOML, each naming the file."""
+    if sys.version_info >= (3, 11):
+        import tomllib
+    else:  # pragma: no cover
+        import tomli as tomllib
+    try:
+        text = path.read_text()
+    except OSError as e:
+        raise FileNotFoundError(f"{path}: cannot read the campaign file ({e.strerror})") from None
+    try:
+        spec: Dict[str, Any] = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as e:
+        raise CampaignError(f"{path}: malformed TOML: {e}") from None
+    return spec
 
 
 def campaign_from_dict(cls: Type[Campaign], spec: Mapping[str, Any], base: Optional[Path],

@@ -8,7 +8,6 @@ from __future__ import annotations
 import math
 import os
 import socket
-import sys
 import time
 import uuid
 import warnings
@@ -22,7 +21,7 @@ from .. import (AttitudePD, FlexibleArm, FlexibleJoints, ModelError, MotorPD, Pl
                 models, quintic_reference, simulate_batch)
 from . import wheels as bus
 from .dispersion import CampaignError, Dispersion, JOINT_PARAMETERS, POSITIVE, UNITS, _vector
-from .files import campaign_from_dict
+from .files import campaign_from_dict, read_campaign_toml
 from .execute import ChunkLog, _Table, _campaign_numbers, _ee_positions, _offset, _run_chunk_task, reachable
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -105,19 +104,8 @@ class Campaign:
         ``wheels``) path is taken from the file's folder. ``wheels``, a wheels file (its path, or
         a ``WheelsFile``), replaces the file's ``wheels = "PATH"``: the bus held by those wheels
         under the file's ``AttitudePD`` gains."""
-        if sys.version_info >= (3, 11):
-            import tomllib
-        else:  # pragma: no cover
-            import tomli as tomllib
         path = Path(path)
-        try:
-            text = path.read_text()
-        except OSError as e:
-            raise FileNotFoundError(f"{path}: cannot read the campaign file ({e.strerror})") from None
-        try:
-            spec = tomllib.loads(text)
-        except tomllib.TOMLDecodeError as e:
-            raise CampaignError(f"{path}: malformed TOML: {e}") from None
+        spec = read_campaign_toml(path)
         return cls.from_dict(spec, base=path.parent, source=str(path), wheels=wheels)
 
     @classmethod
