@@ -731,3 +731,99 @@ fn motor_pd_gains_become_the_rigid_rule_for_stiff_joints_and_refuse_what_a_sprin
     }
     assert!(arm.motor_pd_gains(&[0.0; 6], 0.25, 1.0).is_err());
 }
+
+/// `rk4_stability_exceeded(x, u, dt)` ends its search once it has found a stable step at or
+/// above `dt`. Its answer must be the full limit's, `dt > limit.dt`, and where `dt` exceeds the
+/// limit it must return the limit itself (every field, for the warning's message), for the dense
+/// analysis, the joint-by-joint estimate, the open loop, a tumbling base, and arms with
+/// reaction wheels (one whose friction sets the limit: a term of the minimum beside the loop's). Steps straddle each limit closely (1 ± 1e-9) and exactly.
+#[test]
+fn stability_exceeded_answers_as_the_full_limit_does() {
+    use orbitflex::flex::stability::DENSE_LIMIT;
+    let space = FlexibleArm::new(Robot::space_arm(), FlexibleJoints::space_arm()).unwrap();
+    let pd = |n: usize, kp: f64, kd: f64| {
+        MotorPD::new(
+            vec![kp; n],
+            vec![kd; n],
+            Schedule::Zero,
+            Schedule::Zero,
+            Schedule::Zero,
+        )
+        .unwrap()
+    };
+    let large = arm(DENSE_LIMIT + 4, 5, 0.5, 0.2);
+    let with_wheels = |wheels: Vec<orbitflex::flex::Wheel>| {
+        FlexibleArm::new(Robot::space_arm(), FlexibleJoints::space_arm())
+            .unwrap()
+            .with_wheels(orbitflex::flex::ReactionWheels::new(wheels).unwrap())
+            .unwrap()
+    };
+    let mut rough = orbitflex::testing::random_wheels(3, 4, 1.0)
+        .wheels()
+        .to_vec();
+    let wheels = with_wheels(rough.clone());
+    // a wheel whose friction limit (0.5 ms) is below the loop's (about 1 ms)
+    let (spin, friction) = (rough[1].spin_inertia, 2.785 * rough[1].spin_inertia / 5e-4);
+    rough[1].friction = friction;
+    let rough = with_wheels(rough);
+    let mut tumbling = space.rest_state();
+    tumbling[space.layout().base_twist()][..3].copy_from_slice(&[40.0, -30.0, 20.0]);
+    // what, arm, state, controller
+    type Case<'a> = (&'a str, &'a FlexibleArm, Vec<f64>, Box<dyn Controller>);
+    let cases: Vec<Case> = vec![
+        (
+            "dense",
+            &space,
+            space.rest_state(),
+            Box::new(pd(7, 2000.0, 800.0)),
+        ),
+        (
+            "dense, moving",
+            &space,
+            moving_state(&space, 3),
+            Box::new(pd(7, 50.0, 5.0)),
+        ),
+        (
+            "open loop",
+            &space,
+            space.rest_state(),
+            Box::new(Schedule::Zero),
+        ),
+        ("tumbling", &space, tumbling, Box::new(pd(7, 50.0, 5.0))),
+        (
+            "estimated",
+            &large,
+            moving_state(&large, 5),
+            Box::new(pd(large.dof(), 300.0, 60.0)),
+        ),
+        (
+            "wheels",
+            &wheels,
+            wheels.rest_state(),
+            Box::new(pd(7, 2000.0, 800.0)),
+        ),
+        (
+            "wheel friction",
+            &rough,
+            rough.rest_state(),
+            Box::new(pd(7, 2000.0, 800.0)),
+        ),
+    ];
+    for (what, arm, x0, u) in &cases {
+        let limit = arm.rk4_stability_limit(x0, u.as_ref()).unwrap();
+        assert!(limit.dt.is_finite() && limit.dt > 0.0, "{what}: {limit:?}");
+        if *what == "wheel friction" {
+            // the friction pole −c/J_s of wheel 1 sets this one, not the arm's loop
+            assert_eq!(limit.dt, 2.785 * spin / friction);
+        }
+        for factor in [1e-3, 0.5, 1.0 - 1e-9, 1.0, 1.0 + 1e-9, 1.0001, 2.0, 1e3] {
+            let dt = limit.dt * factor;
+            let exceeded = arm.rk4_stability_exceeded(x0, u.as_ref(), dt).unwrap();
+            assert_eq!(
+                exceeded,
+                (dt > limit.dt).then_some(limit),
+                "{what}: dt = {dt:e} against {limit:?}"
+            );
+        }
+    }
+}

@@ -547,8 +547,34 @@ impl FlexibleArm {
     /// held at their speeds (the spin's gyroscopic coupling is left out), and at most the
     /// wheels' friction limit `2.785 J_s / c` (RK4 on the pole `−c/J_s`).
     pub fn rk4_stability_limit(&self, x: &[f64], u: &dyn Controller) -> Result<StabilityLimit> {
+        self.stability_limit_until(x, u, f64::INFINITY)
+    }
+
+    /// Whether `dt` exceeds [`FlexibleArm::rk4_stability_limit`]`(x, u)`: that limit when it
+    /// does, `None` when `dt` is within it. The same answer as comparing `dt` with the limit,
+    /// for fewer eigenvalue solves when `dt` is within it (the search stops once it has found a
+    /// stable step at or above `dt`, before the bisection that would fix the limit to 1e-4).
+    pub fn rk4_stability_exceeded(
+        &self,
+        x: &[f64],
+        u: &dyn Controller,
+        dt: f64,
+    ) -> Result<Option<StabilityLimit>> {
+        // below `dt` the result is the limit itself; at or above it, a lower bound of the limit
+        let limit = self.stability_limit_until(x, u, dt)?;
+        Ok((dt > limit.dt).then_some(limit))
+    }
+
+    /// The limit, or a lower bound of it at or above `enough` (`stability::limit_until`): every
+    /// term of the minimum below is the limit's own term when the minimum is below `enough`.
+    fn stability_limit_until(
+        &self,
+        x: &[f64],
+        u: &dyn Controller,
+        enough: f64,
+    ) -> Result<StabilityLimit> {
         let Some(m) = &self.wheels else {
-            return stability::rk4_stability_limit(self, x, &u.feedback());
+            return stability::limit_until(self, x, &u.feedback(), enough);
         };
         let locked = FlexibleArm {
             robot: m.robot.clone(),
@@ -558,7 +584,7 @@ impl FlexibleArm {
         };
         self.check_state(x)?;
         let mut limit =
-            stability::rk4_stability_limit(&locked, &x[..locked.layout().len()], &u.feedback())?;
+            stability::limit_until(&locked, &x[..locked.layout().len()], &u.feedback(), enough)?;
         for wheel in m.wheels.wheels() {
             limit.dt = limit.dt.min(2.785 * wheel.spin_inertia / wheel.friction);
         }

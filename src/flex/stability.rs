@@ -136,7 +136,14 @@ impl Linear {
 
     /// The largest stable step: the first `h` where `M(h)` grows a mode faster than the
     /// continuous closed loop `closed` (its eigenvalues) does.
-    fn limit(&self, closed: &[Complex<f64>]) -> f64 {
+    ///
+    /// `enough` ends the search early: as soon as a step `h ≥ enough` is found stable, `h` is
+    /// returned, a lower bound of the limit (which is at least every step the search has found
+    /// stable). So a result below `enough` is the limit itself, found by the same sequence of
+    /// steps as with `enough = ∞`, and a result at or above it says only that `enough` is within
+    /// the limit: whether a given `dt` exceeds the limit is decided with the scan up to `dt`
+    /// alone, without the bisection, for the same answer.
+    fn limit(&self, closed: &[Complex<f64>], enough: f64) -> f64 {
         let growth = closed.iter().map(|l| l.re).fold(0.0, f64::max);
         // A mode the physics makes grow (a frozen-time linearisation of a moving state has some)
         // may grow; holding the controller's output shifts such slow modes by O(h), hence the
@@ -154,17 +161,20 @@ impl Linear {
         // Scan up from inside the region (|λ h| = 0.5) until a step fails, then bisect.
         let mut lo = 0.5 / fastest;
         if !stable(lo) {
-            return bisect(&stable, 0.0, lo);
+            return bisect(&stable, 0.0, lo, enough);
         }
         let mut hi = lo * 2.0;
-        while stable(hi) {
+        while lo < enough && stable(hi) {
             lo = hi;
             hi *= 2.0;
             if hi > cap {
                 return f64::INFINITY;
             }
         }
-        bisect(&stable, lo, hi)
+        if lo >= enough {
+            return lo;
+        }
+        bisect(&stable, lo, hi, enough)
     }
 }
 
@@ -182,9 +192,10 @@ fn fastest(eigenvalues: &[Complex<f64>]) -> Complex<f64> {
         })
 }
 
-/// The boundary between a stable `lo` and an unstable `hi`, to 1e-4 relative.
-fn bisect(stable: &impl Fn(f64) -> bool, mut lo: f64, mut hi: f64) -> f64 {
-    while hi - lo > 1e-4 * hi {
+/// The boundary between a stable `lo` and an unstable `hi`, to 1e-4 relative, or the first
+/// stable step found at or above `enough` ([`Linear::limit`]).
+fn bisect(stable: &impl Fn(f64) -> bool, mut lo: f64, mut hi: f64, enough: f64) -> f64 {
+    while hi - lo > 1e-4 * hi && lo < enough {
         let mid = 0.5 * (lo + hi);
         if stable(mid) {
             lo = mid;
@@ -202,6 +213,20 @@ pub fn rk4_stability_limit(
     x: &[f64],
     feedback: &Feedback,
 ) -> Result<StabilityLimit> {
+    limit_until(arm, x, feedback, f64::INFINITY)
+}
+
+/// [`rk4_stability_limit`], its search ended as soon as a step `h ≥ enough` is found stable
+/// ([`Linear::limit`]): a `dt` below `enough` is the limit itself; one at or above it is a lower
+/// bound of the limit. `dt > limit.dt` therefore has the answer of the full search when
+/// `enough = dt`, which saves the bisection (most of the eigenvalue solves) for a step that is
+/// within the limit.
+pub(crate) fn limit_until(
+    arm: &FlexibleArm,
+    x: &[f64],
+    feedback: &Feedback,
+    enough: f64,
+) -> Result<StabilityLimit> {
     arm.check_state(x)?;
     if let Feedback::MotorPd { kp, kd } = feedback {
         crate::args::check_vector("kp", kp, arm.dof())?;
@@ -210,13 +235,13 @@ pub fn rk4_stability_limit(
     let open_loop = matches!(feedback, Feedback::Unknown);
     let estimated = arm.dof() > DENSE_LIMIT;
     let (dt, fastest_mode) = if estimated {
-        joint_by_joint_limit(arm, x, feedback)?
+        joints_until(arm, x, feedback, enough)?
     } else {
         let linear = linearise(arm, x, feedback)?;
         let closed = linear
             .closed_eigenvalues()
             .map_err(|e| linear.blame_gains(feedback).unwrap_or(e))?;
-        (linear.limit(&closed), fastest(&closed))
+        (linear.limit(&closed, enough), fastest(&closed))
     };
     // The quaternion kinematics oscillate at ±|ω_B|/2, on RK4's imaginary axis (2√2 / |λ|).
     let omega = arm.layout().split(x).omega().norm();
@@ -273,6 +298,18 @@ pub fn joint_by_joint_limit(
     x: &[f64],
     feedback: &Feedback,
 ) -> Result<(f64, Complex<f64>)> {
+    joints_until(arm, x, feedback, f64::INFINITY)
+}
+
+/// [`joint_by_joint_limit`] with each joint's search ended at `enough` ([`Linear::limit`]): the
+/// smallest of the joints' results is the estimate itself when below `enough` (every joint whose
+/// search ended early has a limit at or above `enough`).
+fn joints_until(
+    arm: &FlexibleArm,
+    x: &[f64],
+    feedback: &Feedback,
+    enough: f64,
+) -> Result<(f64, Complex<f64>)> {
     let n = arm.dof();
     let p = arm.joints();
     let s = arm.layout().split(x);
@@ -310,7 +347,7 @@ pub fn joint_by_joint_limit(
         gk[(3, 3)] = -kd / j;
         let linear = Linear { f, gk };
         let closed = linear.closed_eigenvalues()?;
-        dt = dt.min(linear.limit(&closed));
+        dt = dt.min(linear.limit(&closed, enough));
         let mode = self::fastest(&closed);
         if mode.norm() > fastest.norm() {
             fastest = mode;

@@ -137,8 +137,8 @@ pub fn stability_warning(
     dt: f64,
     u: &dyn Controller,
 ) -> Result<Option<String>> {
-    let limit = arm.rk4_stability_limit(x0, u)?;
-    Ok((dt > limit.dt).then(|| describe_excess(dt, &limit)))
+    let exceeded = arm.rk4_stability_exceeded(x0, u, dt)?;
+    Ok(exceeded.map(|limit| describe_excess(dt, &limit)))
 }
 
 fn describe_excess(dt: f64, limit: &StabilityLimit) -> String {

@@ -122,10 +122,10 @@ impl Plan {
             Schedule::Zero,
             Schedule::Zero,
         )?;
-        let limit = self
+        let exceeded = self
             .arm()
-            .rk4_stability_limit(&self.initial_state(), &probe)?;
-        if dt > limit.dt {
+            .rk4_stability_exceeded(&self.initial_state(), &probe, dt)?;
+        if let Some(limit) = exceeded {
             return Err(Error::InvalidArgument {
                 what: "dt".into(),
                 message: format!(

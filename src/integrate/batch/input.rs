@@ -466,10 +466,11 @@ impl<'a> Batch<'a> {
                 .map(|run| {
                     interrupted(&watch.cancel, "the stability limits of the runs")?;
                     let mut inputs = self.inputs(run, 0)?;
+                    // the limit where dt exceeds it, else a bound at or above dt (faster)
                     inputs
                         .arm
-                        .rk4_stability_limit(inputs.x0, inputs.control.controller())
-                        .map(|l| l.dt)
+                        .rk4_stability_exceeded(inputs.x0, inputs.control.controller(), dt)
+                        .map(|l| l.map_or(f64::INFINITY, |l| l.dt))
                         .map_err(|e| in_run(run, e))
                 })
                 .collect::<Result<_>>()
