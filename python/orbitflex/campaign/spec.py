@@ -279,7 +279,12 @@ class Campaign:
         """Every parameter of run ``run``: the nominal values, with the dispersed ones drawn from
         ``default_rng([seed, run])`` in declaration order."""
         robot = robot if robot is not None else self._robot()
-        values = self._nominal(robot)
+        return self._draw(run, self._nominal(robot))
+
+    def _draw(self, run: int, nominal: Dict[str, Array]) -> Dict[str, Array]:
+        """:meth:`parameters` of run ``run`` from the nominal values ``nominal`` (made once per
+        chunk; a draw replaces a value, never writes into it, so the runs may share them)."""
+        values = dict(nominal)
         rng = np.random.default_rng([self.seed, run])
         for d in self.dispersions:
             with np.errstate(over="ignore"):  # a draw that overflows is named below
@@ -320,10 +325,11 @@ class Campaign:
         """Steps per run: ``round(duration / dt)``."""
         return max(1, int(round(self.duration / self.dt)))
 
-    def _setup(self, robot: Robot, values: Dict[str, Array],
-               arms: Dict[Tuple[float, ...], FlexibleArm]) -> Tuple[FlexibleArm, Array, MotorPD]:
+    def _setup(self, robot: Robot, values: Dict[str, Array], arms: Dict[Tuple[float, ...], FlexibleArm],
+               references: Optional[Dict[bytes, Tuple[Array, Array]]] = None) -> Tuple[FlexibleArm, Array, MotorPD]:
         """The arm, start and controller of one run. Arms are shared between runs with the same
-        joint parameters and payload (``arms`` caches them)."""
+        joint parameters and payload (``arms`` caches them), the quintic reference tables between
+        runs with the same start and goal (``references``, keyed by their bytes)."""
         key = tuple(np.concatenate([values[p].ravel() for p in (*JOINT_PARAMETERS, "payload_mass")]).tolist())
         key += bus.key(values)
         arm = arms.get(key)
@@ -340,7 +346,12 @@ class Campaign:
             tables = self._plan_tables()
             pd = MotorPD(values["kp"], values["kd"], tables["theta_ref"], tables["theta_dot_ref"], tables["u"])
             return arm, x0, pd
-        theta_ref, theta_dot_ref = self._reference(robot.dof, values["q0"], values["goal"], self.steps)
+        ends = values["q0"].tobytes() + values["goal"].tobytes()
+        if references is None or ends not in references:
+            table = self._reference(robot.dof, values["q0"], values["goal"], self.steps)
+            references = {} if references is None else references
+            references[ends] = table
+        theta_ref, theta_dot_ref = references[ends]
         pd = MotorPD(values["kp"], values["kd"], theta_ref, theta_dot_ref)
         return arm, x0, pd
 
@@ -384,12 +395,14 @@ class Campaign:
 
         robot = self._robot()
         runs = list(range(start, stop))
-        values = [self.parameters(i, robot) for i in runs]
+        nominal = self._nominal(robot)
+        values = [self._draw(i, nominal) for i in runs]
         arms: Dict[Tuple[float, ...], FlexibleArm] = {}
+        references: Dict[bytes, Tuple[Array, Array]] = {}
         setups = []
         for run, v in zip(runs, values):
             try:
-                setups.append(self._setup(robot, v, arms))
+                setups.append(self._setup(robot, v, arms, references))
             except ModelError as e:
                 raise CampaignError(self._invalid_draw(run, v, e)) from None
         with warnings.catch_warnings(record=True) as caught:
