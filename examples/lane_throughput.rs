@@ -16,7 +16,9 @@
 //!   the same batch in lanes of W (`Lanes::Width(W)`), bookkeeping and recording included.
 //!
 //! ONLY = `batch`, `batch_lanes`, `lanes`, `simulate` or `lanes_pd` times one side alone (for
-//! callgrind).
+//! callgrind); `batch_pd` and `batch_pd_lanes` run `simulate_batch` with a `MotorPD` per run
+//! (scalar, lanes), after the stability check the Python binding makes; `limits` and `exceeded`
+//! make those runs' stability checks alone (the full limit, and `dt` against it).
 use orbitflex::integrate::batch::{
     simulate_batch_with_lanes, Batch, BatchControl, BatchInput, BatchSettings, BatchWatch, Lanes,
     PerRun,
@@ -55,6 +57,47 @@ fn batch(s: &Setup, lanes: Lanes) {
         keep_rows: false,
         threads: Some(1),
     };
+    let record =
+        simulate_batch_with_lanes(&batch, &settings, &BatchWatch::default(), lanes).unwrap();
+    assert!(record.status.iter().all(|st| st.failed_step().is_none()));
+    black_box(&record);
+}
+
+/// `simulate_batch` on one thread with a `MotorPD` per run (gains `kp + run`, `kd`, `θ_ref`),
+/// rows not kept, after the stability check the Python binding makes before the steps
+/// (`Batch::unstable_runs`).
+fn batch_pd(s: &Setup, lanes: Lanes, (kp, kd, reference): (f64, f64, f64)) {
+    let (n, len) = (s.arm.dof(), s.x0.len());
+    let pds: Vec<MotorPD> = (0..s.runs)
+        .map(|run| {
+            MotorPD::new(
+                vec![kp + run as f64; n],
+                vec![kd; n],
+                Schedule::Constant(vec![reference; n]),
+                Schedule::Zero,
+                Schedule::Zero,
+            )
+            .unwrap()
+        })
+        .collect();
+    let refs: Vec<&MotorPD> = pds.iter().collect();
+    let batch = Batch {
+        runs: s.runs,
+        arms: PerRun::All(&s.arm),
+        x0: BatchInput::new("x0s", &s.x0, &[len], s.runs, None, len).unwrap(),
+        u: BatchControl::Pd(PerRun::Each(&refs)),
+        base_wrench: BatchInput::zero(6),
+        ee_wrench: BatchInput::zero(6),
+        wheel_torque: BatchControl::zero(0),
+    };
+    let settings = BatchSettings {
+        dt: s.dt,
+        steps: s.steps,
+        record_every: 1,
+        keep_rows: false,
+        threads: Some(1),
+    };
+    assert!(batch.unstable_runs(s.dt, Some(1)).unwrap().is_empty());
     let record =
         simulate_batch_with_lanes(&batch, &settings, &BatchWatch::default(), lanes).unwrap();
     assert!(record.status.iter().all(|st| st.failed_step().is_none()));
@@ -182,6 +225,31 @@ fn main() -> orbitflex::Result<()> {
             "lanes" => lanes_any(None),
             "simulate" => simulate(&s, kp, kd, reference),
             "lanes_pd" => lanes_any(Some((kp, kd, reference))),
+            "batch_pd" => batch_pd(&s, Lanes::Off, (kp, kd, reference)),
+            "batch_pd_lanes" => batch_pd(&s, Lanes::Width(w), (kp, kd, reference)),
+            // the stability checks of those runs alone: the full limits, and `dt` against them
+            "limits" => (0..s.runs).for_each(|run| {
+                let pd = MotorPD::new(
+                    vec![kp + run as f64; n],
+                    vec![kd; n],
+                    Schedule::Zero,
+                    Schedule::Zero,
+                    Schedule::Zero,
+                )
+                .unwrap();
+                black_box(s.arm.rk4_stability_limit(&s.x0, &pd).unwrap());
+            }),
+            "exceeded" => (0..s.runs).for_each(|run| {
+                let pd = MotorPD::new(
+                    vec![kp + run as f64; n],
+                    vec![kd; n],
+                    Schedule::Zero,
+                    Schedule::Zero,
+                    Schedule::Zero,
+                )
+                .unwrap();
+                black_box(s.arm.rk4_stability_exceeded(&s.x0, &pd, s.dt).unwrap());
+            }),
             other => panic!("unknown side {other}"),
         }
         return Ok(());

@@ -20,7 +20,6 @@ use crate::dynamics::Method;
 use crate::error::{Error, Result};
 use crate::flex::FlexibleArm;
 use crate::integrate::simulate::Observer;
-use crate::integrate::stepper::checked_state;
 use crate::integrate::{is_recorded, simulate_into, Drive, Recorder, Run, Stepper};
 use crate::model::Robot;
 
@@ -140,21 +139,57 @@ fn fail(lane: &mut Lane, run: &mut LaneRun<'_>, k: usize, kept: bool, error: Err
     lane.outcome = Some(ended);
 }
 
-/// At most `W` runs (checked to share a kernel) in one group.
+/// At most `W` runs (checked to share a kernel) in one group: the lanes set up, then per step
+/// the rows asked for ([`prepare_step`]), the kernel's step and each lane's outcome
+/// ([`finish_step`]), then each run's end.
 fn group_runs<const W: usize>(
     runs: &mut [LaneRun<'_>],
     observer: &mut dyn Observer,
 ) -> Vec<Result<()>> {
     let arm = runs[0].arm;
-    let Run {
-        dt,
-        steps,
-        record_every,
-        ..
-    } = runs[0].run;
-    let (n, ees) = (arm.dof(), arm.robot().end_effectors().len());
-    let len = arm.layout().len();
+    let Run { dt, steps, .. } = runs[0].run;
     let mut group = LaneGroup::<W>::new(arm);
+    let mut lanes = start_lanes(&mut group, runs);
+    let mut held = Held::<W>::new(arm);
+    let every = observer.every();
+    for k in 0..steps {
+        if !lanes.iter().any(Lane::live) {
+            break;
+        }
+        let stop = every > 0 && k > 0 && k % every == 0 && !observer.observe(k, steps);
+        prepare_step(&mut lanes, runs, k, stop, &mut held);
+        // the kernel adds the EE wrenches when the first live lane has them; a lane that
+        // differs is stepped by the scalar code (adding a zero wrench is not bit-neutral)
+        let Some(first) = lanes.iter().find(|l| l.live()) else {
+            break;
+        };
+        let ee_kernel = first.ee_given;
+        let inputs = LaneInputs {
+            u: &held.u,
+            base_wrench: &held.base,
+            ee_wrench: if ee_kernel { &held.ee } else { &[] },
+        };
+        let ok = group.step(arm, dt, &inputs);
+        finish_step(&mut group, &mut lanes, runs, k, ok, ee_kernel);
+        park_dead(&mut group, &lanes);
+    }
+    lanes
+        .into_iter()
+        .zip(runs.iter_mut())
+        .map(|(lane, r)| match lane.outcome {
+            Some(outcome) => outcome,
+            None => r.recorder.finish().map_err(|e| recording(steps, dt, e)),
+        })
+        .collect()
+}
+
+/// The lanes of `runs` in `group`: each run checked as [`simulate_into`] checks it before row
+/// 0, its arm and start put in its lane and row 0 recorded; a run that fails there is masked.
+fn start_lanes<const W: usize>(group: &mut LaneGroup<W>, runs: &mut [LaneRun<'_>]) -> Vec<Lane> {
+    let Run {
+        dt, record_every, ..
+    } = runs[0].run;
+    let len = runs[0].arm.layout().len();
     let mut lanes: Vec<Lane> = Vec::with_capacity(runs.len());
     for (k, r) in runs.iter_mut().enumerate() {
         let mut lane = Lane {
@@ -168,7 +203,6 @@ fn group_runs<const W: usize>(
             ee_given: false,
             outcome: None,
         };
-        // the checks of `simulate_into`, before row 0
         match r.run.check(r.arm, &r.drive) {
             Err(e) => lane.outcome = Some(Err(e)),
             Ok(()) => {
@@ -182,100 +216,119 @@ fn group_runs<const W: usize>(
         }
         lanes.push(lane);
     }
-    park_dead(&mut group, &lanes);
-    let mut u = vec![L::<W>::zero(); n];
-    let mut base = Sv::<W>::default();
-    let mut ee = vec![Sv::<W>::default(); ees];
-    // lanes stepped by the scalar code in this step (an EE channel unlike the kernel's)
-    let mut scalar = [false; W];
-    let every = observer.every();
-    for k in 0..steps {
-        if !lanes.iter().any(Lane::live) {
-            break;
-        }
-        let kept = k % record_every == 0;
-        let stop = every > 0 && k > 0 && k % every == 0 && !observer.observe(k, steps);
-        for (j, (lane, r)) in lanes.iter_mut().zip(runs.iter_mut()).enumerate() {
-            if !lane.live() {
-                continue;
-            }
-            if !kept {
-                lane.last_good.copy_from_slice(&lane.x);
-            }
-            if stop {
-                let error = simulation(k, dt, "interrupted by the caller".into());
-                fail(lane, r, k, kept, error);
-                continue;
-            }
-            match lane.stepper.prepare(r.arm, &mut r.drive, &lane.x, k, dt) {
-                Err(message) => fail(lane, r, k, kept, simulation(k, dt, message)),
-                Ok(ee_given) => {
-                    lane.ee_given = ee_given;
-                    pack(&lane.stepper, j, ee_given, &mut u, &mut base, &mut ee);
-                }
-            }
-        }
-        // the kernel adds the EE wrenches when the first live lane has them; a lane that
-        // differs is stepped by the scalar code (adding a zero wrench is not bit-neutral)
-        let Some(first) = lanes.iter().find(|l| l.live()) else {
-            break;
-        };
-        let ee_kernel = first.ee_given;
-        for (j, lane) in lanes.iter().enumerate() {
-            scalar[j] = lane.live() && lane.ee_given != ee_kernel;
-        }
-        let inputs = LaneInputs {
-            u: &u,
-            base_wrench: &base,
-            ee_wrench: if ee_kernel { &ee } else { &[] },
-        };
-        let ok = group.step(arm, dt, &inputs);
-        for (j, (lane, r)) in lanes.iter_mut().zip(runs.iter_mut()).enumerate() {
-            if !lane.live() {
-                continue;
-            }
-            let stepped = if scalar[j] || !ok[j] {
-                // the scalar step from the state before it, with the same held inputs
-                let done = lane.stepper.advance(r.arm, &mut lane.x, dt, lane.ee_given);
-                if done.is_ok() {
-                    group.put_state(j, &lane.x);
-                }
-                done
-            } else {
-                group.state(j, &mut lane.x);
-                checked_state(r.arm, &lane.x, dt)
-            };
-            if let Err(message) = stepped {
-                fail(lane, r, k, kept, simulation(k, dt, message));
-                continue;
-            }
-            let recorded = (|| {
-                if kept {
-                    r.recorder
-                        .input(lane.stepper.inputs())
-                        .map_err(|e| recording(k, dt, e))?;
-                }
-                if is_recorded(k + 1, steps, record_every) {
-                    r.recorder
-                        .state((k + 1) as f64 * dt, &lane.x)
-                        .map_err(|e| recording(k, dt, e))?;
-                }
-                Ok(())
-            })();
-            if let Err(e) = recorded {
-                lane.outcome = Some(Err(e));
-            }
-        }
-        park_dead(&mut group, &lanes);
-    }
+    park_dead(group, &lanes);
     lanes
-        .into_iter()
-        .zip(runs.iter_mut())
-        .map(|(lane, r)| match lane.outcome {
-            Some(outcome) => outcome,
-            None => r.recorder.finish().map_err(|e| recording(steps, dt, e)),
-        })
-        .collect()
+}
+
+/// The inputs of a step in lanes, each lane's from its [`Stepper`]: `u`, `f_B`, the EE wrenches.
+struct Held<const W: usize> {
+    u: Vec<L<W>>,
+    base: Sv<W>,
+    ee: Vec<Sv<W>>,
+}
+
+impl<const W: usize> Held<W> {
+    fn new(arm: &FlexibleArm) -> Self {
+        Self {
+            u: vec![L::zero(); arm.dof()],
+            base: Sv::default(),
+            ee: vec![Sv::default(); arm.robot().end_effectors().len()],
+        }
+    }
+}
+
+/// The first half of step `k` for every live lane: the last good state kept when its row is
+/// not, the run stopped if the observer said so (`stop`), else its rows asked for through its
+/// [`Stepper`] and packed into `held` (a controller that fails ends the run).
+fn prepare_step<const W: usize>(
+    lanes: &mut [Lane],
+    runs: &mut [LaneRun<'_>],
+    k: usize,
+    stop: bool,
+    held: &mut Held<W>,
+) {
+    let Run {
+        dt, record_every, ..
+    } = runs[0].run;
+    let kept = k % record_every == 0;
+    for (j, (lane, r)) in lanes.iter_mut().zip(runs.iter_mut()).enumerate() {
+        if !lane.live() {
+            continue;
+        }
+        if !kept {
+            lane.last_good.copy_from_slice(&lane.x);
+        }
+        if stop {
+            let error = simulation(k, dt, "interrupted by the caller".into());
+            fail(lane, r, k, kept, error);
+            continue;
+        }
+        match lane.stepper.prepare(r.arm, &mut r.drive, &lane.x, k, dt) {
+            Err(message) => fail(lane, r, k, kept, simulation(k, dt, message)),
+            Ok(ee_given) => {
+                lane.ee_given = ee_given;
+                pack(&lane.stepper, j, ee_given, held);
+            }
+        }
+    }
+}
+
+/// The second half of step `k` for every live lane, after the kernel's step (`ok` per lane, the
+/// EE wrenches added when `ee_kernel`): a lane the kernel failed, or whose EE channel is not the
+/// kernel's, stepped again by the scalar code from the state before the step with the same held
+/// inputs; then the new state (and the inputs, when the row is kept) to its recorder.
+fn finish_step<const W: usize>(
+    group: &mut LaneGroup<W>,
+    lanes: &mut [Lane],
+    runs: &mut [LaneRun<'_>],
+    k: usize,
+    ok: [bool; W],
+    ee_kernel: bool,
+) {
+    let Run {
+        dt,
+        steps,
+        record_every,
+        ..
+    } = runs[0].run;
+    let kept = k % record_every == 0;
+    for (j, (lane, r)) in lanes.iter_mut().zip(runs.iter_mut()).enumerate() {
+        if !lane.live() {
+            continue;
+        }
+        let stepped = if lane.ee_given != ee_kernel || !ok[j] {
+            let done = lane.stepper.advance(r.arm, &mut lane.x, dt, lane.ee_given);
+            if done.is_ok() {
+                group.put_state(j, &lane.x);
+            }
+            done
+        } else {
+            // the kernel's `ok` holds the scalar step's state checks (`checked_state`): the
+            // state is finite and its quaternion not zero
+            group.state(j, &mut lane.x);
+            Ok(())
+        };
+        if let Err(message) = stepped {
+            fail(lane, r, k, kept, simulation(k, dt, message));
+            continue;
+        }
+        let recorded = (|| {
+            if kept {
+                r.recorder
+                    .input(lane.stepper.inputs())
+                    .map_err(|e| recording(k, dt, e))?;
+            }
+            if is_recorded(k + 1, steps, record_every) {
+                r.recorder
+                    .state((k + 1) as f64 * dt, &lane.x)
+                    .map_err(|e| recording(k, dt, e))?;
+            }
+            Ok(())
+        })();
+        if let Err(e) = recorded {
+            lane.outcome = Some(Err(e));
+        }
+    }
 }
 
 fn simulation(step: usize, dt: f64, message: String) -> Error {
@@ -287,21 +340,14 @@ fn simulation(step: usize, dt: f64, message: String) -> Error {
 }
 
 /// Lane `j` of the held inputs from `stepper`'s rows.
-fn pack<const W: usize>(
-    stepper: &Stepper,
-    j: usize,
-    ee_given: bool,
-    u: &mut [L<W>],
-    base: &mut Sv<W>,
-    ee: &mut [Sv<W>],
-) {
-    for (lane, v) in u.iter_mut().zip(stepper.u()) {
+fn pack<const W: usize>(stepper: &Stepper, j: usize, ee_given: bool, held: &mut Held<W>) {
+    for (lane, v) in held.u.iter_mut().zip(stepper.u()) {
         lane.0[j] = *v;
     }
     let (base_row, ee_rows) = stepper.held_wrenches();
-    set_sv(base, j, base_row);
+    set_sv(&mut held.base, j, base_row);
     if ee_given {
-        for (e, w) in ee.iter_mut().enumerate() {
+        for (e, w) in held.ee.iter_mut().enumerate() {
             set_sv(w, j, &ee_rows[6 * e..6 * e + 6]);
         }
     }
