@@ -37,18 +37,22 @@ pub struct LaneRun<'a> {
     pub recorder: &'a mut dyn Recorder,
 }
 
-/// Whether the lane kernel can step `arm`: the recursive ABA (the kernel's algorithm) and no
-/// reaction wheels (their coupled base the kernel does not model).
+/// Whether the lane kernel can step `arm`: the recursive ABA (the kernel's algorithm), with or
+/// without reaction wheels.
 pub fn lane_capable(arm: &FlexibleArm) -> bool {
-    arm.wheels().is_none() && arm.method() == Method::Recursive
+    arm.method() == Method::Recursive
 }
 
 /// Whether runs of `a` and `b` can share a lane group: both [`lane_capable`], with robots of
-/// one structure (the same tree, joint frames and end-effector frames). Everything else may
-/// differ, each lane holding its own: the body masses and inertias (a dispersed payload) and the
-/// joint parameters (stiffness, damping, motor inertia and friction).
+/// one structure (the same tree, joint frames and end-effector frames) and as many reaction
+/// wheels. Everything else may differ, each lane holding its own: the body masses and inertias
+/// (a dispersed payload), the joint parameters (stiffness, damping, motor inertia and friction)
+/// and the wheels (axes, masses, positions, inertias, friction and limits).
 pub fn shares_kernel(a: &FlexibleArm, b: &FlexibleArm) -> bool {
-    lane_capable(a) && lane_capable(b) && same_structure(a.robot(), b.robot())
+    lane_capable(a)
+        && lane_capable(b)
+        && a.layout().wheels == b.layout().wheels
+        && same_structure(a.robot(), b.robot())
 }
 
 fn same_structure(a: &Robot, b: &Robot) -> bool {
@@ -184,6 +188,7 @@ fn group_runs<const W: usize>(
     }
     park_dead(&mut group, &lanes);
     let mut u = vec![L::<W>::zero(); n];
+    let mut wheel = vec![L::<W>::zero(); arm.layout().wheels];
     let mut base = Sv::<W>::default();
     let mut ee = vec![Sv::<W>::default(); ees];
     // lanes stepped by the scalar code in this step (an EE channel unlike the kernel's)
@@ -211,7 +216,13 @@ fn group_runs<const W: usize>(
                 Err(message) => fail(lane, r, k, kept, simulation(k, dt, message)),
                 Ok(ee_given) => {
                     lane.ee_given = ee_given;
-                    pack(&lane.stepper, j, ee_given, &mut u, &mut base, &mut ee);
+                    let rows = Rows {
+                        u: &mut u,
+                        wheel: &mut wheel,
+                        base: &mut base,
+                        ee: &mut ee,
+                    };
+                    pack(&lane.stepper, j, ee_given, rows);
                 }
             }
         }
@@ -228,6 +239,7 @@ fn group_runs<const W: usize>(
             u: &u,
             base_wrench: &base,
             ee_wrench: if ee_kernel { &ee } else { &[] },
+            wheel_torque: &wheel,
         };
         let ok = group.step(arm, dt, &inputs);
         for (j, (lane, r)) in lanes.iter_mut().zip(runs.iter_mut()).enumerate() {
@@ -286,22 +298,28 @@ fn simulation(step: usize, dt: f64, message: String) -> Error {
     }
 }
 
-/// Lane `j` of the held inputs from `stepper`'s rows.
-fn pack<const W: usize>(
-    stepper: &Stepper,
-    j: usize,
-    ee_given: bool,
-    u: &mut [L<W>],
-    base: &mut Sv<W>,
-    ee: &mut [Sv<W>],
-) {
-    for (lane, v) in u.iter_mut().zip(stepper.u()) {
+/// The held inputs of a group in lanes: motor torques (n), applied wheel torques (k), `f_B`
+/// and the EE wrenches.
+struct Rows<'a, const W: usize> {
+    u: &'a mut [L<W>],
+    wheel: &'a mut [L<W>],
+    base: &'a mut Sv<W>,
+    ee: &'a mut [Sv<W>],
+}
+
+/// Lane `j` of the held inputs from `stepper`'s rows (the wheel torques as applied: saturated by
+/// the lane's own `Stepper::prepare`).
+fn pack<const W: usize>(stepper: &Stepper, j: usize, ee_given: bool, rows: Rows<'_, W>) {
+    for (lane, v) in rows.u.iter_mut().zip(stepper.u()) {
+        lane.0[j] = *v;
+    }
+    for (lane, v) in rows.wheel.iter_mut().zip(stepper.wheel_torque()) {
         lane.0[j] = *v;
     }
     let (base_row, ee_rows) = stepper.held_wrenches();
-    set_sv(base, j, base_row);
+    set_sv(rows.base, j, base_row);
     if ee_given {
-        for (e, w) in ee.iter_mut().enumerate() {
+        for (e, w) in rows.ee.iter_mut().enumerate() {
             set_sv(w, j, &ee_rows[6 * e..6 * e + 6]);
         }
     }

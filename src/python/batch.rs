@@ -464,13 +464,13 @@ fn parse_lanes(obj: Option<&Bound<'_, PyAny>>) -> PyResult<Lanes> {
 /// ``KeyboardInterrupt``. Bad shapes raise ``ModelError`` naming the argument, the shapes
 /// accepted and the shape given (and the run, for a bad row).
 ///
-/// ``lanes`` (keyword): runs of one robot driven by torques or ``MotorPD`` go 4 or 8 at a time
+/// ``lanes`` (keyword): runs of one robot (with as many reaction wheels) go 4 or 8 at a time
 /// through each RK4 step in SIMD lanes, each lane bit for bit its scalar run (the record is the
-/// same whatever ``lanes`` says; the controllers are called per run). ``None`` (default): lanes
-/// of the processor's width (8 with AVX-512, else 4), unless the environment variable
-/// ``ORBITFLEX_LANES`` is ``0`` or ``1`` (the scalar path) or ``4``/``8``; ``False`` or ``1``:
-/// the scalar path; ``True``: the processor's width; ``4`` or ``8``: that width. Arms with
-/// reaction wheels run on the scalar path.
+/// same whatever ``lanes`` says; the controllers, ``MotorPD``, ``AttitudePD``, ``Sampled`` or
+/// tables, are called per run). ``None`` (default): lanes of the processor's width (8 with
+/// AVX-512, else 4), unless the environment variable ``ORBITFLEX_LANES`` is ``0`` or ``1`` (the
+/// scalar path) or ``4``/``8``; ``False`` or ``1``: the scalar path; ``True``: the processor's
+/// width; ``4`` or ``8``: that width.
 #[pyfunction]
 #[pyo3(name = "simulate_batch", signature = (arm_or_arms, x0s, dt, steps, u=None, base_wrench=None, ee_wrench=None, threads=None, record_every=None, *, keep_rows=true, progress=None, wheel_torque=None, lanes=None))]
 pub(crate) fn py_simulate_batch<'py>(
