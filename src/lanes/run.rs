@@ -216,12 +216,7 @@ fn group_runs<const W: usize>(
                 Err(message) => fail(lane, r, k, kept, simulation(k, dt, message)),
                 Ok(ee_given) => {
                     lane.ee_given = ee_given;
-                    let rows = Rows {
-                        u: &mut u,
-                        wheel: &mut wheel,
-                        base: &mut base,
-                        ee: &mut ee,
-                    };
+                    let rows = (&mut u[..], &mut wheel[..], &mut base, &mut ee[..]);
                     pack(&lane.stepper, j, ee_given, rows);
                 }
             }
@@ -298,28 +293,29 @@ fn simulation(step: usize, dt: f64, message: String) -> Error {
     }
 }
 
-/// The held inputs of a group in lanes: motor torques (n), applied wheel torques (k), `f_B`
-/// and the EE wrenches.
-struct Rows<'a, const W: usize> {
-    u: &'a mut [L<W>],
-    wheel: &'a mut [L<W>],
-    base: &'a mut Sv<W>,
-    ee: &'a mut [Sv<W>],
-}
+/// The held inputs of a group in lanes: motor torques (n), wheel torques applied (k), `f_B` and
+/// the EE wrenches.
+type Rows<'a, const W: usize> = (
+    &'a mut [L<W>],
+    &'a mut [L<W>],
+    &'a mut Sv<W>,
+    &'a mut [Sv<W>],
+);
 
 /// Lane `j` of the held inputs from `stepper`'s rows (the wheel torques as applied: saturated by
 /// the lane's own `Stepper::prepare`).
 fn pack<const W: usize>(stepper: &Stepper, j: usize, ee_given: bool, rows: Rows<'_, W>) {
-    for (lane, v) in rows.u.iter_mut().zip(stepper.u()) {
+    let (u, wheel, base, ee) = rows;
+    for (lane, v) in u.iter_mut().zip(stepper.u()) {
         lane.0[j] = *v;
     }
-    for (lane, v) in rows.wheel.iter_mut().zip(stepper.wheel_torque()) {
+    for (lane, v) in wheel.iter_mut().zip(stepper.wheel_torque()) {
         lane.0[j] = *v;
     }
     let (base_row, ee_rows) = stepper.held_wrenches();
-    set_sv(rows.base, j, base_row);
+    set_sv(base, j, base_row);
     if ee_given {
-        for (e, w) in rows.ee.iter_mut().enumerate() {
+        for (e, w) in ee.iter_mut().enumerate() {
             set_sv(w, j, &ee_rows[6 * e..6 * e + 6]);
         }
     }
