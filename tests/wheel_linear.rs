@@ -552,3 +552,269 @@ fn sampled_attitude_loop_matches_the_discrete_closed_form() {
     }
 }
 use nalgebra::Complex;
+
+/// The roots of `Σ c[i] zⁱ` (`c` from the constant term up, leading coefficient 1), as the
+/// eigenvalues of its companion matrix.
+fn roots(c: &[f64]) -> Vec<Complex<f64>> {
+    let deg = c.len() - 1;
+    let companion = DMatrix::from_fn(deg, deg, |r, col| {
+        if r == 0 {
+            -c[deg - 1 - col]
+        } else if col + 1 == r {
+            1.0
+        } else {
+            0.0
+        }
+    });
+    orbitflex::linalg::eigenvalues(&companion).unwrap()
+}
+
+/// The distance from `z` to the nearest of `values`.
+fn nearest(values: &[Complex<f64>], z: Complex<f64>) -> f64 {
+    values
+        .iter()
+        .map(|v| (v - z).norm())
+        .fold(f64::INFINITY, f64::min)
+}
+
+/// The attitude loop of `sampled_attitude_loop_matches_the_discrete_closed_form` with a delay of
+/// `d` samples: the command held over period `j` is `c_{j−d}`, so per axis
+/// `z^d (z𝟙 − Φ) dx = Γ K dx`, whose roots are those of
+///
+/// ```text
+/// z^d (z − 1)² + α z + β,   α = k_p T²/2I + k_d T/I,   β = k_p T²/2I − k_d T/I
+/// ```
+/// (`d = 0` gives the quadratic of that test). The loop carries the `3d` wheel commands in
+/// flight as states, so it has `3d` more eigenvalues than the undelayed one; the others stay
+/// at 1 and `e^{±iωT}` as there. The same bound (1e-8) holds: the roots are simple and apart
+/// by more than 1e-2.
+#[test]
+fn sampled_attitude_loop_with_a_delay_matches_the_closed_form() {
+    let robot = Robot::from_urdf_string(FEATHER, &UrdfOptions::default()).unwrap();
+    let arm = FlexibleArm::new(
+        robot,
+        FlexibleJoints::uniform(1, 1.0, 1.0, 0.0, 0.0).unwrap(),
+    )
+    .unwrap()
+    .with_wheels(axis_wheels())
+    .unwrap();
+    let x = arm.rest_state();
+    let (kp, kd) = (40.0, 20.0);
+    let pd = AttitudePD::new(
+        [kp; 3],
+        [kd; 3],
+        AttitudeTarget::Initial,
+        arm.wheels().unwrap().allocation().unwrap(),
+    )
+    .unwrap();
+    let plant = LinearSpec {
+        motors: Motors::Clamped,
+        ..LinearSpec::default()
+    };
+    let inertia = [60.06, 80.06, 100.06];
+    let sampled = |rate: f64, delay: usize| {
+        sampled_loop(
+            &arm,
+            &mut arm.workspace(),
+            &x,
+            &plant,
+            SampledFeedback::Attitude(&pd),
+            rate,
+            delay,
+        )
+        .unwrap()
+    };
+    let states = sampled(10.0, 0).eigenvalues.len();
+    let mut verdicts = Vec::new();
+    for delay in 1..=3 {
+        for period in [0.05, 0.2, 0.5] {
+            let l = sampled(1.0 / period, delay);
+            assert_eq!(l.eigenvalues.len(), states + 3 * delay);
+            assert_eq!((l.delay, l.period), (delay, 1.0 / (1.0 / period)));
+            let mut rho: f64 = 1.0;
+            for i in inertia {
+                let alpha = kp * period * period / (2.0 * i) + kd * period / i;
+                let beta = kp * period * period / (2.0 * i) - kd * period / i;
+                // z^d (z² − 2z + 1) + α z + β, from the constant term up
+                let mut c = vec![0.0; delay + 3];
+                c[delay] += 1.0;
+                c[delay + 1] -= 2.0;
+                c[delay + 2] += 1.0;
+                c[1] += alpha;
+                c[0] += beta;
+                for root in roots(&c) {
+                    let gap = nearest(&l.eigenvalues, root);
+                    assert!(
+                        gap < 1e-8,
+                        "d {delay} T {period}: root {root} missing ({gap:e})"
+                    );
+                    rho = rho.max(root.norm());
+                }
+            }
+            assert!(
+                (l.spectral_radius - rho).abs() < 1e-8,
+                "d {delay} T {period}: ρ {} vs {rho}",
+                l.spectral_radius
+            );
+            // no root within 1e-4 of the unit circle: the verdict is not a matter of rounding
+            assert!(
+                rho == 1.0 || rho > 1.0 + 1e-4,
+                "d {delay} T {period}: ρ {rho}"
+            );
+            assert_eq!(l.unstable(), rho > 1.0, "d {delay} T {period}: ρ {rho}");
+            verdicts.push(l.unstable());
+        }
+    }
+    // the delays make the slower loops unstable: both verdicts occur
+    assert!(
+        verdicts.contains(&true) && verdicts.contains(&false),
+        "{verdicts:?}"
+    );
+}
+
+/// One joint on a held bus, its link's centre of mass on the joint axis (`I = 0.5 kg·m²` about
+/// it), motor inertia `j`, spring `k`, joint damping `d`, motor damping `β`: over
+/// `[q, θ, q̇, θ̇]` the plant is
+///
+/// ```text
+/// I q̈ = k (θ − q) + d (θ̇ − q̇),   j θ̈ = u − k (θ − q) − d (θ̇ − q̇) − β θ̇
+/// ```
+/// and a motor PD sampled every `T` feeds back `u = −k_p θ − k_d θ̇`. The loop built here from
+/// these closed forms (`Φ`, `Γ` from the exponential of `[[A, B], [0, 0]] T`, the delay line of
+/// `d` commands written out) has the eigenvalues `sampled_loop` finds. Bound: `‖A T‖ ≤ 3` and the
+/// eigenvalues are simple, so both sides are accurate to ~1e-13; 1e-10 leaves a margin.
+#[test]
+fn sampled_motor_pd_loop_matches_the_one_joint_closed_form() {
+    const ROD: &str = r#"<robot name="rod">
+      <link name="bus"><inertial><mass value="100"/>
+        <inertia ixx="10" iyy="10" izz="10" ixy="0" ixz="0" iyz="0"/></inertial></link>
+      <joint name="j" type="continuous"><parent link="bus"/><child link="rod"/>
+        <origin xyz="0.3 0 0"/><axis xyz="0 0 1"/></joint>
+      <link name="rod"><inertial><origin xyz="0 0 0.2"/><mass value="2"/>
+        <inertia ixx="0.7" iyy="0.6" izz="0.5" ixy="0" ixz="0" iyz="0"/></inertial></link>
+    </robot>"#;
+    let (inertia, k, j, d, beta) = (0.5, 50.0, 0.1, 0.2, 0.05);
+    let robot = Robot::from_urdf_string(ROD, &UrdfOptions::default()).unwrap();
+    let arm = FlexibleArm::new(robot, FlexibleJoints::uniform(1, k, j, d, beta).unwrap()).unwrap();
+    let x = arm.rest_state();
+    let plant = LinearSpec {
+        base: BaseMode::Held,
+        ..LinearSpec::default()
+    };
+    let (kp, kd) = ([8.0], [0.6]);
+    let feedback = SampledFeedback::MotorPd { kp: &kp, kd: &kd };
+    assert_eq!(feedback.name(), "MotorPD");
+    #[rustfmt::skip]
+    let a = DMatrix::from_row_slice(4, 4, &[
+        0.0, 0.0, 1.0, 0.0,
+        0.0, 0.0, 0.0, 1.0,
+        -k / inertia, k / inertia, -d / inertia, d / inertia,
+        k / j, -k / j, d / j, -(d + beta) / j,
+    ]);
+    let b = DMatrix::from_column_slice(4, 1, &[0.0, 0.0, 0.0, 1.0 / j]);
+    let gain = DMatrix::from_row_slice(1, 4, &[0.0, -kp[0], 0.0, -kd[0]]);
+    for (rate, delay) in [(200.0, 0), (50.0, 0), (50.0, 1), (20.0, 2)] {
+        let period = 1.0 / rate;
+        let mut augmented = DMatrix::zeros(5, 5);
+        augmented.view_mut((0, 0), (4, 4)).copy_from(&(&a * period));
+        augmented.view_mut((0, 4), (4, 1)).copy_from(&(&b * period));
+        let exp = augmented.exp();
+        let (phi, gamma) = (exp.view((0, 0), (4, 4)), exp.view((0, 4), (4, 1)));
+        let size = 4 + delay;
+        let mut step = DMatrix::zeros(size, size);
+        if delay == 0 {
+            step.copy_from(&(phi + gamma * &gain));
+        } else {
+            // [dx; c_{j−1}; …; c_{j−d}]: dx' = Φ dx + Γ c_{j−d}, c_j = K dx, the line shifts
+            step.view_mut((0, 0), (4, 4)).copy_from(&phi);
+            step.view_mut((0, 3 + delay), (4, 1)).copy_from(&gamma);
+            step.view_mut((4, 0), (1, 4)).copy_from(&gain);
+            for i in 1..delay {
+                step[(4 + i, 3 + i)] = 1.0;
+            }
+        }
+        let expected = orbitflex::linalg::eigenvalues(&step).unwrap();
+        let l = sampled_loop(
+            &arm,
+            &mut arm.workspace(),
+            &x,
+            &plant,
+            feedback,
+            rate,
+            delay,
+        )
+        .unwrap();
+        assert_eq!(l.eigenvalues.len(), size, "rate {rate} delay {delay}");
+        for z in &expected {
+            let gap = nearest(&l.eigenvalues, *z);
+            assert!(
+                gap < 1e-10,
+                "rate {rate} delay {delay}: {z} missing ({gap:e})"
+            );
+        }
+        let rho = expected.iter().map(|z| z.norm()).fold(0.0, f64::max);
+        assert!((l.spectral_radius - rho).abs() < 1e-10);
+    }
+}
+
+/// A rate that is not a finite positive number, gains of the wrong length and an attitude PD
+/// on an arm without wheels are refused by name; the feedbacks name themselves as the Python
+/// classes do.
+#[test]
+fn sampled_loop_refuses_bad_rates_and_gains() {
+    let arm = FlexibleArm::new(
+        random_chain(2, 4),
+        FlexibleJoints::uniform(2, 50.0, 0.1, 0.2, 0.05).unwrap(),
+    )
+    .unwrap();
+    let x = arm.rest_state();
+    let plant = LinearSpec {
+        base: BaseMode::Held,
+        ..LinearSpec::default()
+    };
+    let (kp, kd) = ([8.0, 8.0], [0.6, 0.6]);
+    let pd = SampledFeedback::MotorPd { kp: &kp, kd: &kd };
+    let run = |feedback, rate| {
+        sampled_loop(&arm, &mut arm.workspace(), &x, &plant, feedback, rate, 0)
+            .map(|l| l.spectral_radius)
+            .map_err(|e| e.to_string())
+    };
+    for rate in [0.0, -5.0, f64::NAN, f64::INFINITY] {
+        assert_eq!(
+            run(pd, rate).unwrap_err(),
+            format!("rate_hz: expected a finite rate > 0 (Hz), given {rate}")
+        );
+    }
+    let short = SampledFeedback::MotorPd {
+        kp: &kp[..1],
+        kd: &kd,
+    };
+    assert_eq!(
+        run(short, 100.0).unwrap_err(),
+        "kp: expected length 2, given length 1"
+    );
+    let short = SampledFeedback::MotorPd {
+        kp: &kp,
+        kd: &kd[..1],
+    };
+    assert_eq!(
+        run(short, 100.0).unwrap_err(),
+        "kd: expected length 2, given length 1"
+    );
+    assert!(run(pd, 100.0).is_ok());
+    let wheels = axis_wheels();
+    let attitude = AttitudePD::new(
+        [1.0; 3],
+        [1.0; 3],
+        AttitudeTarget::Initial,
+        wheels.allocation().unwrap(),
+    )
+    .unwrap();
+    assert_eq!(SampledFeedback::Attitude(&attitude).name(), "AttitudePD");
+    // the attitude PD is checked against the arm as the linear model checks it
+    let e = run(SampledFeedback::Attitude(&attitude), 100.0).unwrap_err();
+    assert!(
+        e.starts_with("u: an AttitudePD drives reaction wheels, and the arm has none"),
+        "{e}"
+    );
+}
