@@ -672,65 +672,93 @@ fn sampled_attitude_loop_with_a_delay_matches_the_closed_form() {
     );
 }
 
-/// One joint on a held bus, its link's centre of mass on the joint axis (`I = 0.5 kg·m²` about
-/// it), motor inertia `j`, spring `k`, joint damping `d`, motor damping `β`: over
-/// `[q, θ, q̇, θ̇]` the plant is
+/// Two joints on a held bus, each carrying a rod whose centre of mass is on its axis (`I_i` =
+/// 0.5 and 0.8 kg·m² about it), on two branches, so that the held bus decouples them; motor
+/// inertia `j`, spring `k`, joint damping `d`, motor damping `β`. Over
+/// `[q₁, q₂, θ₁, θ₂, q̇₁, q̇₂, θ̇₁, θ̇₂]` the plant is, per joint,
 ///
 /// ```text
-/// I q̈ = k (θ − q) + d (θ̇ − q̇),   j θ̈ = u − k (θ − q) − d (θ̇ − q̇) − β θ̇
+/// I_i q̈_i = k (θ_i − q_i) + d (θ̇_i − q̇_i),   j θ̈_i = u_i − k (θ_i − q_i) − d (θ̇_i − q̇_i) − β θ̇_i
 /// ```
-/// and a motor PD sampled every `T` feeds back `u = −k_p θ − k_d θ̇`. The loop built here from
-/// these closed forms (`Φ`, `Γ` from the exponential of `[[A, B], [0, 0]] T`, the delay line of
-/// `d` commands written out) has the eigenvalues `sampled_loop` finds. Bound: `‖A T‖ ≤ 3` and the
+/// and a motor PD sampled every `T` feeds back `u_i = −k_p,i θ_i − k_d,i θ̇_i` (gains differing
+/// per joint, so a gain on the wrong joint shows). The loop built here from these closed forms
+/// (`Φ`, `Γ` from the exponential of `[[A, B], [0, 0]] T`, the delay line of `d` commands written
+/// out) has the eigenvalues `sampled_loop` finds, and its threshold is `e^{1.1 T g}(1 + 10⁻⁶)`
+/// with `g ≥ 0` the growth of the continuous loop `A + B K`. Bound: `‖A T‖ ≤ 3` and the
 /// eigenvalues are simple, so both sides are accurate to ~1e-13; 1e-10 leaves a margin.
 #[test]
-fn sampled_motor_pd_loop_matches_the_one_joint_closed_form() {
-    const ROD: &str = r#"<robot name="rod">
+fn sampled_motor_pd_loop_matches_the_two_joint_closed_form() {
+    const RODS: &str = r#"<robot name="rods">
       <link name="bus"><inertial><mass value="100"/>
         <inertia ixx="10" iyy="10" izz="10" ixy="0" ixz="0" iyz="0"/></inertial></link>
-      <joint name="j" type="continuous"><parent link="bus"/><child link="rod"/>
+      <joint name="j1" type="continuous"><parent link="bus"/><child link="rod1"/>
         <origin xyz="0.3 0 0"/><axis xyz="0 0 1"/></joint>
-      <link name="rod"><inertial><origin xyz="0 0 0.2"/><mass value="2"/>
+      <link name="rod1"><inertial><origin xyz="0 0 0.2"/><mass value="2"/>
         <inertia ixx="0.7" iyy="0.6" izz="0.5" ixy="0" ixz="0" iyz="0"/></inertial></link>
+      <joint name="j2" type="continuous"><parent link="bus"/><child link="rod2"/>
+        <origin xyz="-0.3 0 0"/><axis xyz="0 0 1"/></joint>
+      <link name="rod2"><inertial><origin xyz="0 0 -0.1"/><mass value="3"/>
+        <inertia ixx="0.9" iyy="0.9" izz="0.8" ixy="0" ixz="0" iyz="0"/></inertial></link>
     </robot>"#;
-    let (inertia, k, j, d, beta) = (0.5, 50.0, 0.1, 0.2, 0.05);
-    let robot = Robot::from_urdf_string(ROD, &UrdfOptions::default()).unwrap();
-    let arm = FlexibleArm::new(robot, FlexibleJoints::uniform(1, k, j, d, beta).unwrap()).unwrap();
+    let (inertia, k, j, d, beta) = ([0.5, 0.8], 50.0, 0.1, 0.2, 0.05);
+    let robot = Robot::from_urdf_string(RODS, &UrdfOptions::default()).unwrap();
+    let arm = FlexibleArm::new(robot, FlexibleJoints::uniform(2, k, j, d, beta).unwrap()).unwrap();
     let x = arm.rest_state();
     let plant = LinearSpec {
         base: BaseMode::Held,
         ..LinearSpec::default()
     };
-    let (kp, kd) = ([8.0], [0.6]);
-    let feedback = SampledFeedback::MotorPd { kp: &kp, kd: &kd };
-    assert_eq!(feedback.name(), "MotorPD");
-    #[rustfmt::skip]
-    let a = DMatrix::from_row_slice(4, 4, &[
-        0.0, 0.0, 1.0, 0.0,
-        0.0, 0.0, 0.0, 1.0,
-        -k / inertia, k / inertia, -d / inertia, d / inertia,
-        k / j, -k / j, d / j, -(d + beta) / j,
-    ]);
-    let b = DMatrix::from_column_slice(4, 1, &[0.0, 0.0, 0.0, 1.0 / j]);
-    let gain = DMatrix::from_row_slice(1, 4, &[0.0, -kp[0], 0.0, -kd[0]]);
-    for (rate, delay) in [(200.0, 0), (50.0, 0), (50.0, 1), (20.0, 2)] {
+    let (mut a, mut b) = (DMatrix::zeros(8, 8), DMatrix::zeros(8, 2));
+    for i in 0..2 {
+        let (q, theta, qd, td) = (i, 2 + i, 4 + i, 6 + i);
+        a[(q, qd)] = 1.0;
+        a[(theta, td)] = 1.0;
+        a[(qd, q)] = -k / inertia[i];
+        a[(qd, theta)] = k / inertia[i];
+        a[(qd, qd)] = -d / inertia[i];
+        a[(qd, td)] = d / inertia[i];
+        a[(td, q)] = k / j;
+        a[(td, theta)] = -k / j;
+        a[(td, qd)] = d / j;
+        a[(td, td)] = -(d + beta) / j;
+        b[(td, i)] = 1.0 / j;
+    }
+    // the last gains pump energy into the motors (k_d + β < 0): the continuous loop grows
+    for (rate, delay, kd) in [
+        (200.0, 0, [0.6, 0.4]),
+        (50.0, 0, [0.6, 0.4]),
+        (50.0, 1, [0.6, 0.4]),
+        (20.0, 2, [0.6, 0.4]),
+        (100.0, 0, [-0.3, 0.4]),
+    ] {
+        let kp = [8.0, 5.0];
+        let feedback = SampledFeedback::MotorPd { kp: &kp, kd: &kd };
+        assert_eq!(feedback.name(), "MotorPD");
+        let mut gain = DMatrix::zeros(2, 8);
+        for i in 0..2 {
+            gain[(i, 2 + i)] = -kp[i];
+            gain[(i, 6 + i)] = -kd[i];
+        }
         let period = 1.0 / rate;
-        let mut augmented = DMatrix::zeros(5, 5);
-        augmented.view_mut((0, 0), (4, 4)).copy_from(&(&a * period));
-        augmented.view_mut((0, 4), (4, 1)).copy_from(&(&b * period));
+        let mut augmented = DMatrix::zeros(10, 10);
+        augmented.view_mut((0, 0), (8, 8)).copy_from(&(&a * period));
+        augmented.view_mut((0, 8), (8, 2)).copy_from(&(&b * period));
         let exp = augmented.exp();
-        let (phi, gamma) = (exp.view((0, 0), (4, 4)), exp.view((0, 4), (4, 1)));
-        let size = 4 + delay;
+        let (phi, gamma) = (exp.view((0, 0), (8, 8)), exp.view((0, 8), (8, 2)));
+        let size = 8 + 2 * delay;
         let mut step = DMatrix::zeros(size, size);
         if delay == 0 {
             step.copy_from(&(phi + gamma * &gain));
         } else {
             // [dx; c_{j−1}; …; c_{j−d}]: dx' = Φ dx + Γ c_{j−d}, c_j = K dx, the line shifts
-            step.view_mut((0, 0), (4, 4)).copy_from(&phi);
-            step.view_mut((0, 3 + delay), (4, 1)).copy_from(&gamma);
-            step.view_mut((4, 0), (1, 4)).copy_from(&gain);
+            step.view_mut((0, 0), (8, 8)).copy_from(&phi);
+            step.view_mut((0, 8 + 2 * (delay - 1)), (8, 2))
+                .copy_from(&gamma);
+            step.view_mut((8, 0), (2, 8)).copy_from(&gain);
             for i in 1..delay {
-                step[(4 + i, 3 + i)] = 1.0;
+                for r in 0..2 {
+                    step[(8 + 2 * i + r, 8 + 2 * (i - 1) + r)] = 1.0;
+                }
             }
         }
         let expected = orbitflex::linalg::eigenvalues(&step).unwrap();
@@ -754,6 +782,16 @@ fn sampled_motor_pd_loop_matches_the_one_joint_closed_form() {
         }
         let rho = expected.iter().map(|z| z.norm()).fold(0.0, f64::max);
         assert!((l.spectral_radius - rho).abs() < 1e-10);
+        // the threshold: e^{1.1 T g} (1 + 10⁻⁶), g the continuous loop's growth (≥ 0)
+        let continuous = orbitflex::linalg::eigenvalues(&(&a + &b * &gain)).unwrap();
+        let growth = continuous.iter().map(|z| z.re).fold(0.0, f64::max);
+        assert_eq!(growth > 0.1, kd[0] < 0.0, "growth {growth}");
+        let threshold = (1.1 * period * growth).exp() * (1.0 + 1e-6);
+        assert!(
+            (l.threshold - threshold).abs() < 1e-10 * threshold,
+            "rate {rate} delay {delay}: threshold {} vs {threshold}",
+            l.threshold
+        );
     }
 }
 
