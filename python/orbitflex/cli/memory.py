@@ -27,8 +27,7 @@ def step_count(span: float, dt: float, flag: str, advice: str,
 def recorded_rows(steps: int, record_every: int) -> int:
     """Rows a run of ``steps`` steps keeps with ``record_every`` (``simulate``'s rule): rows 0,
     k, 2k, ... and the final row (:func:`orbitflex.recorded_rows`)."""
-    rows: int = _core.recorded_rows(steps, record_every)
-    return rows
+    return int(_core.recorded_rows(steps, record_every))
 
 
 def run_bytes(steps: int, n: int, record_every: int = 1) -> Dict[str, Union[int, float]]:
