@@ -352,30 +352,43 @@ mod tests {
     fn counts_past_u128_overflow_into_floats_not_wrap() {
         let big = Count::Exact(u128::MAX / 2);
         assert_eq!(big.times(2), Count::Exact(u128::MAX - 1));
-        assert_eq!(big.times(3), Count::Beyond((u128::MAX / 2) as f64 * 3.0));
+        // past u128 the count is in units of 2^128: (2^127 − 1) · 3 ≈ 1.5 · 2^128
+        assert_eq!(big.times(3), Count::Beyond(1.5));
         assert_eq!(
             Count::Exact(u128::MAX).plus(Count::Exact(1)),
-            Count::Beyond(u128::MAX as f64 + 1.0)
+            Count::Beyond(2.0)
         );
         assert_eq!(Count::from_f64(1e38), Count::Exact(1e38 as u128));
-        assert_eq!(Count::from_f64(1e39), Count::Beyond(1e39));
+        assert_eq!(Count::from_f64(1e39), Count::Beyond(1e39 / BEYOND));
+        assert_eq!(Count::from_f64(1e39).as_f64(), 1e39);
         assert_eq!(Count::from_f64(-3.0), Count::Exact(0));
         assert!(
-            Count::Beyond(1e39).exceeds(u64::MAX)
+            Count::Beyond(1.0).exceeds(u64::MAX)
                 && Count::Exact(u128::from(u64::MAX) + 1).exceeds(u64::MAX)
         );
         assert!(!Count::Exact(u128::from(u64::MAX)).exceeds(u64::MAX));
-        // 10^303 steps, 7 joints: 112 · 10^303 bytes of tables, a float product like Python's
+        // 10^303 steps, 7 joints: 112 · 10^303 bytes of tables, one float product
         let run = RunBytes::new(Count::from_f64(1e303), StateLayout::new(7), 1).unwrap();
-        assert_eq!(run.reference_tables, Count::Beyond(1e303 * 112.0));
-        assert_eq!(recorded_rows(Count::Beyond(1e303), 1), Count::Beyond(1e303));
-        // past f64::MAX the count is infinite, and still refused
+        assert_eq!(run.reference_tables, Count::Beyond(1e303 / BEYOND * 112.0));
+        let rows = |steps: f64, k| recorded_rows(Count::from_f64(steps), k).as_f64();
+        assert_eq!(rows(1e303, 1), 1e303);
+        assert_eq!(rows(1e303, 1000), 1e300);
+        assert_eq!(rows(1e39, 10), 1e38);
+        // rows fall back into u128: 2^130 steps, every 2^63rd: 2^67 + 1 rows, exactly
+        assert_eq!(
+            recorded_rows(Count::from_f64(2f64.powi(130)), 1 << 63),
+            Count::Exact((1 << 67) + 1)
+        );
+        // f64::MAX steps: sizes past f64::MAX bytes are still counted, and refused
         let run = RunBytes::new(Count::from_f64(f64::MAX), StateLayout::new(7), 1).unwrap();
-        assert_eq!(run.total(), Count::Beyond(f64::INFINITY));
-        assert!(run
-            .check(Some(u64::MAX))
-            .unwrap_err()
-            .contains("need about inf TB"));
+        let message = run.check(Some(u64::MAX)).unwrap_err();
+        assert!(
+            message.starts_with(
+                "1.8e+308 steps of 7 joints need about 1.51e+299 TB (reference tables \
+                 2.01e+298 TB"
+            ),
+            "{message}"
+        );
     }
 
     #[test]
@@ -433,7 +446,8 @@ mod tests {
             [steps(999_999_999_999), steps(1_000_000_000_000)],
             ["999,999,999,999", "1e+12"]
         );
-        assert_eq!(Steps(Count::Beyond(1e303)).to_string(), "1e+303");
+        assert_eq!(Steps(Count::from_f64(1e303)).to_string(), "1e+303");
+        assert_eq!(Size(Count::from_f64(8.4e305)).to_string(), "8.4e+293 TB");
         let size = |b| Size(Count::Exact(b)).to_string();
         assert_eq!(
             [
