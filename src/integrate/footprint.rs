@@ -354,9 +354,10 @@ mod tests {
         assert_eq!(big.times(2), Count::Exact(u128::MAX - 1));
         // past u128 the count is in units of 2^128: (2^127 − 1) · 3 ≈ 1.5 · 2^128
         assert_eq!(big.times(3), Count::Beyond(1.5));
+        // u128::MAX + 1 = 2^128 exactly: one unit
         assert_eq!(
             Count::Exact(u128::MAX).plus(Count::Exact(1)),
-            Count::Beyond(2.0)
+            Count::Beyond(1.0)
         );
         assert_eq!(Count::from_f64(1e38), Count::Exact(1e38 as u128));
         assert_eq!(Count::from_f64(1e39), Count::Beyond(1e39 / BEYOND));
