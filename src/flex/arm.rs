@@ -490,7 +490,17 @@ impl FlexibleArm {
     }
 
     /// Spring torques `τ = k (θ − q) + d (θ̇ − q̇)` (N·m) at state `x` into `out` (n).
+    ///
+    /// # Panics
+    /// If `out` does not hold exactly n torques (a buffer sized for another arm).
     pub fn spring_torque(&self, x: &[f64], out: &mut [f64]) {
+        assert_eq!(
+            out.len(),
+            self.dof(),
+            "spring_torque: out holds {} torques, the arm has n = {}",
+            out.len(),
+            self.dof()
+        );
         self.spring_torque_of(&self.layout().split(x), out);
     }
 
