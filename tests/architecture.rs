@@ -121,23 +121,12 @@ const KERNELS: &[(&str, &str, &str)] = &[
     ),
     ("flex/jacobians.rs", "jacobians_into", "model §4"),
     ("analysis/linear.rs", "held_jacobians", "(A.19)"),
+    ("lanes/step.rs", "aba", "(A.6)"),
 ];
 
-// TEMPORARY: being split on branches i25 (src/python/) and i31 (src/lanes/); the lead removes
-// this block when those branches merge. Entries here may already be short (merges in any order
-// pass); KERNELS entries may not.
-const BEING_SPLIT: &[(&str, &str)] = &[
-    ("python/arm.rs", "simulate"),
-    ("python/capture_run.rs", "py_simulate_capture_batch"),
-    ("python/batch.rs", "py_simulate_batch"),
-    ("python/batch.rs", "parse"),
-    ("python/plan.rs", "track"),
-    ("python/parallel.rs", "compute_rows"),
-    ("python/simulator.rs", "step"),
-    ("python/convert.rs", "ee_wrench_arg"),
-    ("lanes/run.rs", "group_runs"),
-    ("lanes/step.rs", "aba"),
-];
+// TEMPORARY: being split on branch i27w (src/lanes/run.rs); the lead removes this block when it
+// merges. Entries here may already be short; KERNELS entries may not.
+const BEING_SPLIT: &[(&str, &str)] = &[("lanes/run.rs", "group_runs")];
 // END TEMPORARY
 
 /// `text` with the insides of comments, strings and character literals blanked (newlines

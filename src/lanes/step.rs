@@ -444,7 +444,10 @@ impl<const W: usize> LaneGroup<W> {
         Sv::new(f.angular.add(&sum), f.linear)
     }
 
-    /// The three ABA passes ([`crate::algorithms::aba`]'s kernel) in lanes, into `self.ddq`.
+    /// The three ABA passes ([`crate::algorithms::aba`]'s kernel) in lanes, into `self.ddq`:
+    /// velocities (A.4), Coriolis terms (A.7), `I^A = M_i` (A.9) and `p^A = b_i` (A.10) forwards;
+    /// the articulated inertias backwards; the base solve and `q̈`, `α_i` (A.6) forwards,
+    /// operation for operation the scalar kernel's.
     #[inline(always)]
     fn aba(
         &mut self,
