@@ -241,6 +241,18 @@ fn main() {
             reps,
         );
         println!("step_jacobians {t:.1}");
+    }
+    if wanted("step_jacobians_central_differences") {
+        let x0 = arm
+            .state(&StateSpec {
+                q: Some(&q),
+                qd: Some(&qd),
+                base_twist: Some(&twist),
+                ..StateSpec::default()
+            })
+            .unwrap();
+        let mut ws = ArmWorkspace::new(&arm);
+        let u = vec![1.0; n];
         let tangent = arm.tangent_size();
         let mut dx = vec![0.0; tangent];
         let (mut plus, mut minus) = (vec![0.0; x0.len()], vec![0.0; x0.len()]);

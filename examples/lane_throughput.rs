@@ -143,6 +143,7 @@ fn lanes<const W: usize>(s: &Setup, pd: Option<(f64, f64, f64)>) {
                 u: &u,
                 base_wrench: &zero,
                 ee_wrench: &[],
+                wheel_torque: &[],
             };
             let ok = g.step(&s.arm, s.dt, &inputs);
             assert!(ok.iter().all(|&o| o));

@@ -377,7 +377,8 @@ fn split_real_pair(h: &mut DMatrix<f64>, z: &mut DMatrix<f64>, nn: usize, zz: f6
     h[(nn, nn - 1)] = 0.0;
 }
 
-/// One implicit double-shift QR step on rows and columns `l..=nn` of the Hessenberg matrix `h`,
+/// One implicit double-shift QR step (the Francis step: EISPACK `hqr`, Golub and Van
+/// Loan's Algorithm 7.5.1) on rows and columns `l..=nn` of the Hessenberg matrix `h`,
 /// with the shifts given by `x = h[nn][nn]`, `y = h[nn-1][nn-1]` and
 /// `w = h[nn][nn-1] h[nn-1][nn]`. It starts where two consecutive subdiagonal elements are
 /// small enough to split the block. With `z`, the reflections also update the rows right of

@@ -75,6 +75,8 @@ pub struct Operators {
 
 impl Operators {
     /// Assembles every operator at `state`: `q`, `V_B = [ω_B; v_B]` (base frame) and `q̇`.
+    /// Per link `Φ_{i,λ(i)}`, the velocities (A.4), `a_i` (A.7) and `b_i` (A.10); then the
+    /// block operators `Φ`, `H`, `M`, `Φ̂₁`, `B` and the products of (A.19).
     // Block indices (i, k) are the equations' indices; iterator chains would hide them.
     #[allow(clippy::needless_range_loop)]
     pub fn new(robot: &Robot, state: &RigidState) -> Result<Self> {

@@ -400,6 +400,15 @@ fn state_rows_spring_torque_without_joints() {
     assert!(rows.spring_torque(&arm).is_empty());
 }
 
+#[test]
+#[should_panic(expected = "spring_torque: out holds 3 torques, the arm has n = 2")]
+fn spring_torque_refuses_a_buffer_of_another_size() {
+    let arm = two_joint_arm();
+    let x = arm.rest_state();
+    let mut out = [7.0; 3];
+    arm.spring_torque(&x, &mut out);
+}
+
 // ---------------------------------------------------------------------------------------------
 // integrate/simulate.rs
 

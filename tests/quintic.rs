@@ -97,6 +97,22 @@ fn schedules_tabulate_the_slew_for_a_motor_pd() {
     );
 }
 
+/// A slew of no joints (an arm whose joints are all fixed) tabulates rows of width 0: every
+/// step is there, with nothing in it, and nothing panics.
+#[test]
+fn a_slew_of_no_joints_has_empty_rows() {
+    let quintic = Quintic::new(&[], &[], 1.0).unwrap();
+    assert_eq!(quintic.width(), 0);
+    let (theta, theta_dot) = quintic.schedules(0.1, 5).unwrap();
+    let empty = Schedule::Table {
+        values: vec![],
+        width: 0,
+    };
+    assert_eq!((&theta, &theta_dot), (&empty, &empty));
+    let (mut row, mut rate) = ([0.0; 0], [0.0; 0]);
+    quintic.write(0.5, &mut row, &mut rate);
+}
+
 #[test]
 fn bad_slews_are_refused_with_what_and_why() {
     let message = |e: Error| e.to_string();

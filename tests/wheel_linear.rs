@@ -552,3 +552,307 @@ fn sampled_attitude_loop_matches_the_discrete_closed_form() {
     }
 }
 use nalgebra::Complex;
+
+/// The roots of `Σ c[i] zⁱ` (`c` from the constant term up, leading coefficient 1), as the
+/// eigenvalues of its companion matrix.
+fn roots(c: &[f64]) -> Vec<Complex<f64>> {
+    let deg = c.len() - 1;
+    let companion = DMatrix::from_fn(deg, deg, |r, col| {
+        if r == 0 {
+            -c[deg - 1 - col]
+        } else if col + 1 == r {
+            1.0
+        } else {
+            0.0
+        }
+    });
+    orbitflex::linalg::eigenvalues(&companion).unwrap()
+}
+
+/// The distance from `z` to the nearest of `values`.
+fn nearest(values: &[Complex<f64>], z: Complex<f64>) -> f64 {
+    values
+        .iter()
+        .map(|v| (v - z).norm())
+        .fold(f64::INFINITY, f64::min)
+}
+
+/// The attitude loop of `sampled_attitude_loop_matches_the_discrete_closed_form` with a delay of
+/// `d` samples: the command held over period `j` is `c_{j−d}`, so per axis
+/// `z^d (z𝟙 − Φ) dx = Γ K dx`, whose roots are those of
+///
+/// ```text
+/// z^d (z − 1)² + α z + β,   α = k_p T²/2I + k_d T/I,   β = k_p T²/2I − k_d T/I
+/// ```
+/// (`d = 0` gives the quadratic of that test). The loop carries the `3d` wheel commands in
+/// flight as states, so it has `3d` more eigenvalues than the undelayed one; the others stay
+/// at 1 and `e^{±iωT}` as there. The same bound (1e-8) holds: the roots are simple and apart
+/// by more than 1e-2.
+#[test]
+fn sampled_attitude_loop_with_a_delay_matches_the_closed_form() {
+    let robot = Robot::from_urdf_string(FEATHER, &UrdfOptions::default()).unwrap();
+    let arm = FlexibleArm::new(
+        robot,
+        FlexibleJoints::uniform(1, 1.0, 1.0, 0.0, 0.0).unwrap(),
+    )
+    .unwrap()
+    .with_wheels(axis_wheels())
+    .unwrap();
+    let x = arm.rest_state();
+    let (kp, kd) = (40.0, 20.0);
+    let pd = AttitudePD::new(
+        [kp; 3],
+        [kd; 3],
+        AttitudeTarget::Initial,
+        arm.wheels().unwrap().allocation().unwrap(),
+    )
+    .unwrap();
+    let plant = LinearSpec {
+        motors: Motors::Clamped,
+        ..LinearSpec::default()
+    };
+    let inertia = [60.06, 80.06, 100.06];
+    let sampled = |rate: f64, delay: usize| {
+        sampled_loop(
+            &arm,
+            &mut arm.workspace(),
+            &x,
+            &plant,
+            SampledFeedback::Attitude(&pd),
+            rate,
+            delay,
+        )
+        .unwrap()
+    };
+    let states = sampled(10.0, 0).eigenvalues.len();
+    let mut verdicts = Vec::new();
+    for delay in 1..=3 {
+        for period in [0.05, 0.2, 0.5] {
+            let l = sampled(1.0 / period, delay);
+            assert_eq!(l.eigenvalues.len(), states + 3 * delay);
+            assert_eq!((l.delay, l.period), (delay, 1.0 / (1.0 / period)));
+            let mut rho: f64 = 1.0;
+            for i in inertia {
+                let alpha = kp * period * period / (2.0 * i) + kd * period / i;
+                let beta = kp * period * period / (2.0 * i) - kd * period / i;
+                // z^d (z² − 2z + 1) + α z + β, from the constant term up
+                let mut c = vec![0.0; delay + 3];
+                c[delay] += 1.0;
+                c[delay + 1] -= 2.0;
+                c[delay + 2] += 1.0;
+                c[1] += alpha;
+                c[0] += beta;
+                for root in roots(&c) {
+                    let gap = nearest(&l.eigenvalues, root);
+                    assert!(
+                        gap < 1e-8,
+                        "d {delay} T {period}: root {root} missing ({gap:e})"
+                    );
+                    rho = rho.max(root.norm());
+                }
+            }
+            assert!(
+                (l.spectral_radius - rho).abs() < 1e-8,
+                "d {delay} T {period}: ρ {} vs {rho}",
+                l.spectral_radius
+            );
+            // no root within 1e-4 of the unit circle: the verdict is not a matter of rounding
+            assert!(
+                rho == 1.0 || rho > 1.0 + 1e-4,
+                "d {delay} T {period}: ρ {rho}"
+            );
+            assert_eq!(l.unstable(), rho > 1.0, "d {delay} T {period}: ρ {rho}");
+            verdicts.push(l.unstable());
+        }
+    }
+    // the delays make the slower loops unstable: both verdicts occur
+    assert!(
+        verdicts.contains(&true) && verdicts.contains(&false),
+        "{verdicts:?}"
+    );
+}
+
+/// Two joints on a held bus, each carrying a rod whose centre of mass is on its axis (`I_i` =
+/// 0.5 and 0.8 kg·m² about it), on two branches, so that the held bus decouples them; motor
+/// inertia `j`, spring `k`, joint damping `d`, motor damping `β`. Over
+/// `[q₁, q₂, θ₁, θ₂, q̇₁, q̇₂, θ̇₁, θ̇₂]` the plant is, per joint,
+///
+/// ```text
+/// I_i q̈_i = k (θ_i − q_i) + d (θ̇_i − q̇_i),   j θ̈_i = u_i − k (θ_i − q_i) − d (θ̇_i − q̇_i) − β θ̇_i
+/// ```
+/// and a motor PD sampled every `T` feeds back `u_i = −k_p,i θ_i − k_d,i θ̇_i` (gains differing
+/// per joint, so a gain on the wrong joint shows). The loop built here from these closed forms
+/// (`Φ`, `Γ` from the exponential of `[[A, B], [0, 0]] T`, the delay line of `d` commands written
+/// out) has the eigenvalues `sampled_loop` finds, and its threshold is `e^{1.1 T g}(1 + 10⁻⁶)`
+/// with `g ≥ 0` the growth of the continuous loop `A + B K`. Bound: `‖A T‖ ≤ 3` and the
+/// eigenvalues are simple, so both sides are accurate to ~1e-13; 1e-10 leaves a margin.
+#[test]
+fn sampled_motor_pd_loop_matches_the_two_joint_closed_form() {
+    const RODS: &str = r#"<robot name="rods">
+      <link name="bus"><inertial><mass value="100"/>
+        <inertia ixx="10" iyy="10" izz="10" ixy="0" ixz="0" iyz="0"/></inertial></link>
+      <joint name="j1" type="continuous"><parent link="bus"/><child link="rod1"/>
+        <origin xyz="0.3 0 0"/><axis xyz="0 0 1"/></joint>
+      <link name="rod1"><inertial><origin xyz="0 0 0.2"/><mass value="2"/>
+        <inertia ixx="0.7" iyy="0.6" izz="0.5" ixy="0" ixz="0" iyz="0"/></inertial></link>
+      <joint name="j2" type="continuous"><parent link="bus"/><child link="rod2"/>
+        <origin xyz="-0.3 0 0"/><axis xyz="0 0 1"/></joint>
+      <link name="rod2"><inertial><origin xyz="0 0 -0.1"/><mass value="3"/>
+        <inertia ixx="0.9" iyy="0.9" izz="0.8" ixy="0" ixz="0" iyz="0"/></inertial></link>
+    </robot>"#;
+    let (inertia, k, j, d, beta) = ([0.5, 0.8], 50.0, 0.1, 0.2, 0.05);
+    let robot = Robot::from_urdf_string(RODS, &UrdfOptions::default()).unwrap();
+    let arm = FlexibleArm::new(robot, FlexibleJoints::uniform(2, k, j, d, beta).unwrap()).unwrap();
+    let x = arm.rest_state();
+    let plant = LinearSpec {
+        base: BaseMode::Held,
+        ..LinearSpec::default()
+    };
+    let (mut a, mut b) = (DMatrix::zeros(8, 8), DMatrix::zeros(8, 2));
+    for i in 0..2 {
+        let (q, theta, qd, td) = (i, 2 + i, 4 + i, 6 + i);
+        a[(q, qd)] = 1.0;
+        a[(theta, td)] = 1.0;
+        a[(qd, q)] = -k / inertia[i];
+        a[(qd, theta)] = k / inertia[i];
+        a[(qd, qd)] = -d / inertia[i];
+        a[(qd, td)] = d / inertia[i];
+        a[(td, q)] = k / j;
+        a[(td, theta)] = -k / j;
+        a[(td, qd)] = d / j;
+        a[(td, td)] = -(d + beta) / j;
+        b[(td, i)] = 1.0 / j;
+    }
+    // the last gains pump energy into the motors (k_d + β < 0): the continuous loop grows
+    for (rate, delay, kd) in [
+        (200.0, 0, [0.6, 0.4]),
+        (50.0, 0, [0.6, 0.4]),
+        (50.0, 1, [0.6, 0.4]),
+        (20.0, 2, [0.6, 0.4]),
+        (100.0, 0, [-0.3, 0.4]),
+    ] {
+        let kp = [8.0, 5.0];
+        let feedback = SampledFeedback::MotorPd { kp: &kp, kd: &kd };
+        assert_eq!(feedback.name(), "MotorPD");
+        let mut gain = DMatrix::zeros(2, 8);
+        for i in 0..2 {
+            gain[(i, 2 + i)] = -kp[i];
+            gain[(i, 6 + i)] = -kd[i];
+        }
+        let period = 1.0 / rate;
+        let mut augmented = DMatrix::zeros(10, 10);
+        augmented.view_mut((0, 0), (8, 8)).copy_from(&(&a * period));
+        augmented.view_mut((0, 8), (8, 2)).copy_from(&(&b * period));
+        let exp = augmented.exp();
+        let (phi, gamma) = (exp.view((0, 0), (8, 8)), exp.view((0, 8), (8, 2)));
+        let size = 8 + 2 * delay;
+        let mut step = DMatrix::zeros(size, size);
+        if delay == 0 {
+            step.copy_from(&(phi + gamma * &gain));
+        } else {
+            // [dx; c_{j−1}; …; c_{j−d}]: dx' = Φ dx + Γ c_{j−d}, c_j = K dx, the line shifts
+            step.view_mut((0, 0), (8, 8)).copy_from(&phi);
+            step.view_mut((0, 8 + 2 * (delay - 1)), (8, 2))
+                .copy_from(&gamma);
+            step.view_mut((8, 0), (2, 8)).copy_from(&gain);
+            for i in 1..delay {
+                for r in 0..2 {
+                    step[(8 + 2 * i + r, 8 + 2 * (i - 1) + r)] = 1.0;
+                }
+            }
+        }
+        let expected = orbitflex::linalg::eigenvalues(&step).unwrap();
+        let l = sampled_loop(
+            &arm,
+            &mut arm.workspace(),
+            &x,
+            &plant,
+            feedback,
+            rate,
+            delay,
+        )
+        .unwrap();
+        assert_eq!(l.eigenvalues.len(), size, "rate {rate} delay {delay}");
+        for z in &expected {
+            let gap = nearest(&l.eigenvalues, *z);
+            assert!(
+                gap < 1e-10,
+                "rate {rate} delay {delay}: {z} missing ({gap:e})"
+            );
+        }
+        let rho = expected.iter().map(|z| z.norm()).fold(0.0, f64::max);
+        assert!((l.spectral_radius - rho).abs() < 1e-10);
+        // the threshold: e^{1.1 T g} (1 + 10⁻⁶), g the continuous loop's growth (≥ 0)
+        let continuous = orbitflex::linalg::eigenvalues(&(&a + &b * &gain)).unwrap();
+        let growth = continuous.iter().map(|z| z.re).fold(0.0, f64::max);
+        assert_eq!(growth > 0.1, kd[0] < 0.0, "growth {growth}");
+        let threshold = (1.1 * period * growth).exp() * (1.0 + 1e-6);
+        assert!(
+            (l.threshold - threshold).abs() < 1e-10 * threshold,
+            "rate {rate} delay {delay}: threshold {} vs {threshold}",
+            l.threshold
+        );
+    }
+}
+
+/// A rate that is not a finite positive number, gains of the wrong length and an attitude PD
+/// on an arm without wheels are refused by name; the feedbacks name themselves as the Python
+/// classes do.
+#[test]
+fn sampled_loop_refuses_bad_rates_and_gains() {
+    let arm = FlexibleArm::new(
+        random_chain(2, 4),
+        FlexibleJoints::uniform(2, 50.0, 0.1, 0.2, 0.05).unwrap(),
+    )
+    .unwrap();
+    let x = arm.rest_state();
+    let plant = LinearSpec {
+        base: BaseMode::Held,
+        ..LinearSpec::default()
+    };
+    let (kp, kd) = ([8.0, 8.0], [0.6, 0.6]);
+    let pd = SampledFeedback::MotorPd { kp: &kp, kd: &kd };
+    let run = |feedback, rate| {
+        sampled_loop(&arm, &mut arm.workspace(), &x, &plant, feedback, rate, 0)
+            .map(|l| l.spectral_radius)
+            .map_err(|e| e.to_string())
+    };
+    for rate in [0.0, -5.0, f64::NAN, f64::INFINITY] {
+        assert_eq!(
+            run(pd, rate).unwrap_err(),
+            format!("rate_hz: expected a finite rate > 0 (Hz), given {rate}")
+        );
+    }
+    let short = SampledFeedback::MotorPd {
+        kp: &kp[..1],
+        kd: &kd,
+    };
+    assert_eq!(
+        run(short, 100.0).unwrap_err(),
+        "kp: expected length 2, given length 1"
+    );
+    let short = SampledFeedback::MotorPd {
+        kp: &kp,
+        kd: &kd[..1],
+    };
+    assert_eq!(
+        run(short, 100.0).unwrap_err(),
+        "kd: expected length 2, given length 1"
+    );
+    assert!(run(pd, 100.0).is_ok());
+    let wheels = axis_wheels();
+    let attitude = AttitudePD::new(
+        [1.0; 3],
+        [1.0; 3],
+        AttitudeTarget::Initial,
+        wheels.allocation().unwrap(),
+    )
+    .unwrap();
+    assert_eq!(SampledFeedback::Attitude(&attitude).name(), "AttitudePD");
+    // the attitude PD is checked against the arm as the linear model checks it
+    let e = run(SampledFeedback::Attitude(&attitude), 100.0).unwrap_err();
+    assert!(
+        e.starts_with("u: an AttitudePD drives reaction wheels, and the arm has none"),
+        "{e}"
+    );
+}

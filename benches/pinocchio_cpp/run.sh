@@ -154,7 +154,7 @@ for round in $(seq 1 "$rounds"); do
     fi
     for side in "${order[@]}"; do
       if [ "$side" = rust ]; then
-        "$rust" "$@" --only aba,rnea,crba,rk4_step,aba_derivatives,rnea_derivatives,step_jacobians | sed "s/^/$round $model rust /" >>"$log"
+        "$rust" "$@" --only aba,rnea,crba,rk4_step,aba_derivatives,rnea_derivatives,step_jacobians,step_jacobians_central_differences | sed "s/^/$round $model rust /" >>"$log"
       else
         "$out/bench_aba_$side" "$@" | sed "s/^/$round $model $side /" >>"$log"
       fi

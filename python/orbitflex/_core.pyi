@@ -43,6 +43,10 @@ __all__ = [
     "rotation_angle",
     "simulate_batch",
     "simulate_capture_batch",
+    "recorded_rows",
+    "run_bytes",
+    "check_run_memory",
+    "available_memory",
     "_frequency_response",
     "_modes",
     "_capture_scenario",
@@ -601,6 +605,18 @@ def quintic_reference(start: _ArrayLike, goal: _ArrayLike, duration: float, dt: 
     """The quintic rest-to-rest reference from ``start`` to ``goal`` (rad, (n,)) over ``duration``
     s, then held, tabulated for ``steps`` steps of ``dt`` (row k at t = k·dt): ``(theta_ref,
     theta_dot_ref)``, each (steps, n), rad and rad/s; the same bits on every processor."""
+def recorded_rows(steps: int, record_every: int) -> Union[int, float]:
+    """Rows a complete run of ``steps`` steps keeps with ``record_every``: rows 0, k, 2k, … and
+    the final row; an exact int below 2¹²⁸, a float past that."""
+def run_bytes(steps: int, n: int, record_every: Optional[int] = None, wheels: Optional[int] = None) -> Dict[str, Union[int, float]]:
+    """The bytes a run allocates, by part: ``{"reference tables", "record", "diagnostics"}``;
+    exact ints below 2¹²⁸, floats past that."""
+def check_run_memory(steps: int, n: int, record_every: Optional[int] = None, wheels: Optional[int] = None, *, available: Optional[int] = None) -> None:
+    """Raises ``MemoryError``, naming the sizes, when the run of :func:`run_bytes` needs more than
+    ``available`` bytes (default: :func:`available_memory`)."""
+def available_memory() -> Optional[int]:
+    """Bytes available to new allocations (Linux ``MemAvailable``), or None where the system does
+    not say."""
 def _quintic_profile(s: _ArrayLike) -> Tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]: ...
 def plan_slew(arm: FlexibleArm, q_goal: _ArrayLike, q_start: Optional[_ArrayLike] = None, limits: Optional[Limits] = None, base: str = "held", waypoints: Optional[_ArrayLike] = None) -> Plan: ...
 def simulate_batch(arm_or_arms: Union[FlexibleArm, Sequence[FlexibleArm]], x0s: _ArrayLike, dt: float, steps: int, u: Union[None, _ArrayLike, MotorPD, Sequence[MotorPD], Sampled] = None, base_wrench: Optional[_ArrayLike] = None, ee_wrench: Optional[_Wrench] = None, threads: Optional[int] = None, record_every: Optional[int] = None, *, keep_rows: bool = True, progress: Optional[Callable[[int, int], Any]] = None, wheel_torque: Union[None, _ArrayLike, AttitudePD, Sequence[AttitudePD], Sampled] = None, lanes: Union[None, bool, int] = None) -> BatchTrajectory: ...

@@ -319,12 +319,6 @@ impl Tangent {
 pub(crate) fn check_spec(arm: &FlexibleArm, x: &[f64], spec: &LinearSpec) -> Result<()> {
     let s = arm.layout().split(x);
     let n = arm.dof();
-    let invalid = |what: &str, message: String| {
-        Err(Error::InvalidArgument {
-            what: what.into(),
-            message,
-        })
-    };
     if let Feedback::MotorPd { kp, kd } = spec.feedback {
         crate::args::check_vector("kp", kp, n)?;
         crate::args::check_vector("kd", kd, n)?;
@@ -337,56 +331,8 @@ pub(crate) fn check_spec(arm: &FlexibleArm, x: &[f64], spec: &LinearSpec) -> Res
                 .into(),
         );
     }
-    if spec.base == BaseMode::Held {
-        if let Some(i) = s.base_twist.iter().position(|v| *v != 0.0) {
-            return invalid(
-                "x",
-                format!(
-                    "base=\"held\" clamps the base, but x has a base twist (element {i} is {}); \
-                     give a state with base_twist = 0",
-                    s.base_twist[i]
-                ),
-            );
-        }
-        if spec.inputs.contains(&InputGroup::BaseWrench) {
-            return invalid(
-                "inputs",
-                "\"base_wrench\" drives a free base; with base=\"held\" the base's actuators \
-                 absorb it"
-                    .into(),
-            );
-        }
-    }
-    if spec.motors == Motors::Clamped {
-        if let Some(i) = s.theta_dot.iter().position(|v| *v != 0.0) {
-            return invalid(
-                "x",
-                format!(
-                    "motors=\"clamped\" holds the motors still, but x has theta_dot[{i}] = {}; \
-                     give a state with theta_dot = 0",
-                    s.theta_dot[i]
-                ),
-            );
-        }
-        if spec.feedback != Feedback::None {
-            return invalid(
-                "u",
-                "a motor PD drives the motors, which motors=\"clamped\" holds still".into(),
-            );
-        }
-        for group in [InputGroup::MotorTorque, InputGroup::ThetaRef] {
-            if spec.inputs.contains(&group) {
-                return invalid(
-                    "inputs",
-                    format!(
-                        "{:?} drives the motors, which motors=\"clamped\" holds still; take \
-                         \"ee_wrench\" or \"base_wrench\" as inputs",
-                        group.name()
-                    ),
-                );
-            }
-        }
-    }
+    check_held_base(s.base_twist, spec)?;
+    check_clamped_motors(s.theta_dot, spec)?;
     if spec.inputs.contains(&InputGroup::ThetaRef)
         && !matches!(spec.feedback, Feedback::MotorPd { .. })
     {
@@ -398,17 +344,83 @@ pub(crate) fn check_spec(arm: &FlexibleArm, x: &[f64], spec: &LinearSpec) -> Res
     check_wheels(arm, x, spec)
 }
 
+/// An `InvalidArgument` error on `what`.
+fn invalid(what: &str, message: String) -> Result<()> {
+    Err(Error::InvalidArgument {
+        what: what.into(),
+        message,
+    })
+}
+
+/// The held base's part of [`check_spec`]: the base at rest (`base_twist` zero) and no base
+/// wrench input.
+fn check_held_base(base_twist: &[f64], spec: &LinearSpec) -> Result<()> {
+    if spec.base != BaseMode::Held {
+        return Ok(());
+    }
+    if let Some(i) = base_twist.iter().position(|v| *v != 0.0) {
+        return invalid(
+            "x",
+            format!(
+                "base=\"held\" clamps the base, but x has a base twist (element {i} is {}); \
+                 give a state with base_twist = 0",
+                base_twist[i]
+            ),
+        );
+    }
+    if spec.inputs.contains(&InputGroup::BaseWrench) {
+        return invalid(
+            "inputs",
+            "\"base_wrench\" drives a free base; with base=\"held\" the base's actuators \
+             absorb it"
+                .into(),
+        );
+    }
+    Ok(())
+}
+
+/// The clamped motors' part of [`check_spec`]: the motors still (`theta_dot` zero), no motor
+/// feedback and no motor input.
+fn check_clamped_motors(theta_dot: &[f64], spec: &LinearSpec) -> Result<()> {
+    if spec.motors != Motors::Clamped {
+        return Ok(());
+    }
+    if let Some(i) = theta_dot.iter().position(|v| *v != 0.0) {
+        return invalid(
+            "x",
+            format!(
+                "motors=\"clamped\" holds the motors still, but x has theta_dot[{i}] = {}; \
+                 give a state with theta_dot = 0",
+                theta_dot[i]
+            ),
+        );
+    }
+    if spec.feedback != Feedback::None {
+        return invalid(
+            "u",
+            "a motor PD drives the motors, which motors=\"clamped\" holds still".into(),
+        );
+    }
+    for group in [InputGroup::MotorTorque, InputGroup::ThetaRef] {
+        if spec.inputs.contains(&group) {
+            return invalid(
+                "inputs",
+                format!(
+                    "{:?} drives the motors, which motors=\"clamped\" holds still; take \
+                     \"ee_wrench\" or \"base_wrench\" as inputs",
+                    group.name()
+                ),
+            );
+        }
+    }
+    Ok(())
+}
+
 /// The wheels' part of [`check_spec`]: wheel inputs, outputs and an attitude loop need wheels;
 /// an attitude loop needs a free base, an allocation for the arm's `k` wheels and a fixed
 /// target; and no wheel may sit at its speed limit, where the applied torque is not a
 /// differentiable function of the command (the limit cuts one side of it).
 fn check_wheels(arm: &FlexibleArm, x: &[f64], spec: &LinearSpec) -> Result<()> {
-    let invalid = |what: &str, message: String| {
-        Err(Error::InvalidArgument {
-            what: what.into(),
-            message,
-        })
-    };
     let Some(wheels) = arm.wheels() else {
         if spec.inputs.contains(&InputGroup::WheelTorque) {
             return invalid(
@@ -789,7 +801,6 @@ fn output_rows(
     x: &[f64],
     groups: &[OutputGroup],
 ) -> (DMatrix<f64>, Vec<String>) {
-    let n = arm.dof();
     let t = Tangent::of(arm);
     let robot = arm.robot();
     let joints = robot.joint_names();
@@ -806,22 +817,7 @@ fn output_rows(
     let s = arm.layout().split(x);
     let rotation = quaternion_to_rotation(s.quaternion);
     for group in groups {
-        let per_joint: Option<(&str, JointRow)> = match group {
-            OutputGroup::Q => Some(("q", |t, i, _, _| vec![(t.q() + i, 1.0)])),
-            OutputGroup::Theta => Some(("theta", |t, i, _, _| vec![(t.theta() + i, 1.0)])),
-            OutputGroup::Deflection => Some(("deflection", |t, i, _, _| {
-                vec![(t.theta() + i, 1.0), (t.q() + i, -1.0)]
-            })),
-            OutputGroup::SpringTorque => Some(("spring_torque", |t, i, k, d| {
-                vec![
-                    (t.theta() + i, k),
-                    (t.q() + i, -k),
-                    (t.theta_dot() + i, d),
-                    (t.qd() + i, -d),
-                ]
-            })),
-            _ => None,
-        };
+        let per_joint = per_joint_row(*group);
         if let Some((prefix, entries)) = per_joint {
             for (i, name) in joints.iter().enumerate() {
                 rows.push(unit(&entries(t, i, p.stiffness[i], p.damping[i])));
@@ -847,34 +843,66 @@ fn output_rows(
                     names.push(format!("{prefix}_{axis}"));
                 }
             }
-            OutputGroup::EePosition => {
-                // δp_e = δr_B − R_B [p_{B,e}]× δφ_B + R_B R_{e,B}ᵀ J_e,lin δq (inertial frame)
-                let mut data = algorithms::Data::new(robot);
-                for (e, ee) in robot.ee_links().iter().enumerate() {
-                    let to_ee = algorithms::ee_from_base(robot, s.q, e);
-                    algorithms::ee_jacobian(robot, &mut data, s.q, e)
-                        .expect("checked state and end-effector index");
-                    let attitude: Mat3 = -rotation * skew(&to_ee.translation);
-                    let linear = data.jacobian.rows(3, 3);
-                    let to_inertial = rotation * to_ee.rotation.transpose();
-                    for (a, axis) in ["x", "y", "z"].iter().enumerate() {
-                        let mut row = DVector::zeros(t.len());
-                        row[a] = 1.0;
-                        for c in 0..3 {
-                            row[3 + c] = attitude[(a, c)];
-                        }
-                        for i in 0..n {
-                            row[t.q() + i] =
-                                (0..3).map(|m| to_inertial[(a, m)] * linear[(m, i)]).sum();
-                        }
-                        rows.push(row);
-                        names.push(format!("ee_{axis}[{ee}]"));
-                    }
-                }
-            }
+            OutputGroup::EePosition => ee_position_rows(arm, s.q, &rotation, &mut rows, &mut names),
             _ => unreachable!("per-joint groups handled above"),
         }
     }
     let c = DMatrix::from_fn(rows.len(), t.len(), |r, col| rows[r][col]);
     (c, names)
+}
+
+/// The output name and row of a per-joint output group (`None` for the others).
+fn per_joint_row(group: OutputGroup) -> Option<(&'static str, JointRow)> {
+    match group {
+        OutputGroup::Q => Some(("q", |t, i, _, _| vec![(t.q() + i, 1.0)])),
+        OutputGroup::Theta => Some(("theta", |t, i, _, _| vec![(t.theta() + i, 1.0)])),
+        OutputGroup::Deflection => Some(("deflection", |t, i, _, _| {
+            vec![(t.theta() + i, 1.0), (t.q() + i, -1.0)]
+        })),
+        OutputGroup::SpringTorque => Some(("spring_torque", |t, i, k, d| {
+            vec![
+                (t.theta() + i, k),
+                (t.q() + i, -k),
+                (t.theta_dot() + i, d),
+                (t.qd() + i, -d),
+            ]
+        })),
+        _ => None,
+    }
+}
+
+/// The rows of the end-effector positions (inertial frame, three per end-effector) at joint
+/// angles `q` and base attitude `rotation` (base to inertial), with their names:
+/// `δp_e = δr_B − R_B [p_{B,e}]× δφ_B + R_B R_{e,B}ᵀ J_e,lin δq`.
+fn ee_position_rows(
+    arm: &FlexibleArm,
+    q: &[f64],
+    rotation: &Mat3,
+    rows: &mut Vec<DVector<f64>>,
+    names: &mut Vec<String>,
+) {
+    let n = arm.dof();
+    let t = Tangent::of(arm);
+    let robot = arm.robot();
+    let mut data = algorithms::Data::new(robot);
+    for (e, ee) in robot.ee_links().iter().enumerate() {
+        let to_ee = algorithms::ee_from_base(robot, q, e);
+        algorithms::ee_jacobian(robot, &mut data, q, e)
+            .expect("checked state and end-effector index");
+        let attitude: Mat3 = -rotation * skew(&to_ee.translation);
+        let linear = data.jacobian.rows(3, 3);
+        let to_inertial = rotation * to_ee.rotation.transpose();
+        for (a, axis) in ["x", "y", "z"].iter().enumerate() {
+            let mut row = DVector::zeros(t.len());
+            row[a] = 1.0;
+            for c in 0..3 {
+                row[3 + c] = attitude[(a, c)];
+            }
+            for i in 0..n {
+                row[t.q() + i] = (0..3).map(|m| to_inertial[(a, m)] * linear[(m, i)]).sum();
+            }
+            rows.push(row);
+            names.push(format!("ee_{axis}[{ee}]"));
+        }
+    }
 }

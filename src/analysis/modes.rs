@@ -86,28 +86,7 @@ fn mechanics(
     let p = arm.joints();
     let free_base = spec.base == BaseMode::Free;
     let free_motors = spec.motors == Motors::Free;
-    let mut dofs = Vec::new();
-    if free_base {
-        // δφ_B moves with ω_B, δr_B with v_B
-        dofs.extend((0..3).map(|a| Dof {
-            config: 3 + a,
-            rate: t.twist() + a,
-        }));
-        dofs.extend((0..3).map(|a| Dof {
-            config: a,
-            rate: t.twist() + 3 + a,
-        }));
-    }
-    dofs.extend((0..n).map(|i| Dof {
-        config: t.q() + i,
-        rate: t.qd() + i,
-    }));
-    if free_motors {
-        dofs.extend((0..n).map(|i| Dof {
-            config: t.theta() + i,
-            rate: t.theta_dot() + i,
-        }));
-    }
+    let dofs = degrees_of_freedom(t, n, free_base, free_motors);
     let size = dofs.len();
     let full = algorithms::crba(arm.rigid_model(), &mut ws.data, s.q)?;
     let offset = if free_base { 0 } else { 6 };
@@ -121,23 +100,7 @@ fn mechanics(
     };
     let mut stiffness = DMatrix::zeros(size, size);
     let mut rigid_columns: Vec<DVector<f64>> = Vec::new();
-    // an attitude PD: the bus feels T = A M T_cmd, T_cmd = −k_p ∘ (E δφ) − …, a stiffness
-    // A M diag(k_p) E on the bus's rotation (A = [a_1 … a_k])
-    let attitude = match (spec.attitude, arm.wheels()) {
-        (Some(pd), Some(wheels)) => {
-            let (gain, _) = super::linear::attitude_gain(pd, x, t, arm.layout())?;
-            let mut block = crate::spatial::Mat3::zeros();
-            for (w, wheel) in wheels.wheels().iter().enumerate() {
-                for r in 0..3 {
-                    for c in 0..3 {
-                        block[(r, c)] += wheel.axis[r] * gain[(w, 3 + c)];
-                    }
-                }
-            }
-            block
-        }
-        _ => crate::spatial::Mat3::zeros(),
-    };
+    let attitude = attitude_stiffness(arm, x, spec, t)?;
     if free_base {
         for r in 0..3 {
             for c in 0..3 {
@@ -154,20 +117,7 @@ fn mechanics(
             rigid_columns.push(v);
         }
     }
-    let wheels = arm.wheels().map_or(Vec::new(), |w| {
-        w.wheels()
-            .iter()
-            .map(|wheel| {
-                let a = crate::spatial::Vec3::from(wheel.axis);
-                let locked = if free_base {
-                    (a.transpose() * mass.fixed_view::<3, 3>(0, 0) * a)[0]
-                } else {
-                    0.0
-                };
-                (wheel.spin_inertia, locked.max(wheel.spin_inertia))
-            })
-            .collect()
-    });
+    let wheels = wheel_inertias(arm, &mass, free_base);
     for i in 0..n {
         let (qi, k) = (rigid_size - n + i, p.stiffness[i]);
         stiffness[(qi, qi)] = k;
@@ -195,6 +145,76 @@ fn mechanics(
         rotation: quaternion_to_rotation(s.quaternion),
         free_base,
         wheels,
+    })
+}
+
+/// The degrees of freedom in the order of the velocities: `[ω_B; v_B]` for a free base (`δφ_B`
+/// moves with `ω_B`, `δr_B` with `v_B`), then `q`, then `θ` for free motors.
+fn degrees_of_freedom(t: Tangent, n: usize, free_base: bool, free_motors: bool) -> Vec<Dof> {
+    let mut dofs = Vec::new();
+    if free_base {
+        dofs.extend((0..3).map(|a| Dof {
+            config: 3 + a,
+            rate: t.twist() + a,
+        }));
+        dofs.extend((0..3).map(|a| Dof {
+            config: a,
+            rate: t.twist() + 3 + a,
+        }));
+    }
+    dofs.extend((0..n).map(|i| Dof {
+        config: t.q() + i,
+        rate: t.qd() + i,
+    }));
+    if free_motors {
+        dofs.extend((0..n).map(|i| Dof {
+            config: t.theta() + i,
+            rate: t.theta_dot() + i,
+        }));
+    }
+    dofs
+}
+
+/// The stiffness an attitude PD puts on the bus's rotation (zero without one): the bus feels
+/// `T = A M T_cmd`, `T_cmd = −k_p ∘ (E δφ) − …`, a stiffness `A M diag(k_p) E`
+/// (`A = [a_1 … a_k]`).
+fn attitude_stiffness(
+    arm: &FlexibleArm,
+    x: &[f64],
+    spec: &LinearSpec,
+    t: Tangent,
+) -> Result<crate::spatial::Mat3> {
+    let mut block = crate::spatial::Mat3::zeros();
+    if let (Some(pd), Some(wheels)) = (spec.attitude, arm.wheels()) {
+        let (gain, _) = super::linear::attitude_gain(pd, x, t, arm.layout())?;
+        for (w, wheel) in wheels.wheels().iter().enumerate() {
+            for r in 0..3 {
+                for c in 0..3 {
+                    block[(r, c)] += wheel.axis[r] * gain[(w, 3 + c)];
+                }
+            }
+        }
+    }
+    Ok(block)
+}
+
+/// Per reaction wheel: its spin inertia `J_s` and the inertia its momentum is weighed against,
+/// the locked system's about its axis (`aᵀ M_ωω a`, from the free base's mass matrix `mass`)
+/// or `J_s` on a held base, whichever is larger.
+fn wheel_inertias(arm: &FlexibleArm, mass: &DMatrix<f64>, free_base: bool) -> Vec<(f64, f64)> {
+    arm.wheels().map_or(Vec::new(), |w| {
+        w.wheels()
+            .iter()
+            .map(|wheel| {
+                let a = crate::spatial::Vec3::from(wheel.axis);
+                let locked = if free_base {
+                    (a.transpose() * mass.fixed_view::<3, 3>(0, 0) * a)[0]
+                } else {
+                    0.0
+                };
+                (wheel.spin_inertia, locked.max(wheel.spin_inertia))
+            })
+            .collect()
     })
 }
 
@@ -398,19 +418,7 @@ fn state_matrix_modes(
         vectors.push(v);
     }
     // the 2r + k least structural eigenvalues are the rigid-body modes' and the wheels' spins
-    // (a conjugate pair stays together)
-    let mut order: Vec<usize> = (0..count).filter(|&j| eig.values[j].im >= 0.0).collect();
-    order.sort_by(|&a, &b| share[b].total_cmp(&share[a]).then(a.cmp(&b)));
-    let mut rigid = vec![false; count];
-    let mut left = 2 * r + t.k;
-    for &j in &order {
-        let size = if eig.values[j].im > 0.0 { 2 } else { 1 };
-        if size <= left {
-            // (its conjugate, with Im λ < 0, is never reported on its own)
-            left -= size;
-            rigid[j] = true;
-        }
-    }
+    let rigid = least_structural(&eig.values, &share, 2 * r + t.k);
     let mut oscillatory = Vec::new();
     let mut overdamped = Vec::new();
     for j in 0..count {
@@ -446,6 +454,24 @@ fn state_matrix_modes(
         overdamped,
         damped: true,
     })
+}
+
+/// Flags the `count` eigenvalues of `values` (by Im λ ≥ 0, a conjugate pair counting two and
+/// staying together) with the largest non-structural `share`; ties go to the lower index. The
+/// conjugates with Im λ < 0 are never flagged (nor reported on their own).
+fn least_structural(values: &[Complex<f64>], share: &[f64], count: usize) -> Vec<bool> {
+    let mut order: Vec<usize> = (0..values.len()).filter(|&j| values[j].im >= 0.0).collect();
+    order.sort_by(|&a, &b| share[b].total_cmp(&share[a]).then(a.cmp(&b)));
+    let mut flagged = vec![false; values.len()];
+    let mut left = count;
+    for &j in &order {
+        let size = if values[j].im > 0.0 { 2 } else { 1 };
+        if size <= left {
+            left -= size;
+            flagged[j] = true;
+        }
+    }
+    flagged
 }
 
 fn sort_eigenvalues(values: &mut [Complex<f64>]) {

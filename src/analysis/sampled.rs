@@ -25,7 +25,7 @@
 //! The samples fall on RK4 steps: when `T` is a whole number of steps they are exactly `T`
 //! apart; otherwise they jitter by up to one step, which this analysis leaves out.
 
-use super::linear::{attitude_gain, jacobians, state_space, LinearSpec, Tangent};
+use super::linear::{attitude_gain, jacobians, state_space, FullJacobians, LinearSpec, Tangent};
 use crate::control::AttitudePD;
 use crate::error::{Error, Result};
 use crate::flex::{FlexibleArm, ModelWorkspace};
@@ -126,58 +126,13 @@ pub fn sampled_loop(
     let mut x = x.to_vec();
     crate::flex::normalise_quaternion(&mut x[arm.layout().quaternion()]);
     let full = jacobians(arm, ws, &x, &bare)?;
-    let t = Tangent::of(arm);
-    let n = arm.dof();
-    // B and K over the full tangent
-    let (b_full, k_full) = match feedback {
-        SampledFeedback::MotorPd { kp, kd } => {
-            crate::args::check_vector("kp", kp, n)?;
-            crate::args::check_vector("kd", kd, n)?;
-            let mut k = DMatrix::zeros(n, t.len());
-            for i in 0..n {
-                k[(i, t.theta() + i)] = -kp[i];
-                k[(i, t.theta_dot() + i)] = -kd[i];
-            }
-            (full.u, k)
-        }
-        SampledFeedback::Attitude(pd) => {
-            let with = LinearSpec {
-                attitude: Some(pd),
-                ..bare
-            };
-            super::linear::check_spec(arm, &x, &with)?;
-            (full.wheel_torque, attitude_gain(pd, &x, t, arm.layout())?.0)
-        }
-    };
+    let (b_full, k_full) = feedback_over_tangent(arm, &x, &bare, full, feedback)?;
     let keep = &ss.tangent_index;
     let (s, m) = (keep.len(), b_full.ncols());
     let b = DMatrix::from_fn(s, m, |r, c| b_full[(keep[r], c)]);
     let k = DMatrix::from_fn(m, s, |r, c| k_full[(r, keep[c])]);
     let period = 1.0 / rate_hz;
-    // exp([[A, B], [0, 0]] T) = [[Φ, Γ], [0, 𝟙]]
-    let mut augmented = DMatrix::zeros(s + m, s + m);
-    augmented
-        .view_mut((0, 0), (s, s))
-        .copy_from(&(&ss.a * period));
-    augmented.view_mut((0, s), (s, m)).copy_from(&(&b * period));
-    let exp = augmented.exp();
-    let phi = exp.view((0, 0), (s, s)).into_owned();
-    let gamma = exp.view((0, s), (s, m)).into_owned();
-    let size = s + delay * m;
-    let mut step = DMatrix::zeros(size, size);
-    if delay == 0 {
-        step.copy_from(&(&phi + &gamma * &k));
-    } else {
-        step.view_mut((0, 0), (s, s)).copy_from(&phi);
-        step.view_mut((0, s + (delay - 1) * m), (s, m))
-            .copy_from(&gamma);
-        step.view_mut((s, 0), (m, s)).copy_from(&k);
-        for i in 1..delay {
-            for r in 0..m {
-                step[(s + i * m + r, s + (i - 1) * m + r)] = 1.0;
-            }
-        }
-    }
+    let step = one_period(&ss.a, &b, &k, period, delay);
     let no_convergence = |what: &str| Error::InvalidArgument {
         what: "x".into(),
         message: format!(
@@ -196,4 +151,73 @@ pub fn sampled_loop(
         period,
         delay,
     })
+}
+
+/// `B` (the input columns of the sampled channel) and `K` (its linear feedback) over the full
+/// tangent at `x`.
+fn feedback_over_tangent(
+    arm: &FlexibleArm,
+    x: &[f64],
+    bare: &LinearSpec,
+    full: FullJacobians,
+    feedback: SampledFeedback,
+) -> Result<(DMatrix<f64>, DMatrix<f64>)> {
+    let t = Tangent::of(arm);
+    let n = arm.dof();
+    Ok(match feedback {
+        SampledFeedback::MotorPd { kp, kd } => {
+            crate::args::check_vector("kp", kp, n)?;
+            crate::args::check_vector("kd", kd, n)?;
+            let mut k = DMatrix::zeros(n, t.len());
+            for i in 0..n {
+                k[(i, t.theta() + i)] = -kp[i];
+                k[(i, t.theta_dot() + i)] = -kd[i];
+            }
+            (full.u, k)
+        }
+        SampledFeedback::Attitude(pd) => {
+            let with = LinearSpec {
+                attitude: Some(pd),
+                ..*bare
+            };
+            super::linear::check_spec(arm, x, &with)?;
+            (full.wheel_torque, attitude_gain(pd, x, t, arm.layout())?.0)
+        }
+    })
+}
+
+/// The one-period matrix of the module documentation: `Φ + Γ K` without delay, the matrix on
+/// `z_j = [dx_j; c_{j−1}; …; c_{j−d}]` with `d = delay` samples; `Φ` and `Γ` read off
+/// `exp([[A, B], [0, 0]] T)`.
+fn one_period(
+    a: &DMatrix<f64>,
+    b: &DMatrix<f64>,
+    k: &DMatrix<f64>,
+    period: f64,
+    delay: usize,
+) -> DMatrix<f64> {
+    let (s, m) = (a.nrows(), b.ncols());
+    // exp([[A, B], [0, 0]] T) = [[Φ, Γ], [0, 𝟙]]
+    let mut augmented = DMatrix::zeros(s + m, s + m);
+    augmented.view_mut((0, 0), (s, s)).copy_from(&(a * period));
+    augmented.view_mut((0, s), (s, m)).copy_from(&(b * period));
+    let exp = augmented.exp();
+    let phi = exp.view((0, 0), (s, s)).into_owned();
+    let gamma = exp.view((0, s), (s, m)).into_owned();
+    let size = s + delay * m;
+    let mut step = DMatrix::zeros(size, size);
+    if delay == 0 {
+        step.copy_from(&(&phi + &gamma * k));
+    } else {
+        step.view_mut((0, 0), (s, s)).copy_from(&phi);
+        step.view_mut((0, s + (delay - 1) * m), (s, m))
+            .copy_from(&gamma);
+        step.view_mut((s, 0), (m, s)).copy_from(k);
+        for i in 1..delay {
+            for r in 0..m {
+                step[(s + i * m + r, s + (i - 1) * m + r)] = 1.0;
+            }
+        }
+    }
+    step
 }

@@ -140,20 +140,7 @@ pub fn capture(
         .expect("a Cholesky factor has a positive diagonal");
     let energy_loss = 0.5 * whitened.norm_squared();
 
-    // ν⁺ = ν − 𝓜⁻¹ Gᵀ F: the motors, poses and angles keep their values
-    let mut after = x.to_vec();
-    let nu = DVector::from_iterator(solves.nrows(), s.base_twist.iter().chain(s.qd).copied());
-    let nu_after = nu - &solves * DVector::from_column_slice(impulse.as_slice());
-    after[layout.base_twist()].copy_from_slice(&nu_after.as_slice()[..6]);
-    after[layout.qd()].copy_from_slice(&nu_after.as_slice()[6..]);
-    if let Some(wheels) = arm.wheels() {
-        let d_omega = Vec3::from_column_slice(&nu_after.as_slice()[..3])
-            - Vec3::from_column_slice(&s.base_twist[..3]);
-        for (speed, wheel) in after[layout.wheel_speed()].iter_mut().zip(wheels.wheels()) {
-            *speed -= Vec3::from(wheel.axis).dot(&d_omega);
-        }
-    }
-
+    let after = jump(arm, x, &solves, impulse.as_slice());
     let s_after = layout.split(&after);
     algorithms::velocities_unchecked(
         robot,
@@ -162,14 +149,7 @@ pub fn capture(
     );
     let target_twist = x_et.apply_motion_inverse(&to_ee.apply_motion(&data.v[body]));
 
-    let mut combined = FlexibleArm::new(
-        arm.robot().with_payload_at(payload, ee)?,
-        arm.joints().clone(),
-    )?
-    .with_method(arm.method());
-    if let Some(wheels) = arm.wheels() {
-        combined = combined.with_wheels(wheels.clone())?;
-    }
+    let combined = combined_arm(arm, payload, ee)?;
     Ok(Capture {
         arm: combined,
         x: after,
@@ -182,6 +162,41 @@ pub fn capture(
         payload_inertia,
         ee,
     })
+}
+
+/// The state just after the grasp: `ν⁺ = ν − 𝓜⁻¹ Gᵀ F` (`solves` = `𝓜⁻¹ Gᵀ`, `impulse` = `F`)
+/// with the motors, poses and angles at their values; each reaction wheel keeps its absolute
+/// axial rate `a·ω_B + Ω`, so its speed relative to the bus drops by `a·Δω_B`.
+fn jump(arm: &FlexibleArm, x: &[f64], solves: &DMatrix<f64>, impulse: &[f64]) -> Vec<f64> {
+    let layout = arm.layout();
+    let s = layout.split(x);
+    let mut after = x.to_vec();
+    let nu = DVector::from_iterator(solves.nrows(), s.base_twist.iter().chain(s.qd).copied());
+    let nu_after = nu - solves * DVector::from_column_slice(impulse);
+    after[layout.base_twist()].copy_from_slice(&nu_after.as_slice()[..6]);
+    after[layout.qd()].copy_from_slice(&nu_after.as_slice()[6..]);
+    if let Some(wheels) = arm.wheels() {
+        let d_omega = Vec3::from_column_slice(&nu_after.as_slice()[..3])
+            - Vec3::from_column_slice(&s.base_twist[..3]);
+        for (speed, wheel) in after[layout.wheel_speed()].iter_mut().zip(wheels.wheels()) {
+            *speed -= Vec3::from(wheel.axis).dot(&d_omega);
+        }
+    }
+    after
+}
+
+/// The arm after the grasp: `payload` joined to end-effector `ee`'s body, the same joints,
+/// dynamics method and reaction wheels.
+fn combined_arm(arm: &FlexibleArm, payload: Inertia, ee: usize) -> Result<FlexibleArm> {
+    let mut combined = FlexibleArm::new(
+        arm.robot().with_payload_at(payload, ee)?,
+        arm.joints().clone(),
+    )?
+    .with_method(arm.method());
+    if let Some(wheels) = arm.wheels() {
+        combined = combined.with_wheels(wheels.clone())?;
+    }
+    Ok(combined)
 }
 
 /// `X = Φ_{e,t}`: motions from the target frame `t` to the frame of end-effector `ee`, from the

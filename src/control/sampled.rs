@@ -165,4 +165,145 @@ mod tests {
         none = Sampled::new(Box::new(Schedule::Zero), 30.0, 0);
         assert_eq!(none.unwrap().steps_per_sample(dt), None);
     }
+
+    /// A table whose row `k` is `k + 1`, for `rows` rows.
+    fn counting(rows: usize) -> Box<dyn Controller + Send> {
+        let values = (1..=rows).map(|v| v as f64).collect();
+        Box::new(Schedule::Table { values, width: 1 })
+    }
+
+    /// The outputs of `s` over `steps` steps of `dt`.
+    fn run(s: &mut Sampled, dt: f64, steps: usize) -> Vec<f64> {
+        (0..steps)
+            .map(|k| {
+                let mut out = [f64::NAN];
+                s.output(k, k as f64 * dt, &[], &mut out).unwrap();
+                out[0]
+            })
+            .collect()
+    }
+
+    /// Every `m` steps (`m` = 1, 2, 3) with `d` = 0 to 3 samples of delay: sample `j` is taken
+    /// at step `jm` (reading row `jm + 1`) and applied over steps `(j + d)m` to `(j + d + 1)m − 1`,
+    /// zero before; a second run from step 0 starts afresh and repeats the first.
+    #[test]
+    fn whole_periods_sample_every_m_steps_and_delay_d_samples() {
+        let dt = 1e-3;
+        for m in 1..=3 {
+            for d in 0..=3 {
+                let mut s = Sampled::new(counting(24), 1.0 / (m as f64 * dt), d).unwrap();
+                assert_eq!(s.steps_per_sample(dt), Some(m), "m {m}");
+                let expected: Vec<f64> = (0..24)
+                    .map(|k| match (k / m).checked_sub(d) {
+                        Some(j) => (j * m + 1) as f64,
+                        None => 0.0,
+                    })
+                    .collect();
+                assert_eq!(run(&mut s, dt, 24), expected, "m {m} d {d}");
+                assert_eq!(run(&mut s, dt, 24), expected, "m {m} d {d}, second run");
+            }
+        }
+    }
+
+    /// Rows of three columns (`[k + 1, −(k + 1), 10(k + 1)]` at step `k`), sampled every 2
+    /// steps with 1 to 3 samples of delay, come out whole and in order.
+    #[test]
+    fn rows_of_several_columns_are_delayed_whole() {
+        let dt = 1e-3;
+        let row = |k: usize| {
+            let v = (k + 1) as f64;
+            [v, -v, 10.0 * v]
+        };
+        let values: Vec<f64> = (0..16).flat_map(row).collect();
+        for d in 1..=3 {
+            let table = Schedule::Table {
+                values: values.clone(),
+                width: 3,
+            };
+            let mut s = Sampled::new(Box::new(table), 500.0, d).unwrap();
+            for k in 0..16 {
+                let mut out = [f64::NAN; 3];
+                s.output(k, k as f64 * dt, &[], &mut out).unwrap();
+                let expected = (k / 2).checked_sub(d).map_or([0.0; 3], |j| row(2 * j));
+                assert_eq!(out, expected, "d {d} step {k}");
+            }
+        }
+    }
+
+    /// At 400 Hz with steps of 1 ms the period is 2.5 steps: the samples due at 0, 2.5, 5, 7.5,
+    /// … ms are taken at the first step at or after them, steps 0, 3, 5, 8, 10, …
+    #[test]
+    fn a_period_of_non_whole_steps_samples_at_the_next_step() {
+        let dt = 1e-3;
+        let taken = [0, 3, 5, 8, 10, 13, 15, 18, 20, 23];
+        for d in 0..=2 {
+            let mut s = Sampled::new(counting(24), 400.0, d).unwrap();
+            assert_eq!(s.steps_per_sample(dt), None);
+            let expected: Vec<f64> = (0..24)
+                .map(|k| {
+                    let j = taken.iter().filter(|&&t| t <= k).count() - 1;
+                    j.checked_sub(d).map_or(0.0, |i| (taken[i] + 1) as f64)
+                })
+                .collect();
+            assert_eq!(run(&mut s, dt, 24), expected, "d {d}");
+        }
+        // faster than the steps (2.5 samples a step): one sample a step, the step's row
+        for d in 0..=1 {
+            let mut s = Sampled::new(counting(8), 2500.0, d).unwrap();
+            let expected: Vec<f64> = (0..8)
+                .map(|k: usize| k.checked_sub(d).map_or(0.0, |i| (i + 1) as f64))
+                .collect();
+            assert_eq!(run(&mut s, dt, 8), expected, "d {d}");
+        }
+    }
+
+    /// Whole to 1e-9 of the period: 2 steps exactly, 3 steps within 0.5e-9, not within 2e-9.
+    #[test]
+    fn steps_per_sample_is_whole_to_a_part_in_a_billion() {
+        let dt = 1e-3;
+        let at = |rate: f64| Sampled::new(counting(1), rate, 0).unwrap();
+        assert_eq!(at(500.0).steps_per_sample(dt), Some(2));
+        assert_eq!(at(1000.0).steps_per_sample(dt), Some(1));
+        assert_eq!(
+            at(1.0 / (3.0 * dt * (1.0 + 0.5e-9))).steps_per_sample(dt),
+            Some(3)
+        );
+        assert_eq!(
+            at(1.0 / (3.0 * dt * (1.0 + 2e-9))).steps_per_sample(dt),
+            None
+        );
+        assert_eq!(
+            at(1.0 / (3.0 * dt * (1.0 - 2e-9))).steps_per_sample(dt),
+            None
+        );
+    }
+
+    /// The rate and delay read back; the run's checks and `is_zero` are the wrapped
+    /// controller's; the feedback is unknown; bad rates are refused by name.
+    #[test]
+    fn the_wrapper_reports_its_rate_and_its_inner_controller() {
+        let s = Sampled::new(counting(3), 250.0, 4).unwrap();
+        assert_eq!((s.rate_hz(), s.delay()), (250.0, 4));
+        assert!(s.check_run("u", 1, 3).is_ok());
+        let inner = Schedule::Table {
+            values: vec![1.0, 2.0, 3.0],
+            width: 1,
+        };
+        assert_eq!(
+            s.check_run("u", 1, 5).unwrap_err().to_string(),
+            inner.check_run("u", 1, 5).unwrap_err().to_string()
+        );
+        assert!(!s.is_zero());
+        assert!(Sampled::new(Box::new(Schedule::Zero), 250.0, 0)
+            .unwrap()
+            .is_zero());
+        assert!(matches!(s.feedback(), Feedback::Unknown));
+        for rate in [0.0, -1.0, f64::NAN, f64::INFINITY] {
+            let e = Sampled::new(counting(1), rate, 0).err().unwrap();
+            assert_eq!(
+                e.to_string(),
+                format!("rate_hz: expected a finite rate > 0 (Hz), given {rate}")
+            );
+        }
+    }
 }

@@ -13,7 +13,7 @@ use crate::error::{Error, Result};
 use crate::model::Robot;
 use crate::overflow::{check_result_named, Input};
 use crate::spatial::{base_pose_rate, normalise_quaternion, quaternion_to_rotation, Vec3};
-use crate::state::StateLayout;
+use crate::state::{StateLayout, StateParts};
 
 /// A floating-base arm with Spong flexible joints: the robot, its joint parameters and the
 /// rigid-body dynamics method used by [`FlexibleArm::derivative`].
@@ -361,15 +361,16 @@ impl FlexibleArm {
         xdot: &mut [f64],
     ) -> Result<()> {
         let layout = self.layout();
+        // split once: the spring torques and the assembly read the same blocks
         let s = layout.split(x);
-        self.spring_torque(x, tau);
+        self.spring_torque_of(&s, tau);
         let rigid = RigidState::new(s.q, s.base_twist, s.qd);
         if let Some(m) = &self.wheels {
             return super::wheels::derivative_with_wheels(self, m, data, tau, x, inputs, xdot);
         }
         self.method
             .forward_dynamics_unchecked(&self.robot, data, &rigid, tau, &inputs.loads)?;
-        self.assemble_derivative(x, inputs, tau, data.ddq.as_slice(), xdot);
+        self.assemble_derivative_of(&s, inputs, tau, data.ddq.as_slice(), xdot);
         Ok(())
     }
 
@@ -384,8 +385,20 @@ impl FlexibleArm {
         acc: &[f64],
         xdot: &mut [f64],
     ) {
+        self.assemble_derivative_of(&self.layout().split(x), inputs, tau, acc, xdot);
+    }
+
+    /// [`assemble_derivative`](Self::assemble_derivative) from the blocks of `x`, already split.
+    #[inline]
+    fn assemble_derivative_of(
+        &self,
+        s: &StateParts,
+        inputs: &Inputs,
+        tau: &[f64],
+        acc: &[f64],
+        xdot: &mut [f64],
+    ) {
         let layout = self.layout();
-        let s = layout.split(x);
         let (omega, v) = (s.omega(), s.velocity());
         base_pose_rate(s.quaternion, &omega, &v, &mut xdot[layout.base_pose()]);
         xdot[layout.q()].copy_from_slice(s.qd);
@@ -396,9 +409,14 @@ impl FlexibleArm {
         twist_rate[3..].copy_from_slice(v_dot.as_slice());
         xdot[layout.qd()].copy_from_slice(&acc[6..]);
         let p = &self.joints;
-        for (i, motor) in xdot[layout.theta_dot()].iter_mut().enumerate() {
-            *motor =
-                (inputs.u[i] - tau[i] - p.motor_damping[i] * s.theta_dot[i]) / p.motor_inertia[i];
+        let motors = xdot[layout.theta_dot()].iter_mut().zip(inputs.u).zip(tau);
+        let params = p
+            .motor_damping
+            .iter()
+            .zip(&p.motor_inertia)
+            .zip(s.theta_dot);
+        for (((motor, u), tau), ((damping, inertia), rate)) in motors.zip(params) {
+            *motor = (u - tau - damping * rate) / inertia;
         }
     }
 
@@ -472,12 +490,29 @@ impl FlexibleArm {
     }
 
     /// Spring torques `τ = k (θ − q) + d (θ̇ − q̇)` (N·m) at state `x` into `out` (n).
+    ///
+    /// # Panics
+    /// If `out` does not hold exactly n torques (a buffer sized for another arm).
     pub fn spring_torque(&self, x: &[f64], out: &mut [f64]) {
-        let s = self.layout().split(x);
+        assert_eq!(
+            out.len(),
+            self.dof(),
+            "spring_torque: out holds {} torques, the arm has n = {}",
+            out.len(),
+            self.dof()
+        );
+        self.spring_torque_of(&self.layout().split(x), out);
+    }
+
+    /// [`spring_torque`](Self::spring_torque) from the blocks of `x`, already split.
+    #[inline]
+    fn spring_torque_of(&self, s: &StateParts, out: &mut [f64]) {
         let p = &self.joints;
-        for (i, tau) in out.iter_mut().enumerate() {
-            *tau =
-                p.stiffness[i] * (s.theta[i] - s.q[i]) + p.damping[i] * (s.theta_dot[i] - s.qd[i]);
+        let gains = p.stiffness.iter().zip(&p.damping);
+        let states = s.theta.iter().zip(s.q).zip(s.theta_dot.iter().zip(s.qd));
+        for ((tau, (k, d)), ((theta, q), (theta_dot, qd))) in out.iter_mut().zip(gains).zip(states)
+        {
+            *tau = k * (theta - q) + d * (theta_dot - qd);
         }
     }
 

@@ -396,28 +396,7 @@ impl FlexibleArm {
         let n = self.dof();
         motion.check(n)?;
         let joints = self.joints();
-        let damped = joints.damping.iter().any(|&d| d > 0.0);
-        match (damped, deflection) {
-            (true, None) => {
-                return Err(Error::InvalidArgument {
-                    what: "deflection".into(),
-                    message: "the joints have damping d > 0, so the deflection θ − q depends on \
-                              the motion's history; pass the current deflection (n values, rad), \
-                              or plan the whole motion with plan_slew"
-                        .into(),
-                })
-            }
-            (false, Some(_)) => {
-                return Err(Error::InvalidArgument {
-                    what: "deflection".into(),
-                    message: "every joint has damping d = 0, so θ − q = τ/k is determined by \
-                              the instant; omit the deflection"
-                        .into(),
-                })
-            }
-            (_, Some(delta)) => check_vector("deflection", delta, n)?,
-            _ => {}
-        }
+        deflection_given_if_damped(joints, deflection, n)?;
         let mut scratch = JetScratch::new(self.rigid_model());
         for i in 0..n {
             let (q, qd) = motion.jets(i);
@@ -445,22 +424,58 @@ impl FlexibleArm {
             let link = [motion.q[i], motion.qd[i], motion.qdd[i]];
             out.set_joint(joints, i, link, deflection, tau[0]);
         }
+        out.check_finite(deflection)?;
+        Ok(out)
+    }
+}
+
+/// `deflection` is given (`n` finite values) exactly when some joint is damped: see
+/// [`FlexibleArm::inverse_dynamics`].
+fn deflection_given_if_damped(
+    joints: &FlexibleJoints,
+    deflection: Option<&[f64]>,
+    n: usize,
+) -> Result<()> {
+    let damped = joints.damping.iter().any(|&d| d > 0.0);
+    match (damped, deflection) {
+        (true, None) => Err(Error::InvalidArgument {
+            what: "deflection".into(),
+            message: "the joints have damping d > 0, so the deflection θ − q depends on \
+                      the motion's history; pass the current deflection (n values, rad), \
+                      or plan the whole motion with plan_slew"
+                .into(),
+        }),
+        (false, Some(_)) => Err(Error::InvalidArgument {
+            what: "deflection".into(),
+            message: "every joint has damping d = 0, so θ − q = τ/k is determined by \
+                      the instant; omit the deflection"
+                .into(),
+        }),
+        (_, Some(delta)) => check_vector("deflection", delta, n),
+        _ => Ok(()),
+    }
+}
+
+impl FlexibleInverse {
+    /// An error unless every number is finite: one naming the deflection when only the motor
+    /// side overflowed from it, otherwise one naming the motion.
+    fn check_finite(&self, deflection: Option<&[f64]>) -> Result<()> {
         let finite = [
-            &out.theta[..],
-            &out.theta_dot,
-            &out.theta_ddot,
-            &out.u,
-            &out.base_twist,
-            &out.base_acc,
-            &out.base_wrench,
+            &self.theta[..],
+            &self.theta_dot,
+            &self.theta_ddot,
+            &self.u,
+            &self.base_twist,
+            &self.base_acc,
+            &self.base_wrench,
         ]
         .iter()
         .all(|v| v.iter().all(|x| x.is_finite()));
         let rigid_finite = [
-            &out.tau[..],
-            &out.base_twist,
-            &out.base_acc,
-            &out.base_wrench,
+            &self.tau[..],
+            &self.base_twist,
+            &self.base_acc,
+            &self.base_wrench,
         ]
         .iter()
         .all(|v| v.iter().all(|x| x.is_finite()));
@@ -468,7 +483,7 @@ impl FlexibleArm {
             // the links' dynamics are finite: the motor side overflowed, from the deflection
             crate::overflow::check_result(
                 "inverse_dynamics",
-                &[&out.theta, &out.theta_dot, &out.theta_ddot, &out.u],
+                &[&self.theta, &self.theta_dot, &self.theta_ddot, &self.u],
                 &[("deflection", delta, 1)],
             )?;
         }
@@ -481,7 +496,7 @@ impl FlexibleArm {
                     .into(),
             });
         }
-        Ok(out)
+        Ok(())
     }
 }
 

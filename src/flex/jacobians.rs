@@ -287,7 +287,10 @@ impl Default for StepScratch {
     }
 }
 
-/// The four stages and the map to tangent coordinates of [`step_jacobians_with`].
+/// The four stages and the map to tangent coordinates of [`step_jacobians_with`]: the chain
+/// rule of the module docs, `dk_s = K_s (𝟙 + h_s dk_{s−1})` with `h_s` the stage's step
+/// (`0, dt/2, dt/2, dt`) and `K_s` the raw Jacobian at the stage's state, summed into
+/// `J = 𝟙 + dt/6 (dk₁ + 2dk₂ + 2dk₃ + dk₄)`, then `A = P(x⁺) J E(x)` ([`to_tangent`]).
 fn stage_chain(
     arm: &FlexibleArm,
     ws: &mut ModelWorkspace,
@@ -573,7 +576,10 @@ fn transpose_rows(rows: &[f64], width: usize, offset: usize, out: &mut DMatrix<f
 }
 
 /// The state derivative's Jacobians at `x` in `coordinates` into `out` (rows and state columns
-/// both in those coordinates).
+/// both in those coordinates): the rows of the module docs' continuous time (model §4), the
+/// pose rows, `[δα_B; δq̈]` from [`algorithms::aba_derivatives_into`] with the spring torque
+/// chained in, `δv̇_B`'s `v_B × δω_B − ω_B × δv_B`, and
+/// `δθ̈ = (δu − k (δθ − δq) − d (δθ̇ − δq̇) − β δθ̇)/j`.
 fn jacobians_into(
     arm: &FlexibleArm,
     ws: &mut ModelWorkspace,

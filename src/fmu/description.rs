@@ -19,9 +19,28 @@ use std::fmt::Write;
 
 /// The model description of `model` for FMI `version`.
 pub fn model_description(model: &FmuModel, version: FmiVersion) -> String {
-    let c = &model.config;
     let v3 = version == FmiVersion::V3;
     let mut x = String::from("<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n");
+    header(&mut x, model, v3);
+    unit_definitions(&mut x);
+    x.push_str(
+        "  <LogCategories>\n    <Category name=\"logStatusError\" description=\"errors: refused \
+         calls and failed steps\"/>\n  </LogCategories>\n",
+    );
+    let _ = writeln!(
+        x,
+        "  <DefaultExperiment startTime=\"0\" stopTime=\"1\" stepSize=\"{}\"/>",
+        number(model.config.dt)
+    );
+    model_variables(&mut x, model, v3);
+    model_structure(&mut x, model, v3);
+    x.push_str("</fmiModelDescription>\n");
+    x
+}
+
+/// The `fmiModelDescription` start tag and the `CoSimulation` element.
+fn header(x: &mut String, model: &FmuModel, v3: bool) {
+    let c = &model.config;
     let wheels = match model.arm.layout().wheels {
         0 => String::new(),
         1 => ", 1 reaction wheel".into(),
@@ -65,6 +84,10 @@ pub fn model_description(model: &FmuModel, version: FmiVersion) -> String {
              canNotUseMemoryManagementFunctions=\"true\" canBeInstantiatedOnlyOncePerProcess=\"false\"/>"
         );
     }
+}
+
+/// `UnitDefinitions`: each unit of [`UNITS`] and [`DAMPING_UNIT`] with its SI base exponents.
+fn unit_definitions(x: &mut String) {
     x.push_str("  <UnitDefinitions>\n");
     for (name, kg, m, s, rad) in UNITS.iter().copied().chain([DAMPING_UNIT]) {
         let mut base = String::new();
@@ -76,15 +99,11 @@ pub fn model_description(model: &FmuModel, version: FmiVersion) -> String {
         let _ = writeln!(x, "    <Unit name=\"{name}\"><BaseUnit{base}/></Unit>");
     }
     x.push_str("  </UnitDefinitions>\n");
-    x.push_str(
-        "  <LogCategories>\n    <Category name=\"logStatusError\" description=\"errors: refused \
-         calls and failed steps\"/>\n  </LogCategories>\n",
-    );
-    let _ = writeln!(
-        x,
-        "  <DefaultExperiment startTime=\"0\" stopTime=\"1\" stepSize=\"{}\"/>",
-        number(c.dt)
-    );
+}
+
+/// `ModelVariables`: one element per variable of the table, in value-reference order (FMI 2.0
+/// skips `time`).
+fn model_variables(x: &mut String, model: &FmuModel, v3: bool) {
     x.push_str("  <ModelVariables>\n");
     let start = |var: &Variable| -> Option<f64> {
         match var.slot {
@@ -127,7 +146,13 @@ pub fn model_description(model: &FmuModel, version: FmiVersion) -> String {
             );
         }
     }
-    x.push_str("  </ModelVariables>\n  <ModelStructure>\n");
+    x.push_str("  </ModelVariables>\n");
+}
+
+/// `ModelStructure`: every output, with no dependencies (no direct feedthrough), also as an
+/// initial unknown.
+fn model_structure(x: &mut String, model: &FmuModel, v3: bool) {
+    x.push_str("  <ModelStructure>\n");
     let outputs: Vec<usize> = model
         .table
         .variables
@@ -156,8 +181,7 @@ pub fn model_description(model: &FmuModel, version: FmiVersion) -> String {
         }
         x.push_str("    </InitialUnknowns>\n");
     }
-    x.push_str("  </ModelStructure>\n</fmiModelDescription>\n");
-    x
+    x.push_str("  </ModelStructure>\n");
 }
 
 /// A number in its shortest round-trip form, as XML's `xs:double` reads it.

@@ -201,27 +201,81 @@ impl VariableTable {
         let robot = arm.robot();
         let joints = robot.joint_names();
         let wheels = arm.layout().wheels;
-        let mut v = Vec::new();
-        let mut push = |name: String,
-                        causality: Causality,
-                        unit: Option<&'static str>,
-                        description: String,
-                        slot: Slot| {
-            v.push(Variable {
-                name,
-                causality,
-                unit,
-                description,
-                slot,
-            })
-        };
-        push(
+        let mut table = Rows::default();
+        table.push(
             "time".into(),
             Causality::Independent,
             Some("s"),
             "simulation time".into(),
             Slot::Time,
         );
+        table.parameters(&joints, wheels);
+        table.inputs(&joints, wheels);
+        table.joint_outputs(&joints);
+        table.body_outputs(&robot.ee_links());
+        table.push(
+            "energy".into(),
+            Causality::Output,
+            Some("J"),
+            "total energy (rigid kinetic, motor kinetic, spring)".into(),
+            Slot::Output(Quantity::Energy, 0),
+        );
+        table.wheel_outputs(wheels);
+        Self {
+            variables: table.variables,
+        }
+    }
+
+    /// The variable with value reference `vr`, or a message naming the valid range.
+    pub fn get(&self, vr: u32) -> Result<&Variable, String> {
+        self.variables.get(vr as usize).ok_or_else(|| {
+            format!(
+                "unknown value reference {vr} (this FMU's are 0 to {})",
+                self.variables.len() - 1
+            )
+        })
+    }
+
+    /// The value reference of the variable named `name`.
+    pub fn value_reference(&self, name: &str) -> Option<u32> {
+        self.variables
+            .iter()
+            .position(|v| v.name == name)
+            .map(|i| i as u32)
+    }
+
+    /// The names in value-reference order.
+    pub fn names(&self) -> Vec<String> {
+        self.variables.iter().map(|v| v.name.clone()).collect()
+    }
+}
+
+/// The table while it is built: variables pushed in value-reference order, one group per method.
+#[derive(Default)]
+struct Rows {
+    variables: Vec<Variable>,
+}
+
+impl Rows {
+    fn push(
+        &mut self,
+        name: String,
+        causality: Causality,
+        unit: Option<&'static str>,
+        description: String,
+        slot: Slot,
+    ) {
+        self.variables.push(Variable {
+            name,
+            causality,
+            unit,
+            description,
+            slot,
+        });
+    }
+
+    /// The Spong parameters and initial angles per joint, then the wheels' initial speeds.
+    fn parameters(&mut self, joints: &[&str], wheels: usize) {
         let parameters = [
             (
                 Parameter::Stiffness,
@@ -256,7 +310,7 @@ impl VariableTable {
         ];
         for (p, prefix, unit, what) in parameters {
             for (i, j) in joints.iter().enumerate() {
-                push(
+                self.push(
                     format!("{prefix}.{j}"),
                     Causality::Parameter,
                     Some(unit),
@@ -266,7 +320,7 @@ impl VariableTable {
             }
         }
         for w in 0..wheels {
-            push(
+            self.push(
                 format!("wheel_speed0.{w}"),
                 Causality::Parameter,
                 Some("rad/s"),
@@ -274,8 +328,12 @@ impl VariableTable {
                 Slot::Parameter(Parameter::InitialWheelSpeed, w),
             );
         }
+    }
+
+    /// The motor torques, the base wrench (moment, then force) and the wheel torque commands.
+    fn inputs(&mut self, joints: &[&str], wheels: usize) {
         for (i, j) in joints.iter().enumerate() {
-            push(
+            self.push(
                 format!("motor_torque.{j}"),
                 Causality::Input,
                 Some("N.m"),
@@ -284,7 +342,7 @@ impl VariableTable {
             );
         }
         for (i, axis) in XYZ.iter().enumerate() {
-            push(
+            self.push(
                 format!("base_moment.{axis}"),
                 Causality::Input,
                 Some("N.m"),
@@ -293,7 +351,7 @@ impl VariableTable {
             );
         }
         for (i, axis) in XYZ.iter().enumerate() {
-            push(
+            self.push(
                 format!("base_force.{axis}"),
                 Causality::Input,
                 Some("N"),
@@ -302,7 +360,7 @@ impl VariableTable {
             );
         }
         for w in 0..wheels {
-            push(
+            self.push(
                 format!("wheel_torque.{w}"),
                 Causality::Input,
                 Some("N.m"),
@@ -314,6 +372,10 @@ impl VariableTable {
                 Slot::WheelTorque(w),
             );
         }
+    }
+
+    /// The per-joint outputs: angles, rates, deflections and spring torques.
+    fn joint_outputs(&mut self, joints: &[&str]) {
         let per_joint = [
             (Quantity::Q, "q", "rad", "link angle"),
             (Quantity::Qd, "qd", "rad/s", "link rate"),
@@ -339,7 +401,7 @@ impl VariableTable {
         ];
         for (quantity, prefix, unit, what) in per_joint {
             for (i, j) in joints.iter().enumerate() {
-                push(
+                self.push(
                     format!("{prefix}.{j}"),
                     Causality::Output,
                     Some(unit),
@@ -348,95 +410,92 @@ impl VariableTable {
                 );
             }
         }
-        let mut vector = |name: &str,
-                          axes: &[&str],
-                          unit: Option<&'static str>,
-                          what: &str,
-                          quantity: Quantity,
-                          offset: usize| {
-            for (i, axis) in axes.iter().enumerate() {
-                push(
-                    format!("{name}.{axis}"),
-                    Causality::Output,
-                    unit,
-                    format!("{what}, {axis}"),
-                    Slot::Output(quantity, offset + i),
-                );
-            }
-        };
-        vector(
+    }
+
+    /// One output per axis of a vector quantity, `<name>.<axis>`, at `offset + axis index`.
+    fn vector(
+        &mut self,
+        name: &str,
+        axes: &[&str],
+        unit: Option<&'static str>,
+        what: &str,
+        (quantity, offset): (Quantity, usize),
+    ) {
+        for (i, axis) in axes.iter().enumerate() {
+            self.push(
+                format!("{name}.{axis}"),
+                Causality::Output,
+                unit,
+                format!("{what}, {axis}"),
+                Slot::Output(quantity, offset + i),
+            );
+        }
+    }
+
+    /// The outputs of the bodies: the base pose and twist, each end-effector's pose, momentum.
+    fn body_outputs(&mut self, ees: &[&str]) {
+        self.vector(
             "base_position",
             &XYZ,
             Some("m"),
             "base origin in the inertial frame",
-            Quantity::BasePose,
-            0,
+            (Quantity::BasePose, 0),
         );
-        vector(
+        self.vector(
             "base_quaternion",
             &XYZW,
             None,
             "base attitude (base to inertial), scalar last",
-            Quantity::BasePose,
-            3,
+            (Quantity::BasePose, 3),
         );
-        vector(
+        self.vector(
             "base_angular_velocity",
             &XYZ,
             Some("rad/s"),
             "base angular velocity, base frame",
-            Quantity::BaseTwist,
-            0,
+            (Quantity::BaseTwist, 0),
         );
-        vector(
+        self.vector(
             "base_velocity",
             &XYZ,
             Some("m/s"),
             "base origin velocity, base frame",
-            Quantity::BaseTwist,
-            3,
+            (Quantity::BaseTwist, 3),
         );
-        for (e, ee) in robot.ee_links().iter().enumerate() {
-            vector(
+        for (e, ee) in ees.iter().enumerate() {
+            self.vector(
                 &format!("ee_position.{ee}"),
                 &XYZ,
                 Some("m"),
                 &format!("end-effector {ee} origin in the inertial frame"),
-                Quantity::EePoses,
-                7 * e,
+                (Quantity::EePoses, 7 * e),
             );
-            vector(
+            self.vector(
                 &format!("ee_quaternion.{ee}"),
                 &XYZW,
                 None,
                 &format!("end-effector {ee} attitude (EE to inertial), scalar last, w >= 0"),
-                Quantity::EePoses,
-                7 * e + 3,
+                (Quantity::EePoses, 7 * e + 3),
             );
         }
-        vector(
+        self.vector(
             "momentum.angular",
             &XYZ,
             Some("N.m.s"),
             "angular momentum about the inertial origin, inertial frame",
-            Quantity::Momentum,
-            0,
+            (Quantity::Momentum, 0),
         );
-        vector(
+        self.vector(
             "momentum.linear",
             &XYZ,
             Some("N.s"),
             "linear momentum, inertial frame",
-            Quantity::Momentum,
-            3,
+            (Quantity::Momentum, 3),
         );
-        push(
-            "energy".into(),
-            Causality::Output,
-            Some("J"),
-            "total energy (rigid kinetic, motor kinetic, spring)".into(),
-            Slot::Output(Quantity::Energy, 0),
-        );
+    }
+
+    /// Per wheel: its speed relative to the bus and the torque applied over the last step.
+    fn wheel_outputs(&mut self, wheels: usize) {
         for (quantity, prefix, unit, what) in [
             (
                 Quantity::WheelSpeed,
@@ -452,7 +511,7 @@ impl VariableTable {
             ),
         ] {
             for w in 0..wheels {
-                push(
+                self.push(
                     format!("{prefix}.{w}"),
                     Causality::Output,
                     Some(unit),
@@ -461,29 +520,5 @@ impl VariableTable {
                 );
             }
         }
-        Self { variables: v }
-    }
-
-    /// The variable with value reference `vr`, or a message naming the valid range.
-    pub fn get(&self, vr: u32) -> Result<&Variable, String> {
-        self.variables.get(vr as usize).ok_or_else(|| {
-            format!(
-                "unknown value reference {vr} (this FMU's are 0 to {})",
-                self.variables.len() - 1
-            )
-        })
-    }
-
-    /// The value reference of the variable named `name`.
-    pub fn value_reference(&self, name: &str) -> Option<u32> {
-        self.variables
-            .iter()
-            .position(|v| v.name == name)
-            .map(|i| i as u32)
-    }
-
-    /// The names in value-reference order.
-    pub fn names(&self) -> Vec<String> {
-        self.variables.iter().map(|v| v.name.clone()).collect()
     }
 }

@@ -135,3 +135,33 @@ impl Trajectory {
         })
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::Sum;
+
+    fn total(values: &[f64]) -> f64 {
+        let mut sum = Sum::default();
+        for v in values {
+            sum.add(*v);
+        }
+        sum.total()
+    }
+
+    /// Neumaier's example: `1 + 10¹⁰⁰ + 1 − 10¹⁰⁰` is 2, where a plain sum gives 0. Both
+    /// branches of the compensation run (a term larger than the sum, then one smaller); every
+    /// error term is exact, so the total is exactly 2 whichever large term comes first. A
+    /// mistake in either branch, in the carry or in the total loses the 2 (each checked against
+    /// `cargo mutants`).
+    #[test]
+    fn compensation_keeps_what_a_plain_sum_loses() {
+        assert_eq!([1.0, 1e100, 1.0, -1e100].iter().sum::<f64>(), 0.0);
+        assert_eq!(total(&[1.0, 1e100, 1.0, -1e100]), 2.0);
+        assert_eq!(total(&[1e100, 1.0, -1e100, 1.0]), 2.0);
+        assert_eq!(total(&[-1e100, 1.0, 1e100, 1.0]), 2.0);
+        // 0.1 ten times: the compensated total is the double nearest to 1, a plain sum is not
+        assert_eq!([0.1; 10].iter().sum::<f64>(), 0.9999999999999999);
+        assert_eq!(total(&[0.1; 10]), 1.0);
+        assert_eq!(total(&[]), 0.0);
+    }
+}

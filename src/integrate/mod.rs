@@ -6,6 +6,8 @@
 //!   stability warning and [`Observer`] hook;
 //! - [`batch`]: many runs at once over a pool of threads ([`simulate_batch`]), inputs broadcast
 //!   over a leading run axis, one record with a status per run;
+//! - [`footprint`]: the bytes a run allocates, by part, and the check against the memory
+//!   available, before anything is allocated;
 //! - [`record`]: which rows a run keeps (`record_every`) and where they go: the [`Recorder`]
 //!   trait, the in-memory [`Trajectory`], the streaming [`Chunks`];
 //! - [`simulator`]: a [`Simulator`] stepped by its caller with held inputs (co-simulation);
@@ -31,6 +33,7 @@
 pub mod arm;
 pub mod batch;
 pub mod energy_balance;
+pub mod footprint;
 pub mod record;
 pub mod rk4;
 pub mod run;

@@ -432,72 +432,18 @@ impl Simulator {
     /// format version, of another arm, truncated, or holding non-finite numbers is refused
     /// with an error saying which, and the simulator is left as it was.
     pub fn restore(&mut self, blob: &[u8]) -> Result<()> {
-        let bad = |message: String| Error::InvalidArgument {
-            what: "simulator state".into(),
-            message,
-        };
         let mut r = Reader { blob, at: 0 };
-        if r.bytes(8) != Some(MAGIC.as_slice()) {
-            return Err(bad(
-                "not a saved orbitflex simulator state (it does not start with the format's \
-                 marker)"
-                    .into(),
-            ));
-        }
-        let version = r
-            .u32()
-            .ok_or_else(|| bad("truncated after its marker".into()))?;
-        if version != STATE_FORMAT_VERSION {
-            return Err(bad(format!(
-                "saved in format version {version}; this orbitflex reads version \
-                 {STATE_FORMAT_VERSION}"
-            )));
-        }
-        let header = (r.u64(), r.u32(), r.u32(), r.u32(), r.u64(), r.u64());
-        let (Some(fingerprint), Some(n), Some(ee), Some(wheels), Some(dt_bits), Some(k)) = header
-        else {
-            return Err(bad("truncated in its header".into()));
-        };
-        let own_wheels = self.wheel_torque.len();
-        if wheels as usize != own_wheels {
-            let count = |k: usize| match k {
-                0 => "no reaction wheels".to_string(),
-                1 => "1 reaction wheel".to_string(),
-                k => format!("{k} reaction wheels"),
-            };
-            return Err(bad(format!(
-                "saved from an arm with {}; this simulator's arm has {} (a state holds the \
-                 speeds of its own wheels)",
-                count(wheels as usize),
-                count(own_wheels)
-            )));
-        }
-        if fingerprint != self.fingerprint || n as usize != self.arm.dof() {
-            return Err(bad(format!(
-                "saved from another arm ({n} joints, fingerprint {fingerprint:016x}); this \
-                 simulator's arm has {} joints, fingerprint {:016x} (same model, joint \
-                 parameters and dynamics method needed)",
-                self.arm.dof(),
-                self.fingerprint
-            )));
-        }
-        let dt = f64::from_bits(dt_bits);
-        if dt_bits != self.dt.to_bits() {
-            return Err(bad(format!(
-                "saved with dt = {dt:e} s; this simulator steps dt = {:e} s",
-                self.dt
-            )));
-        }
-        let (len, ee) = (self.x.len(), ee as usize);
+        let (ee, k) = self.read_header(&mut r)?;
+        let (len, own_wheels) = (self.x.len(), self.wheel_torque.len());
         let expected = len + self.u.len() + 2 * own_wheels + 6 + ee;
         let wrenches = 6 * self.arm.robot().end_effectors().len();
         if ee != 0 && ee != wrenches {
-            return Err(bad(format!(
+            return Err(bad_state(format!(
                 "holds {ee} EE-wrench numbers; this arm takes 0 or {wrenches}"
             )));
         }
         if r.remaining() != 8 * expected {
-            return Err(bad(format!(
+            return Err(bad_state(format!(
                 "{} bytes of numbers after the header; expected {} ({expected} numbers)",
                 r.remaining(),
                 8 * expected
@@ -505,10 +451,15 @@ impl Simulator {
         }
         let numbers: Vec<f64> = (0..expected).map_while(|_| r.f64()).collect();
         if let Some(i) = numbers.iter().position(|v| !v.is_finite()) {
-            return Err(bad(format!("number {i} is not finite ({})", numbers[i])));
+            return Err(bad_state(format!(
+                "number {i} is not finite ({})",
+                numbers[i]
+            )));
         }
         let (x, rest) = numbers.split_at(len);
-        self.arm.check_state(x).map_err(|e| bad(e.to_string()))?;
+        self.arm
+            .check_state(x)
+            .map_err(|e| bad_state(e.to_string()))?;
         let (u, rest) = rest.split_at(self.u.len());
         let (wheel_torque, rest) = rest.split_at(own_wheels);
         let (applied, rest) = rest.split_at(own_wheels);
@@ -524,9 +475,75 @@ impl Simulator {
         Ok(())
     }
 
+    /// Reads and checks the header of a [`save`](Self::save) blob: its marker and format
+    /// version, then the arm (wheels, fingerprint, joints) and `dt` it was saved from, which must
+    /// be this simulator's. Returns the number of EE-wrench numbers it holds and its step count.
+    fn read_header(&self, r: &mut Reader) -> Result<(usize, u64)> {
+        if r.bytes(8) != Some(MAGIC.as_slice()) {
+            return Err(bad_state(
+                "not a saved orbitflex simulator state (it does not start with the format's \
+                 marker)"
+                    .into(),
+            ));
+        }
+        let version = r
+            .u32()
+            .ok_or_else(|| bad_state("truncated after its marker".into()))?;
+        if version != STATE_FORMAT_VERSION {
+            return Err(bad_state(format!(
+                "saved in format version {version}; this orbitflex reads version \
+                 {STATE_FORMAT_VERSION}"
+            )));
+        }
+        let header = (r.u64(), r.u32(), r.u32(), r.u32(), r.u64(), r.u64());
+        let (Some(fingerprint), Some(n), Some(ee), Some(wheels), Some(dt_bits), Some(k)) = header
+        else {
+            return Err(bad_state("truncated in its header".into()));
+        };
+        let own_wheels = self.wheel_torque.len();
+        if wheels as usize != own_wheels {
+            let count = |k: usize| match k {
+                0 => "no reaction wheels".to_string(),
+                1 => "1 reaction wheel".to_string(),
+                k => format!("{k} reaction wheels"),
+            };
+            return Err(bad_state(format!(
+                "saved from an arm with {}; this simulator's arm has {} (a state holds the \
+                 speeds of its own wheels)",
+                count(wheels as usize),
+                count(own_wheels)
+            )));
+        }
+        if fingerprint != self.fingerprint || n as usize != self.arm.dof() {
+            return Err(bad_state(format!(
+                "saved from another arm ({n} joints, fingerprint {fingerprint:016x}); this \
+                 simulator's arm has {} joints, fingerprint {:016x} (same model, joint \
+                 parameters and dynamics method needed)",
+                self.arm.dof(),
+                self.fingerprint
+            )));
+        }
+        if dt_bits != self.dt.to_bits() {
+            return Err(bad_state(format!(
+                "saved with dt = {:e} s; this simulator steps dt = {:e} s",
+                f64::from_bits(dt_bits),
+                self.dt
+            )));
+        }
+        Ok((ee as usize, k))
+    }
+
     /// The fingerprint of this simulator's arm ([`arm_fingerprint`]).
     pub fn fingerprint(&self) -> u64 {
         self.fingerprint
+    }
+}
+
+/// A refused simulator state, with what is wrong with it.
+fn bad_state(message: String) -> Error {
+    Error::InvalidArgument {
+        what: "simulator state".into(),
+        message,
     }
 }
 

@@ -36,18 +36,22 @@ pub struct LaneRun<'a> {
     pub recorder: &'a mut dyn Recorder,
 }
 
-/// Whether the lane kernel can step `arm`: the recursive ABA (the kernel's algorithm) and no
-/// reaction wheels (their coupled base the kernel does not model).
+/// Whether the lane kernel can step `arm`: the recursive ABA (the kernel's algorithm), with or
+/// without reaction wheels.
 pub fn lane_capable(arm: &FlexibleArm) -> bool {
-    arm.wheels().is_none() && arm.method() == Method::Recursive
+    arm.method() == Method::Recursive
 }
 
 /// Whether runs of `a` and `b` can share a lane group: both [`lane_capable`], with robots of
-/// one structure (the same tree, joint frames and end-effector frames). Everything else may
-/// differ, each lane holding its own: the body masses and inertias (a dispersed payload) and the
-/// joint parameters (stiffness, damping, motor inertia and friction).
+/// one structure (the same tree, joint frames and end-effector frames) and as many reaction
+/// wheels. Everything else may differ, each lane holding its own: the body masses and inertias
+/// (a dispersed payload), the joint parameters (stiffness, damping, motor inertia and friction)
+/// and the wheels (axes, masses, positions, inertias, friction and limits).
 pub fn shares_kernel(a: &FlexibleArm, b: &FlexibleArm) -> bool {
-    lane_capable(a) && lane_capable(b) && same_structure(a.robot(), b.robot())
+    lane_capable(a)
+        && lane_capable(b)
+        && a.layout().wheels == b.layout().wheels
+        && same_structure(a.robot(), b.robot())
 }
 
 fn same_structure(a: &Robot, b: &Robot) -> bool {
@@ -168,6 +172,7 @@ fn group_runs<const W: usize>(
             u: &held.u,
             base_wrench: &held.base,
             ee_wrench: if ee_kernel { &held.ee } else { &[] },
+            wheel_torque: &held.wheel,
         };
         let ok = group.step(arm, dt, &inputs);
         finish_step(&mut group, &mut lanes, runs, k, ok, ee_kernel);
@@ -220,9 +225,11 @@ fn start_lanes<const W: usize>(group: &mut LaneGroup<W>, runs: &mut [LaneRun<'_>
     lanes
 }
 
-/// The inputs of a step in lanes, each lane's from its [`Stepper`]: `u`, `f_B`, the EE wrenches.
+/// The inputs of a step in lanes, each lane's from its [`Stepper`]: `u` (n), the wheel torques
+/// applied (k), `f_B`, the EE wrenches.
 struct Held<const W: usize> {
     u: Vec<L<W>>,
+    wheel: Vec<L<W>>,
     base: Sv<W>,
     ee: Vec<Sv<W>>,
 }
@@ -231,6 +238,7 @@ impl<const W: usize> Held<W> {
     fn new(arm: &FlexibleArm) -> Self {
         Self {
             u: vec![L::zero(); arm.dof()],
+            wheel: vec![L::zero(); arm.layout().wheels],
             base: Sv::default(),
             ee: vec![Sv::default(); arm.robot().end_effectors().len()],
         }
@@ -339,9 +347,13 @@ fn simulation(step: usize, dt: f64, message: String) -> Error {
     }
 }
 
-/// Lane `j` of the held inputs from `stepper`'s rows.
+/// Lane `j` of the held inputs from `stepper`'s rows (the wheel torques as applied: saturated by
+/// the lane's own `Stepper::prepare`).
 fn pack<const W: usize>(stepper: &Stepper, j: usize, ee_given: bool, held: &mut Held<W>) {
     for (lane, v) in held.u.iter_mut().zip(stepper.u()) {
+        lane.0[j] = *v;
+    }
+    for (lane, v) in held.wheel.iter_mut().zip(stepper.wheel_torque()) {
         lane.0[j] = *v;
     }
     let (base_row, ee_rows) = stepper.held_wrenches();

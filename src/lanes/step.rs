@@ -3,10 +3,11 @@
 
 use super::lane::L;
 use super::spatial::{bias_force, Art, In, Sv, Xf, M3, V3};
-use crate::flex::{normalise_quaternion, FlexibleArm, FlexibleJoints, StateLayout};
+use crate::flex::{normalise_quaternion, FlexibleArm, FlexibleJoints, StateLayout, Wheel};
 
-/// The inputs of one step in lanes, held over the step: motor torques `u` (n), `f_B` and the
-/// end-effector wrenches (one per end-effector, or none), each lane its run's.
+/// The inputs of one step in lanes, held over the step: motor torques `u` (n), `f_B`, the
+/// end-effector wrenches (one per end-effector, or none) and the reaction-wheel torques
+/// applied (k, already saturated), each lane its run's.
 #[derive(Debug, Clone, Copy)]
 pub struct LaneInputs<'a, const W: usize> {
     /// `u` (n), N·m.
@@ -15,6 +16,47 @@ pub struct LaneInputs<'a, const W: usize> {
     pub base_wrench: &'a Sv<W>,
     /// `[f_1; …; f_k]` (each in its EE frame), or empty for no wrench.
     pub ee_wrench: &'a [Sv<W>],
+    /// The torques the wheel motors apply over the step (k, N·m, after
+    /// [`crate::flex::ReactionWheels::saturate`], as the scalar `Stepper` holds them); empty
+    /// for an arm without wheels.
+    pub wheel_torque: &'a [L<W>],
+}
+
+/// What the dynamics read of one reaction wheel ([`crate::flex::wheels`]), each lane its run's:
+/// the unit axis `a` (base frame), the spin inertia `J_s` and the viscous friction `c`. (Its mass,
+/// position and transverse inertia are in the lanes' base inertia, the locked part; its limits
+/// are applied per lane by the scalar `Stepper` before the step.)
+#[derive(Debug, Clone, Copy, Default)]
+struct WheelLanes<const W: usize> {
+    axis: V3<W>,
+    spin_inertia: L<W>,
+    friction: L<W>,
+}
+
+impl<const W: usize> WheelLanes<W> {
+    fn set_lane(&mut self, k: usize, wheel: &Wheel) {
+        let [x, y, z] = wheel.axis;
+        (self.axis.x.0[k], self.axis.y.0[k], self.axis.z.0[k]) = (x, y, z);
+        self.spin_inertia.0[k] = wheel.spin_inertia;
+        self.friction.0[k] = wheel.friction;
+    }
+
+    /// (W2) `n_w = −a (u − c Ω) − ω × (h a)`, `h = J_s (a·ω + Ω)`, grouped as
+    /// [`crate::flex::wheels::wheel_moment_on_bus`] groups it.
+    #[inline(always)]
+    fn moment_on_bus(&self, omega: &V3<W>, speed: L<W>, torque: L<W>) -> V3<W> {
+        let a = &self.axis;
+        let drive = torque - self.friction * speed;
+        let h = self.spin_inertia * (a.dot(omega) + speed);
+        let pushed = a.scale(drive);
+        V3::new(-pushed.x, -pushed.y, -pushed.z).sub(&omega.cross(&a.scale(h)))
+    }
+
+    /// (W1) `Ω̇ = (u − c Ω)/J_s − a·ω̇`, as [`crate::flex::wheels::wheel_acceleration`].
+    #[inline(always)]
+    fn acceleration(&self, omega_dot: &V3<W>, speed: L<W>, torque: L<W>) -> L<W> {
+        (torque - self.friction * speed) / self.spin_inertia - self.axis.dot(omega_dot)
+    }
 }
 
 /// The ABA's per-body buffers in lanes (the lane form of [`crate::algorithms::Data`]).
@@ -51,9 +93,12 @@ pub struct LaneGroup<const W: usize> {
     ddq: Vec<L<W>>,
     aba: AbaLanes<W>,
     joints: [Vec<L<W>>; 4],
-    /// Each body's inertia and articulated inertia (joint frames), each lane its run's.
+    /// Each body's inertia and articulated inertia (joint frames) of the rigid model (the base's
+    /// augmented by the wheels' locked parts), each lane its run's.
     inertias: Vec<In<W>>,
     articulated: Vec<Art<W>>,
+    /// The reaction wheels (k; none without).
+    wheels: Vec<WheelLanes<W>>,
 }
 
 impl<const W: usize> LaneGroup<W> {
@@ -89,17 +134,24 @@ impl<const W: usize> LaneGroup<W> {
                 lanes(&p.motor_inertia),
                 lanes(&p.motor_damping),
             ],
-            inertias: arm.robot().frame_inertias().iter().map(In::splat).collect(),
+            inertias: arm
+                .rigid_model()
+                .frame_inertias()
+                .iter()
+                .map(In::splat)
+                .collect(),
             articulated: arm
-                .robot()
+                .rigid_model()
                 .frame_articulated()
                 .iter()
                 .map(Art::splat)
                 .collect(),
+            wheels: vec![WheelLanes::default(); layout.wheels],
         };
         let rest = arm.rest_state();
         for k in 0..W {
             group.set_state(k, &rest);
+            group.set_wheels(k, arm);
         }
         group
     }
@@ -131,12 +183,14 @@ impl<const W: usize> LaneGroup<W> {
         }
     }
 
-    /// Gives lane `k` the joint parameters and the body inertias of `arm`, an arm of this
-    /// group's structure ([`super::shares_kernel`]: the same joints and frames; masses,
-    /// inertias, stiffness, damping and motor parameters may differ).
+    /// Gives lane `k` the joint parameters, the body inertias and the reaction wheels of `arm`,
+    /// an arm of this group's structure ([`super::shares_kernel`]: the same joints and frames,
+    /// as many wheels; masses, inertias, stiffness, damping, motor parameters and the wheels'
+    /// axes, inertias, masses, positions and friction may differ).
     pub fn set_arm(&mut self, k: usize, arm: &FlexibleArm) {
         self.set_joints(k, arm.joints());
-        let robot = arm.robot();
+        self.set_wheels(k, arm);
+        let robot = arm.rigid_model();
         for (lanes, one) in self.inertias.iter_mut().zip(robot.frame_inertias()) {
             lanes.set_lane(k, one);
         }
@@ -158,6 +212,14 @@ impl<const W: usize> LaneGroup<W> {
             for (lane, v) in lanes.iter_mut().zip(values) {
                 lane.0[k] = *v;
             }
+        }
+    }
+
+    /// Lane `k`'s wheels from `arm`'s (as many as this group's; none without).
+    fn set_wheels(&mut self, k: usize, arm: &FlexibleArm) {
+        let given = arm.wheels().map_or(&[][..], |w| w.wheels());
+        for (lanes, wheel) in self.wheels.iter_mut().zip(given) {
+            lanes.set_lane(k, wheel);
         }
     }
 
@@ -295,7 +357,9 @@ impl<const W: usize> LaneGroup<W> {
     }
 
     /// `ẋ` ([`FlexibleArm::derivative`]) of every lane at `x`; a lane whose articulated pivot or
-    /// base inertia is singular is cleared in `ok`.
+    /// base inertia is singular is cleared in `ok`. With reaction wheels, as
+    /// `flex::wheels::derivative_with_wheels`: `f_B` gains `Σ n_w` (W2) before the ABA (on the
+    /// augmented base), and `Ω̇` (W1) follows from `ω̇_B`.
     #[inline(always)]
     fn derivative(
         &mut self,
@@ -320,6 +384,18 @@ impl<const W: usize> LaneGroup<W> {
         let twist = layout.base_twist().start;
         let omega_b = V3::new(x[twist], x[twist + 1], x[twist + 2]);
         let v_b = V3::new(x[twist + 3], x[twist + 4], x[twist + 5]);
+        let speed = &x[layout.wheel_speed()];
+        let (loaded_wrench, loaded_inputs);
+        let inputs = if self.wheels.is_empty() {
+            inputs
+        } else {
+            loaded_wrench = self.wheel_loads(&omega_b, speed, inputs);
+            loaded_inputs = LaneInputs {
+                base_wrench: &loaded_wrench,
+                ..*inputs
+            };
+            &loaded_inputs
+        };
         self.aba(arm, omega_b, q, qd, inputs, ok);
 
         let quat = layout.quaternion().start;
@@ -348,9 +424,30 @@ impl<const W: usize> LaneGroup<W> {
             motor[i] =
                 (inputs.u[i] - self.tau[i] - motor_damping[i] * theta_dot[i]) / motor_inertia[i];
         }
+        let omega_dot = V3::new(acc[0], acc[1], acc[2]);
+        let rates = &mut xdot[layout.wheel_speed()];
+        for (w, wheel) in self.wheels.iter().enumerate() {
+            rates[w] = wheel.acceleration(&omega_dot, speed[w], inputs.wheel_torque[w]);
+        }
     }
 
-    /// The three ABA passes ([`crate::algorithms::aba`]'s kernel) in lanes, into `self.ddq`.
+    /// `f_B` of `inputs` with the wheels' `Σ n_w` (W2) added to its moment, at bus rate `omega`
+    /// and wheel speeds `speed`: summed from zero, then added, as
+    /// [`crate::flex::ReactionWheels::base_moment`] and `derivative_with_wheels` do.
+    #[inline(always)]
+    fn wheel_loads(&self, omega: &V3<W>, speed: &[L<W>], inputs: &LaneInputs<W>) -> Sv<W> {
+        let mut sum = V3::<W>::default();
+        for (w, wheel) in self.wheels.iter().enumerate() {
+            sum = sum.add(&wheel.moment_on_bus(omega, speed[w], inputs.wheel_torque[w]));
+        }
+        let f = inputs.base_wrench;
+        Sv::new(f.angular.add(&sum), f.linear)
+    }
+
+    /// The three ABA passes ([`crate::algorithms::aba`]'s kernel) in lanes, into `self.ddq`:
+    /// velocities (A.4), Coriolis terms (A.7), `I^A = M_i` (A.9) and `p^A = b_i` (A.10) forwards;
+    /// the articulated inertias backwards; the base solve and `q̈`, `α_i` (A.6) forwards,
+    /// operation for operation the scalar kernel's.
     #[inline(always)]
     fn aba(
         &mut self,

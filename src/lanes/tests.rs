@@ -169,6 +169,7 @@ fn lanes<const W: usize>(
                 u: &u,
                 base_wrench: &base,
                 ee_wrench: &ee,
+                wheel_torque: &[],
             };
             let ok = if portable {
                 g.step_kernel(arm, dt, &inputs)
@@ -260,5 +261,173 @@ fn width_and_level_agree_with_the_processor() {
     assert!([1, 4, 8].contains(&w));
     if super::level() == super::Level::Avx512 && std::env::var_os("ORBITFLEX_LANES").is_none() {
         assert_eq!(w, 8);
+    }
+}
+
+/// Run `r`'s arm with four reaction wheels of its own (random axes, positions, masses,
+/// inertias and friction per run; torque limit 0.3 N·m, speed limit `300 + 10 r` rad/s).
+fn wheeled(r: usize) -> FlexibleArm {
+    let random = crate::testing::random_wheels(4, 3 + r as u64, 0.3);
+    let wheels = random
+        .wheels()
+        .iter()
+        .map(|w| crate::flex::Wheel {
+            max_speed: 300.0 + 10.0 * r as f64,
+            ..*w
+        })
+        .collect();
+    arm(Robot::space_arm())
+        .with_wheels(crate::flex::ReactionWheels::new(wheels).unwrap())
+        .unwrap()
+}
+
+/// Lane groups of `W` with reaction wheels dispersed per lane against `FlexibleArm::step` run
+/// by run: the same wheel commands, saturated by the scalar code at each lane's state (as the
+/// `Stepper` does before a step in lanes), motor torques and base wrenches per run; every state
+/// bit for bit. Returns how many commands were clipped to the torque limit and how many cut at
+/// the speed limit.
+fn wheel_case<const W: usize>(runs: usize, steps: usize, portable: bool) -> (usize, usize) {
+    let dt = 1e-3;
+    let arms: Vec<FlexibleArm> = (0..runs).map(wheeled).collect();
+    let (n, len, k) = (7, arms[0].layout().len(), 4);
+    let x0: Vec<Vec<f64>> = (0..runs)
+        .map(|r| {
+            let (q, twist, qd) = random_state(arms[r].robot(), 90 + r as u64);
+            let pose = [
+                0.1,
+                -0.2 * r as f64,
+                0.3,
+                0.1,
+                -0.2,
+                0.3 + 0.1 * r as f64,
+                0.9,
+            ];
+            let mut x = arms[r]
+                .state(&StateSpec {
+                    q: Some(&q),
+                    qd: Some(&qd),
+                    base_twist: Some(&twist),
+                    base_pose: Some(&pose),
+                    ..StateSpec::default()
+                })
+                .unwrap();
+            // wheels 0 and 2 just below their limit, 1 just beyond it, 3 well inside
+            let limit = 300.0 + 10.0 * r as f64;
+            let speeds = [limit - 1e-3, -(limit + 0.5), limit - 0.2, 50.0 * r as f64];
+            x[arms[r].layout().wheel_speed()].copy_from_slice(&speeds);
+            x
+        })
+        .collect();
+    let command = |r: usize, step: usize, w: usize| 0.5 * ((r + 3 * step + 7 * w) as f64).sin();
+    let motor = |r: usize, i: usize| 0.2 * (r as f64 - 2.0) + 0.1 * i as f64;
+    let base = |r: usize, j: usize| 0.5 * ((r + 2 * j) as f64 * 0.7).cos();
+    let (mut clipped, mut cut) = (0, 0);
+    // the scalar runs
+    let mut expected = Vec::new();
+    for r in 0..runs {
+        let mut ws = arms[r].workspace();
+        let mut x = x0[r].clone();
+        let mut states = x.clone();
+        let u: Vec<f64> = (0..n).map(|i| motor(r, i)).collect();
+        let fb: Vec<f64> = (0..6).map(|j| base(r, j)).collect();
+        for step in 0..steps {
+            let cmd: Vec<f64> = (0..k).map(|w| command(r, step, w)).collect();
+            let inputs = crate::flex::Inputs {
+                u: &u,
+                loads: crate::Loads {
+                    base_wrench: crate::spatial::Force::from_slice(&fb),
+                    ee_wrench: &[],
+                },
+                wheel_torque: &cmd,
+            };
+            arms[r].step(&mut ws, &mut x, dt, &inputs).unwrap();
+            states.extend_from_slice(&x);
+        }
+        expected.push(states);
+    }
+    for (g0, group) in arms.chunks(W).enumerate() {
+        let first = g0 * W;
+        let mut g = LaneGroup::<W>::new(&group[0]);
+        let mut states: Vec<Vec<f64>> = Vec::new();
+        for (j, a) in group.iter().enumerate() {
+            g.set_arm(j, a);
+            g.set_state(j, &x0[first + j]);
+            states.push(x0[first + j].clone());
+        }
+        for j in group.len()..W {
+            g.park(j, 0);
+        }
+        let lane_of = |f: &dyn Fn(usize) -> f64| {
+            let mut l = L::<W>::zero();
+            for j in 0..group.len() {
+                l.0[j] = f(first + j);
+            }
+            l
+        };
+        let u: Vec<L<W>> = (0..n).map(|i| lane_of(&|r| motor(r, i))).collect();
+        let at = |j: usize| lane_of(&|r| base(r, j));
+        let fb = Sv::new(V3::new(at(0), at(1), at(2)), V3::new(at(3), at(4), at(5)));
+        let mut wheel = vec![L::<W>::zero(); k];
+        let mut x = vec![0.0; len];
+        let mut applied = vec![0.0; k];
+        for step in 0..steps {
+            for (j, a) in group.iter().enumerate() {
+                g.state(j, &mut x);
+                let cmd: Vec<f64> = (0..k).map(|w| command(first + j, step, w)).collect();
+                let speed = &x[a.layout().wheel_speed()];
+                a.wheels().unwrap().saturate(&cmd, speed, &mut applied);
+                for w in 0..k {
+                    wheel[w].0[j] = applied[w];
+                    clipped += usize::from(applied[w].abs() == 0.3);
+                    cut += usize::from(applied[w] == 0.0 && cmd[w] != 0.0);
+                }
+            }
+            let inputs = LaneInputs {
+                u: &u,
+                base_wrench: &fb,
+                ee_wrench: &[],
+                wheel_torque: &wheel,
+            };
+            let ok = if portable {
+                g.step_kernel(&group[0], dt, &inputs)
+            } else {
+                g.step(&group[0], dt, &inputs)
+            };
+            assert!(ok.iter().all(|&o| o), "step {step}");
+            for (j, s) in states.iter_mut().enumerate() {
+                g.state(j, &mut x);
+                s.extend_from_slice(&x);
+            }
+        }
+        for (j, got) in states.iter().enumerate() {
+            let want = &expected[first + j];
+            assert_eq!(want.len(), got.len());
+            for (e, (a, b)) in want.iter().zip(got).enumerate() {
+                assert_eq!(
+                    a.to_bits(),
+                    b.to_bits(),
+                    "run {}, step {}, element {} ({a:e} vs {b:e}; W = {W}, portable {portable})",
+                    first + j,
+                    e / len,
+                    e % len
+                );
+            }
+        }
+    }
+    (clipped, cut)
+}
+
+#[test]
+fn lanes_with_reaction_wheels_equal_the_scalar_step() {
+    for portable in [false, true] {
+        for (clipped, cut) in [
+            wheel_case::<4>(6, 30, portable),
+            wheel_case::<8>(6, 30, portable),
+        ] {
+            assert!(
+                clipped > 0 && cut > 0,
+                "the limits must act for the test to mean anything: {clipped} clipped, {cut} cut"
+            );
+        }
     }
 }

@@ -154,69 +154,8 @@ impl MeshSearch {
     /// Finds the file a URDF `filename` names: `package://pkg/rest`, `file://path`, an absolute
     /// path, or a path relative to `urdf_dir`. The error says where it looked.
     pub fn resolve(&self, filename: &str, urdf_dir: Option<&Path>) -> Result<PathBuf, String> {
-        let found = |p: PathBuf| p.is_file().then_some(p);
         if let Some(rest) = filename.strip_prefix("package://") {
-            let (package, inner) = rest.split_once('/').unwrap_or((rest, ""));
-            if package.is_empty() {
-                return Err("no package name after package://".into());
-            }
-            // `package://../x` would look in the folder above each candidate directory
-            if package == "." || package == ".." || package.contains('\\') {
-                return Err(format!(
-                    "'{package}' is not a package name (package://NAME/path names a file inside \
-                     the package NAME)"
-                ));
-            }
-            let inside = Path::new(inner);
-            if inside.is_absolute()
-                || inside
-                    .components()
-                    .any(|c| matches!(c, std::path::Component::ParentDir))
-            {
-                return Err(format!(
-                    "the path '{inner}' leaves the package '{package}' (absolute, or with '..')"
-                ));
-            }
-            // the package's candidate directories, in order
-            let mut dirs: Vec<PathBuf> = Vec::new();
-            if let Some(dir) = self.packages.get(package) {
-                dirs.push(dir.clone());
-            }
-            let env = self
-                .ros_package_path
-                .clone()
-                .map(std::ffi::OsString::from)
-                .or_else(|| std::env::var_os("ROS_PACKAGE_PATH"))
-                .unwrap_or_default();
-            for entry in std::env::split_paths(&env).filter(|e| !e.as_os_str().is_empty()) {
-                if entry.file_name().is_some_and(|n| n == package) {
-                    dirs.push(entry.clone());
-                }
-                dirs.push(entry.join(package));
-            }
-            for dir in urdf_dir.into_iter().flat_map(Path::ancestors) {
-                if dir.file_name().is_some_and(|n| n == package) {
-                    dirs.push(dir.to_path_buf());
-                }
-                dirs.push(dir.join(package));
-            }
-            if let Some((dir, file)) = dirs
-                .iter()
-                .find_map(|d| found(d.join(inside)).map(|file| (d, file)))
-            {
-                return inside_package(dir, file, inner, package);
-            }
-            if let Some(dir) = dirs.iter().find(|d| d.is_dir()) {
-                return Err(format!(
-                    "no file at {} (package '{package}' is {})",
-                    dir.join(inside).display(),
-                    dir.display()
-                ));
-            }
-            return Err(format!(
-                "package '{package}' not found: give its directory in the package map, add its \
-                 parent to ROS_PACKAGE_PATH, or keep the URDF inside the package"
-            ));
+            return self.resolve_package(rest, urdf_dir);
         }
         // file:///abs and file://localhost/abs name the absolute path
         let path = match filename.strip_prefix("file://") {
@@ -234,7 +173,116 @@ impl MeshSearch {
                 ))
             }
         };
-        found(path.clone()).ok_or_else(|| format!("no file at {}", path.display()))
+        match path.is_file() {
+            true => Ok(path),
+            false => Err(format!("no file at {}", path.display())),
+        }
+    }
+
+    /// The file `package://{rest}` names: the first candidate directory of the package
+    /// ([`Self::package_dirs`]) that holds it, if it stays inside the package.
+    fn resolve_package(&self, rest: &str, urdf_dir: Option<&Path>) -> Result<PathBuf, String> {
+        let (package, inner) = rest.split_once('/').unwrap_or((rest, ""));
+        if package.is_empty() {
+            return Err("no package name after package://".into());
+        }
+        // `package://../x` would look in the folder above each candidate directory
+        if package == "." || package == ".." || package.contains('\\') {
+            return Err(format!(
+                "'{package}' is not a package name (package://NAME/path names a file inside \
+                 the package NAME)"
+            ));
+        }
+        let inside = Path::new(inner);
+        if inside.is_absolute()
+            || inside
+                .components()
+                .any(|c| matches!(c, std::path::Component::ParentDir))
+        {
+            return Err(format!(
+                "the path '{inner}' leaves the package '{package}' (absolute, or with '..')"
+            ));
+        }
+        let dirs = self.package_dirs(package, urdf_dir);
+        if let Some((dir, file)) = dirs.iter().find_map(|d| {
+            let file = d.join(inside);
+            file.is_file().then_some((d, file))
+        }) {
+            return inside_package(dir, file, inner, package);
+        }
+        if let Some(dir) = dirs.iter().find(|d| d.is_dir()) {
+            return Err(format!(
+                "no file at {} (package '{package}' is {})",
+                dir.join(inside).display(),
+                dir.display()
+            ));
+        }
+        Err(format!(
+            "package '{package}' not found: give its directory in the package map, add its \
+             parent to ROS_PACKAGE_PATH, or keep the URDF inside the package"
+        ))
+    }
+
+    /// The candidate directories of `package`, in order: the package map's, then for each
+    /// directory of `ROS_PACKAGE_PATH` the directory itself if it is named as the package and
+    /// the package inside it, then the same for each directory above the URDF file.
+    fn package_dirs(&self, package: &str, urdf_dir: Option<&Path>) -> Vec<PathBuf> {
+        let mut dirs: Vec<PathBuf> = Vec::new();
+        if let Some(dir) = self.packages.get(package) {
+            dirs.push(dir.clone());
+        }
+        let env = self
+            .ros_package_path
+            .clone()
+            .map(std::ffi::OsString::from)
+            .or_else(|| std::env::var_os("ROS_PACKAGE_PATH"))
+            .unwrap_or_default();
+        for entry in std::env::split_paths(&env).filter(|e| !e.as_os_str().is_empty()) {
+            if entry.file_name().is_some_and(|n| n == package) {
+                dirs.push(entry.clone());
+            }
+            dirs.push(entry.join(package));
+        }
+        for dir in urdf_dir.into_iter().flat_map(Path::ancestors) {
+            if dir.file_name().is_some_and(|n| n == package) {
+                dirs.push(dir.to_path_buf());
+            }
+            dirs.push(dir.join(package));
+        }
+        dirs
+    }
+}
+
+/// The mesh files of one scene: each found and checked once, the distinct files' bytes within
+/// [`MAX_SCENE_MESH_BYTES`].
+#[derive(Default)]
+struct SceneMeshes<'a> {
+    found: BTreeMap<&'a str, Result<(PathBuf, MeshFormat), String>>,
+    total: u64,
+}
+
+impl<'a> SceneMeshes<'a> {
+    /// The file `filename` names and its format, or why it cannot be drawn.
+    fn find(
+        &mut self,
+        filename: &'a str,
+        search: &MeshSearch,
+        urdf_dir: Option<&Path>,
+    ) -> &Result<(PathBuf, MeshFormat), String> {
+        let total = &mut self.total;
+        self.found.entry(filename).or_insert_with(|| {
+            let mesh = search
+                .resolve(filename, urdf_dir)
+                .and_then(|path| check_mesh_file(&path).map(|format| (path, format)))?;
+            let size = std::fs::metadata(&mesh.0).map_or(0, |m| m.len());
+            if *total + size > MAX_SCENE_MESH_BYTES {
+                return Err(format!(
+                    "the meshes would pass {MAX_SCENE_MESH_BYTES} bytes in all"
+                ));
+            }
+            *total += size;
+            Ok(mesh)
+        })
     }
 }
 
@@ -422,13 +470,11 @@ impl Robot {
     pub fn scene(&self, search: &MeshSearch) -> Scene {
         let mut scene = Scene::default();
         let frames = self.link_frames.len();
-        let children = self.frame_children();
         let mut has_visual = vec![false; frames];
         let mut stand_in = vec![false; frames];
         let mut numbers = vec![0usize; frames];
         // each file found and checked once; the distinct files' bytes within the budget
-        let mut meshes: BTreeMap<&str, Result<(PathBuf, MeshFormat), String>> = BTreeMap::new();
-        let mut total = 0u64;
+        let mut meshes = SceneMeshes::default();
         for visual in &self.visuals {
             let link = &self.link_frames[visual.frame].name;
             has_visual[visual.frame] = true;
@@ -451,19 +497,7 @@ impl Robot {
                     continue;
                 }
                 Geometry::Mesh { filename, .. } => {
-                    let found = meshes.entry(filename).or_insert_with(|| {
-                        let mesh = search
-                            .resolve(filename, self.urdf_dir())
-                            .and_then(|path| check_mesh_file(&path).map(|format| (path, format)))?;
-                        let size = std::fs::metadata(&mesh.0).map_or(0, |m| m.len());
-                        if total + size > MAX_SCENE_MESH_BYTES {
-                            return Err(format!(
-                                "the meshes would pass {MAX_SCENE_MESH_BYTES} bytes in all"
-                            ));
-                        }
-                        total += size;
-                        Ok(mesh)
-                    });
+                    let found = meshes.find(filename, search, self.urdf_dir());
                     match found {
                         Ok(mesh) => shape.mesh = Some(mesh.clone()),
                         Err(message) => {
@@ -480,7 +514,16 @@ impl Robot {
             }
             scene.shapes.push(shape);
         }
-        for frame in 0..frames {
+        self.push_default_shapes(&mut scene, &has_visual, &stand_in);
+        scene.shapes.sort_by_key(|s| s.frame);
+        scene
+    }
+
+    /// The default shapes ([`Self::default_shapes`]) of every frame without visuals (grey) or
+    /// with a stand-in (orange).
+    fn push_default_shapes(&self, scene: &mut Scene, has_visual: &[bool], stand_in: &[bool]) {
+        let children = self.frame_children();
+        for frame in 0..self.link_frames.len() {
             if !has_visual[frame] || stand_in[frame] {
                 let color = if stand_in[frame] {
                     STAND_IN_ORANGE
@@ -499,8 +542,6 @@ impl Robot {
                 }
             }
         }
-        scene.shapes.sort_by_key(|s| s.frame);
-        scene
     }
 
     /// The child frames of each frame.

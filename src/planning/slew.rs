@@ -518,12 +518,20 @@ pub fn plan_slew_watched(
     waypoints: &[Vec<f64>],
     cancel: &AtomicBool,
 ) -> Result<Plan> {
-    // With reaction wheels the plan sees the bus with their locked parts (mass, transverse
-    // inertia; `rigid_model`). A held bus does not turn, so the wheels' spin does not enter and
-    // the plan and its holding wrench are exact (the wrench is what the wheels and thrusters
-    // must deliver; `Plan::wheel_demand`). A free bus with the wheels unpowered and at rest: each
-    // wheel keeps a·ω_B + Ω = 0, so its spin carries no momentum and the plan is exact too,
-    // unless friction couples the spin back to the bus.
+    free_wheels_without_friction(arm, base)?;
+    let limits = limits.for_joints(arm.dof())?;
+    limits_fit_the_base(&limits, base)?;
+    let stops = slew_stops(arm, q_goal, q_start, waypoints)?;
+    Plan::solve(arm.clone(), base, false, limits, stops, cancel)
+}
+
+/// With reaction wheels the plan sees the bus with their locked parts (mass, transverse
+/// inertia; `rigid_model`). A held bus does not turn, so the wheels' spin does not enter and
+/// the plan and its holding wrench are exact (the wrench is what the wheels and thrusters must
+/// deliver; `Plan::wheel_demand`). A free bus with the wheels unpowered and at rest: each wheel
+/// keeps a·ω_B + Ω = 0, so its spin carries no momentum and the plan is exact too, unless
+/// friction couples the spin back to the bus: that case is refused.
+fn free_wheels_without_friction(arm: &FlexibleArm, base: BaseMode) -> Result<()> {
     if let Some(wheels) = arm.wheels() {
         if base == BaseMode::Free && wheels.wheels().iter().any(|w| w.friction != 0.0) {
             return Err(Error::InvalidArgument {
@@ -536,8 +544,12 @@ pub fn plan_slew_watched(
             });
         }
     }
-    let n = arm.dof();
-    let limits = limits.for_joints(n)?;
+    Ok(())
+}
+
+/// The base limits given are the ones `base` can meet: wrench bounds for a held base, motion
+/// bounds (about the origin) for a free one.
+fn limits_fit_the_base(limits: &Limits, base: BaseMode) -> Result<()> {
     if base == BaseMode::Free && (limits.base_force.is_some() || limits.base_torque.is_some()) {
         return Err(Error::InvalidArgument {
             what: "limits".into(),
@@ -573,6 +585,18 @@ pub fn plan_slew_watched(
             message: message.into(),
         });
     }
+    Ok(())
+}
+
+/// The stops of the slew, `[q_start, waypoints…, q_goal]`: each `n` long, finite, within the
+/// position limits, and each apart from the one before.
+fn slew_stops(
+    arm: &FlexibleArm,
+    q_goal: &[f64],
+    q_start: Option<&[f64]>,
+    waypoints: &[Vec<f64>],
+) -> Result<Vec<Vec<f64>>> {
+    let n = arm.dof();
     let zeros = vec![0.0; n];
     let start = q_start.unwrap_or(&zeros);
     check_vector("q_start", start, n)?;
@@ -590,23 +614,8 @@ pub fn plan_slew_watched(
     };
     // σ is monotone, so each segment stays between its stops: the stops within the position
     // limits keep the whole path within them
-    let robot = arm.robot();
     for (k, stop) in stops.iter().enumerate() {
-        let outside: Vec<String> = stop
-            .iter()
-            .zip(robot.position_limits())
-            .zip(robot.joint_names())
-            .enumerate()
-            .filter(|(_, ((q, (lower, upper)), _))| *q < lower || *q > upper)
-            .map(|(i, ((q, (lower, upper)), joint))| {
-                format!(
-                    "joint {i} ('{joint}') = {} rad is outside its position limits [{}, {}] rad",
-                    number(*q),
-                    number(lower),
-                    number(upper)
-                )
-            })
-            .collect();
+        let outside = outside_position_limits(arm.robot(), stop);
         if !outside.is_empty() {
             return Err(Error::InvalidArgument {
                 what: name(k),
@@ -629,7 +638,25 @@ pub fn plan_slew_watched(
             });
         }
     }
-    Plan::solve(arm.clone(), base, false, limits, stops, cancel)
+    Ok(stops)
+}
+
+/// One line per joint of `q` outside the robot's position limits.
+fn outside_position_limits(robot: &crate::Robot, q: &[f64]) -> Vec<String> {
+    q.iter()
+        .zip(robot.position_limits())
+        .zip(robot.joint_names())
+        .enumerate()
+        .filter(|(_, ((q, (lower, upper)), _))| *q < lower || *q > upper)
+        .map(|(i, ((q, (lower, upper)), joint))| {
+            format!(
+                "joint {i} ('{joint}') = {} rad is outside its position limits [{}, {}] rad",
+                number(*q),
+                number(lower),
+                number(upper)
+            )
+        })
+        .collect()
 }
 
 /// `Err(Error::Interrupted)` once `cancel` is set.

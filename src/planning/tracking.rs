@@ -93,6 +93,42 @@ impl Plan {
         settle: f64,
         keep_going: &mut dyn FnMut(usize) -> bool,
     ) -> Result<Option<TrackingSetup>> {
+        let steps = self.tracking_steps(dt, kp, kd, settle)?;
+        let Some(reference) = self.reference_with(dt, Some(steps), keep_going)? else {
+            return Ok(None);
+        };
+        let n = self.arm().dof();
+        let table = |values: &Vec<f64>, width| Schedule::Table {
+            values: values.clone(),
+            width,
+        };
+        let pd = MotorPD::new(
+            kp.to_vec(),
+            kd.to_vec(),
+            table(&reference.theta_ref, n),
+            table(&reference.theta_dot_ref, n),
+            table(&reference.u, n),
+        )?;
+        let wrenches = Wrenches {
+            base: match self.base() {
+                BaseMode::Held => table(&reference.base_wrench, 6),
+                BaseMode::Free => Schedule::Zero,
+            },
+            ee: Schedule::Zero,
+            wheel_torque: crate::integrate::Schedule::Zero,
+        };
+        Ok(Some(TrackingSetup {
+            steps,
+            reference,
+            pd,
+            wrenches,
+        }))
+    }
+
+    /// The number of steps of a tracking run (the slew and `settle` s after it), once the
+    /// arguments are checked: `settle` finite and ≥ 0, `dt` valid and shorter than the plan,
+    /// gains `n` long, and `dt` within the loop's RK4 stability limit.
+    fn tracking_steps(&self, dt: f64, kp: &[f64], kd: &[f64], settle: f64) -> Result<usize> {
         if !(settle.is_finite() && settle >= 0.0) {
             return Err(Error::InvalidArgument {
                 what: "settle".into(),
@@ -114,7 +150,24 @@ impl Plan {
         }
         crate::args::check_length("kp", kp.len(), n)?;
         crate::args::check_length("kd", kd.len(), n)?;
-        // the stability limit of the loop at the start (the references do not enter it)
+        self.tracking_is_stable(dt, kp, kd)?;
+        let steps = ((self.duration() + settle) / dt).ceil();
+        if steps >= 1e15 {
+            return Err(Error::InvalidArgument {
+                what: "settle".into(),
+                message: format!(
+                    "{} s of settling at dt = {} s makes {steps:.3e} steps; shorten it",
+                    crate::args::number(settle),
+                    crate::args::number(dt)
+                ),
+            });
+        }
+        Ok(steps as usize)
+    }
+
+    /// `dt` within the RK4 stability limit of the tracking loop at the start (the arm, its
+    /// joints and the PD with gains `kp`, `kd`; the references do not enter it).
+    fn tracking_is_stable(&self, dt: f64, kp: &[f64], kd: &[f64]) -> Result<()> {
         let probe = MotorPD::new(
             kp.to_vec(),
             kd.to_vec(),
@@ -142,46 +195,7 @@ impl Plan {
                 ),
             });
         }
-        let steps = ((self.duration() + settle) / dt).ceil();
-        if steps >= 1e15 {
-            return Err(Error::InvalidArgument {
-                what: "settle".into(),
-                message: format!(
-                    "{} s of settling at dt = {} s makes {steps:.3e} steps; shorten it",
-                    crate::args::number(settle),
-                    crate::args::number(dt)
-                ),
-            });
-        }
-        let steps = steps as usize;
-        let Some(reference) = self.reference_with(dt, Some(steps), keep_going)? else {
-            return Ok(None);
-        };
-        let table = |values: &Vec<f64>, width| Schedule::Table {
-            values: values.clone(),
-            width,
-        };
-        let pd = MotorPD::new(
-            kp.to_vec(),
-            kd.to_vec(),
-            table(&reference.theta_ref, n),
-            table(&reference.theta_dot_ref, n),
-            table(&reference.u, n),
-        )?;
-        let wrenches = Wrenches {
-            base: match self.base() {
-                BaseMode::Held => table(&reference.base_wrench, 6),
-                BaseMode::Free => Schedule::Zero,
-            },
-            ee: Schedule::Zero,
-            wheel_torque: crate::integrate::Schedule::Zero,
-        };
-        Ok(Some(TrackingSetup {
-            steps,
-            reference,
-            pd,
-            wrenches,
-        }))
+        Ok(())
     }
 
     /// The measures of a tracking run on `reference` (every state of `trajectory` that the

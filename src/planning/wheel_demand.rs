@@ -74,33 +74,8 @@ impl Plan {
         let k = wheels.len();
         let samples = self.samples();
         let rows = samples.t.len();
-        let mut demand = WheelDemand {
-            t: samples.t.clone(),
-            torque: vec![0.0; rows * k],
-            speed: vec![0.0; rows * k],
-            momentum: vec![0.0; rows * 3],
-            peak_torque: vec![0.0; k],
-            peak_speed: vec![0.0; k],
-            peak_momentum: 0.0,
-            binding: WheelBinding {
-                limit: "max_torque",
-                wheel: 0,
-                time: 0.0,
-                value: 0.0,
-                bound: wheels.wheels()[0].max_torque,
-            },
-        };
-        // τ = −A⁺ M at each sample
-        let net: Vec<f64> = (0..rows)
-            .flat_map(|r| {
-                let m = &samples.base_wrench[6 * r..6 * r + 3];
-                let allocation = &allocation;
-                (0..k).map(move |w| {
-                    let a = &allocation[3 * w..3 * w + 3];
-                    -(a[0] * m[0] + a[1] * m[1] + a[2] * m[2])
-                })
-            })
-            .collect();
+        let mut demand = WheelDemand::zeros(samples.t.clone(), k, wheels.wheels()[0].max_torque);
+        let net = allocated_torques(&samples.base_wrench, rows, &allocation, k);
         let mut best = -1.0;
         for r in 0..rows {
             for (w, wheel) in wheels.wheels().iter().enumerate() {
@@ -142,4 +117,43 @@ impl Plan {
         }
         Ok(demand)
     }
+}
+
+impl WheelDemand {
+    /// A demand of zeros at the sample times `t` for `k` wheels, bound by wheel 0's torque
+    /// limit `max_torque` until a sample says otherwise.
+    fn zeros(t: Vec<f64>, k: usize, max_torque: f64) -> Self {
+        let rows = t.len();
+        WheelDemand {
+            t,
+            torque: vec![0.0; rows * k],
+            speed: vec![0.0; rows * k],
+            momentum: vec![0.0; rows * 3],
+            peak_torque: vec![0.0; k],
+            peak_speed: vec![0.0; k],
+            peak_momentum: 0.0,
+            binding: WheelBinding {
+                limit: "max_torque",
+                wheel: 0,
+                time: 0.0,
+                value: 0.0,
+                bound: max_torque,
+            },
+        }
+    }
+}
+
+/// `τ = −A⁺ M` at each sample: the net wheel torques (`rows × k`) that deliver the moment
+/// part `M` of each of the `rows` rows of `base_wrench` (6 wide), with `allocation` the rows of
+/// `A⁺` (3 per wheel).
+fn allocated_torques(base_wrench: &[f64], rows: usize, allocation: &[f64], k: usize) -> Vec<f64> {
+    (0..rows)
+        .flat_map(|r| {
+            let m = &base_wrench[6 * r..6 * r + 3];
+            (0..k).map(move |w| {
+                let a = &allocation[3 * w..3 * w + 3];
+                -(a[0] * m[0] + a[1] * m[1] + a[2] * m[2])
+            })
+        })
+        .collect()
 }

@@ -2,13 +2,17 @@
 //! flexible-joint inverse dynamics.
 
 use super::capture_run::{capture_releasing_gil, CaptureInfo, Capturing};
-use super::control::{base_wrench_controller, controller, schedule, wheel_controller};
-use super::convert::{array1, count, positive_count, real, try_array2, vector, vector_or};
+use super::control::controller;
+use super::convert::{
+    array1, count, positive_count, real, record_every_arg, try_array2, vector, vector_or,
+};
 use super::errors::simulation_error;
 use super::errors::ModelError;
 use super::joints::PyFlexibleJoints;
 use super::robot::PyRobot;
-use super::run::{deliver, record_releasing_gil, Channels, Progress, Stream};
+use super::run::{
+    deliver, record_releasing_gil, runtime_warning, ChannelErrors, Channels, Progress, Stream,
+};
 use super::stability::PyStabilityLimit;
 use super::trajectory::PyTrajectory;
 use super::workspaces::{Lent, Pool};
@@ -19,10 +23,8 @@ use crate::integrate::{self, Chunk, Chunks, Recorder, Trajectory};
 use crate::integrate::{ArmWorkspace, Run};
 use crate::planning::{BaseMode, LinkMotion};
 use numpy::{PyArray1, PyArray2};
-use pyo3::exceptions::PyRuntimeWarning;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyTuple};
-use std::ffi::CString;
 
 /// Two arrays returned together (``kp, kd``).
 type ArrayPair<'py> = (Bound<'py, PyArray1<f64>>, Bound<'py, PyArray1<f64>>);
@@ -41,6 +43,14 @@ impl<F: FnMut(Chunk<'_>) -> crate::Result<()> + Send> Sink<F> {
         match self {
             Sink::Memory(traj) => traj,
             Sink::Stream(stream) => stream,
+        }
+    }
+
+    /// The run's `Trajectory`: the record, or the final row alone when the rows were streamed.
+    fn into_trajectory(self) -> Trajectory {
+        match self {
+            Sink::Memory(traj) => traj,
+            Sink::Stream(stream) => stream.last_row(),
         }
     }
 }
@@ -676,19 +686,100 @@ impl PyFlexibleArm {
         capture_ee: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<PyTrajectory> {
         let py = slf.py();
-        let me = slf.get();
-        let arm = &me.arm;
+        let arm = &slf.get().arm;
         let layout = arm.layout();
         let dt = real(dt, "dt")?;
         let steps = count(steps, "steps")?;
         let x0 = vector(x0, "x0", Some(layout.len()))?;
-        let record_every = match record_every {
-            Some(k) => positive_count(k, "record_every")?,
-            None => 1,
-        };
-        let on_rows = on_rows.filter(|o| !o.is_none());
+        let record_every = record_every_arg(record_every)?;
         let capturing = Capturing::from_args(arm, target, capture, capture_ee)?;
-        if capturing.is_some() && on_rows.is_some() {
+        let on_rows = OnRows::from_args(on_rows, chunk_rows, capturing.is_some())?;
+        let mut errors = ChannelErrors::default();
+        let mut channels =
+            Channels::from_args(arm, u, base_wrench, ee_wrench, wheel_torque, &mut errors)?;
+        let run = Run::new(&x0, dt, steps).recording_every(record_every);
+        run.check(arm, &channels.drive())?;
+        // the buffers, before the warning: a run whose record cannot fit does not start
+        let mut stream_error = None;
+        let mut sink = sink(&run, layout, on_rows.as_ref(), &mut stream_error)?;
+        warn_before_run(py, arm, &run, u, wheel_torque, &*channels.u)?;
+        let mut progress = Progress::from_arg(progress);
+        let recorder = sink.recorder();
+        let (result, record) = match &capturing {
+            None => {
+                let result =
+                    record_releasing_gil(py, arm, &run, &mut channels, &mut progress, recorder)?;
+                (result, None)
+            }
+            Some(capturing) => {
+                let (result, record) = capture_releasing_gil(
+                    py,
+                    arm,
+                    &run,
+                    &mut channels,
+                    &mut progress,
+                    recorder,
+                    capturing,
+                )?;
+                (result, Some(record))
+            }
+        };
+        drop(channels);
+        let cause = controller_failure(py, errors.first())?;
+        let traj = sink.into_trajectory();
+        // an exception from on_rows stops the run and is raised as it is
+        if let Some(e) = stream_error {
+            return Err(e);
+        }
+        let record = || -> PyResult<PyTrajectory> {
+            let traj = PyTrajectory::from_run(py, slf.clone().unbind(), traj)?;
+            Ok(match (record, &capturing) {
+                (Some(record), Some(c)) => {
+                    traj.with_capture(CaptureInfo::new(py, slf, record, &c.target)?)
+                }
+                _ => traj,
+            })
+        };
+        finish_run(py, result, record, cause, &progress, steps)
+    }
+
+    /// Pickle support (with its Robot and FlexibleJoints).
+    fn __reduce__<'py>(slf: &Bound<'py, Self>) -> PyResult<(PyObject, PyObject)> {
+        let py = slf.py();
+        let me = slf.get();
+        let args = (me.robot(py), me.joints(py), me.method(), me.wheels(py));
+        Ok((
+            slf.get_type().into_any().unbind(),
+            args.into_pyobject(py)?.into_any().unbind(),
+        ))
+    }
+
+    fn __repr__(&self) -> String {
+        format!(
+            "FlexibleArm(robot={:?}, dof={}, method={:?})",
+            self.arm.robot().name(),
+            self.n(),
+            self.method()
+        )
+    }
+}
+
+/// ``on_rows`` and its ``chunk_rows`` (default [`CHUNK_ROWS`]), when the rows are streamed.
+struct OnRows {
+    callback: Py<PyAny>,
+    chunk_rows: usize,
+}
+
+impl OnRows {
+    /// `None` without ``on_rows``; refuses ``on_rows`` with a target, one that is not callable,
+    /// and ``chunk_rows`` without ``on_rows``.
+    fn from_args(
+        on_rows: Option<&Bound<'_, PyAny>>,
+        chunk_rows: Option<&Bound<'_, PyAny>>,
+        capturing: bool,
+    ) -> PyResult<Option<Self>> {
+        let on_rows = on_rows.filter(|o| !o.is_none());
+        if capturing && on_rows.is_some() {
             return Err(ModelError::new_err(
                 "on_rows: not with a target: the target's rows, the events and the momentum \
                  that includes the target are kept with the arm's rows, which on_rows(t, x, u) \
@@ -714,123 +805,85 @@ impl PyFlexibleArm {
                 )),
                 (None, _) => CHUNK_ROWS,
             };
-        // the first exception of a callable channel, one slot per channel
-        let (mut error, mut wheel_error, mut base_error) = (None, None, None);
-        // read in this order (the first bad argument is the one reported)
-        let mut channels = Channels {
-            base_wrench: base_wrench_controller(base_wrench, &mut base_error)?,
-            ee_wrench: schedule(
-                super::convert::ee_wrench_arg(arm.robot(), ee_wrench)?.as_ref(),
-                "ee_wrench",
-                6 * arm.robot().end_effectors().len(),
-            )?,
-            wheel_torque: wheel_controller(wheel_torque, arm, &mut wheel_error)?,
-            u: controller(u, arm.dof(), &mut error)?,
-        };
-        let run = Run::new(&x0, dt, steps).recording_every(record_every);
-        run.check(arm, &channels.drive())?;
-        // the buffers, before the warning: a run whose record cannot fit does not start
-        let callback = on_rows.map(|c| c.clone().unbind());
-        let mut stream_error = None;
-        let mut sink = match &callback {
-            None => Sink::Memory(Trajectory::reserved(layout, steps, record_every)?),
-            Some(callback) => {
-                let rows = chunk_rows.min(integrate::recorded_rows(steps, record_every));
-                let error = &mut stream_error;
-                let chunks =
-                    Chunks::new(layout, rows, move |chunk| deliver(callback, chunk, error))?;
-                Sink::Stream(Stream::new(layout, chunks))
-            }
-        };
-        let sampled = super::analysis::sampled_warnings(arm, &x0, u, wheel_torque)?;
-        let rk4 = integrate::stability_warning(arm, &x0, dt, &*channels.u)?;
-        for warning in rk4.into_iter().chain(sampled) {
-            PyErr::warn(
-                py,
-                &py.get_type::<PyRuntimeWarning>(),
-                &CString::new(warning).expect("no NUL in the message"),
-                1,
-            )?;
-        }
-        let mut progress = Progress::new(progress.filter(|p| !p.is_none()).cloned());
-        let recorder = sink.recorder();
-        let (result, record) = match &capturing {
-            None => (
-                record_releasing_gil(py, arm, &run, &mut channels, &mut progress, recorder)?,
-                None,
-            ),
-            Some(capturing) => {
-                let (result, record) = capture_releasing_gil(
-                    py,
-                    arm,
-                    &run,
-                    &mut channels,
-                    &mut progress,
-                    recorder,
-                    capturing,
-                )?;
-                (result, Some(record))
-            }
-        };
-        drop(channels);
-        let error = error.or(wheel_error).or(base_error);
-        // a callable controller's exception: KeyboardInterrupt, SystemExit and other
-        // non-Exception errors are not a controller failure: re-raise them as they are.
-        let cause = match error {
-            Some(e) if !e.is_instance_of::<pyo3::exceptions::PyException>(py) => return Err(e),
-            cause => cause,
-        };
-        let traj = match sink {
-            Sink::Memory(traj) => traj,
-            Sink::Stream(stream) => stream.last_row(),
-        };
-        // an exception from on_rows stops the run and is raised as it is
-        if let Some(e) = stream_error {
-            return Err(e);
-        }
-        let record = |traj| -> PyResult<PyTrajectory> {
-            let traj = PyTrajectory::from_run(py, slf.clone().unbind(), traj)?;
-            Ok(match (record, &capturing) {
-                (Some(record), Some(c)) => {
-                    traj.with_capture(CaptureInfo::new(py, slf, record, &c.target)?)
-                }
-                _ => traj,
-            })
-        };
-        match result {
-            Ok(()) => {
-                progress.finish(py, steps, steps)?;
-                record(traj)
-            }
-            Err(error) => match error {
-                Error::Simulation { step, time, .. } => {
-                    let message = error.to_string();
-                    let traj = record(traj)?;
-                    let traj = Py::new(py, traj)?.into_any();
-                    Err(simulation_error(py, message, step, time, traj, cause)?)
-                }
-                other => Err(other.into()),
-            },
-        }
+        Ok(on_rows.map(|c| OnRows {
+            callback: c.clone().unbind(),
+            chunk_rows,
+        }))
     }
+}
 
-    /// Pickle support (with its Robot and FlexibleJoints).
-    fn __reduce__<'py>(slf: &Bound<'py, Self>) -> PyResult<(PyObject, PyObject)> {
-        let py = slf.py();
-        let me = slf.get();
-        let args = (me.robot(py), me.joints(py), me.method(), me.wheels(py));
-        Ok((
-            slf.get_type().into_any().unbind(),
-            args.into_pyobject(py)?.into_any().unbind(),
-        ))
+/// Where the rows of `run` go: a `Trajectory` reserved for them, or chunks of
+/// ``chunk_rows`` rows for ``on_rows`` (whose exception goes to `error`).
+fn sink<'a>(
+    run: &Run<'_>,
+    layout: crate::StateLayout,
+    on_rows: Option<&'a OnRows>,
+    error: &'a mut Option<PyErr>,
+) -> PyResult<Sink<impl FnMut(Chunk<'_>) -> crate::Result<()> + Send + 'a>> {
+    let (steps, every) = (run.steps, run.record_every);
+    Ok(match on_rows {
+        None => Sink::Memory(Trajectory::reserved(layout, steps, every)?),
+        Some(OnRows {
+            callback,
+            chunk_rows,
+        }) => {
+            let rows = (*chunk_rows).min(integrate::recorded_rows(steps, every));
+            let chunks = Chunks::new(layout, rows, move |chunk| deliver(callback, chunk, error))?;
+            Sink::Stream(Stream::new(layout, chunks))
+        }
+    })
+}
+
+/// The warnings of a run before it starts: a `Sampled` loop unstable at its rate and delay, a
+/// step past the RK4 stability limit of the closed loop at `x0`.
+fn warn_before_run(
+    py: Python<'_>,
+    arm: &FlexibleArm,
+    run: &Run<'_>,
+    u: Option<&Bound<'_, PyAny>>,
+    wheel_torque: Option<&Bound<'_, PyAny>>,
+    motors: &dyn crate::control::Controller,
+) -> PyResult<()> {
+    let sampled = super::analysis::sampled_warnings(arm, run.x0, u, wheel_torque)?;
+    let rk4 = integrate::stability_warning(arm, run.x0, run.dt, motors)?;
+    for warning in rk4.into_iter().chain(sampled) {
+        runtime_warning(py, warning)?;
     }
+    Ok(())
+}
 
-    fn __repr__(&self) -> String {
-        format!(
-            "FlexibleArm(robot={:?}, dof={}, method={:?})",
-            self.arm.robot().name(),
-            self.n(),
-            self.method()
-        )
+/// A callable controller's exception, the cause of the run's failure; KeyboardInterrupt,
+/// SystemExit and other non-Exception errors are not a controller failure: they are raised as
+/// they are.
+fn controller_failure(py: Python<'_>, error: Option<PyErr>) -> PyResult<Option<PyErr>> {
+    match error {
+        Some(e) if !e.is_instance_of::<pyo3::exceptions::PyException>(py) => Err(e),
+        cause => Ok(cause),
+    }
+}
+
+/// The trajectory (`record`) of a run that completed, after the last progress report, or the
+/// `SimulationError` that carries it (with the controller's exception as its cause).
+fn finish_run(
+    py: Python<'_>,
+    result: crate::Result<()>,
+    record: impl FnOnce() -> PyResult<PyTrajectory>,
+    cause: Option<PyErr>,
+    progress: &Progress,
+    steps: usize,
+) -> PyResult<PyTrajectory> {
+    match result {
+        Ok(()) => {
+            progress.finish(py, steps, steps)?;
+            record()
+        }
+        Err(error) => match error {
+            Error::Simulation { step, time, .. } => {
+                let message = error.to_string();
+                let traj = Py::new(py, record()?)?.into_any();
+                Err(simulation_error(py, message, step, time, traj, cause)?)
+            }
+            other => Err(other.into()),
+        },
     }
 }

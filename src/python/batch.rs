@@ -4,9 +4,9 @@
 use super::arm::PyFlexibleArm;
 use super::batched::shape_and_values;
 use super::control::{sampled, PyAttitudePD, PyMotorPD, PySampled};
-use super::convert::{count, positive_count, real};
+use super::convert::{count, positive_count, real, record_every_arg};
 use super::errors::ModelError;
-use super::run::{watched, Progress};
+use super::run::{runtime_warning, watched, Progress};
 use super::state_columns::{state_getters, StateRecord};
 use super::trajectory::{freeze, frozen_rows, PyTrajectory};
 use crate::control::AttitudePD;
@@ -18,10 +18,9 @@ use crate::integrate::batch::{
 use crate::MotorPD;
 use numpy::ndarray::Array3;
 use numpy::{PyArray1, PyArray2, PyArray3, PyArrayMethods};
-use pyo3::exceptions::{PyIndexError, PyRuntimeWarning};
+use pyo3::exceptions::PyIndexError;
 use pyo3::prelude::*;
 use pyo3::types::{PyList, PySequence};
-use std::ffi::CString;
 use std::sync::atomic::Ordering;
 
 /// An input array of a batch: its shape and its values in C order.
@@ -242,33 +241,41 @@ impl<'py> Channel<'py> {
     }
 }
 
+/// What a channel accepts, and what the other channel's controller drives: for `u`, torques or
+/// a `MotorPD` (an `AttitudePD` drives the wheels); for `wheel_torque`, the reverse.
+fn accepted(wheels: bool) -> (&'static str, &'static str) {
+    if wheels {
+        (
+            "wheel torques (an array) or an AttitudePD",
+            "the motors (u)",
+        )
+    } else {
+        (
+            "torques (an array) or a MotorPD",
+            "the reaction wheels (wheel_torque)",
+        )
+    }
+}
+
+/// `given` (a controller of the other channel) refused on `what`.
+fn refused(what: &str, wheels: bool, given: &str) -> PyErr {
+    let (accepted, other) = accepted(wheels);
+    ModelError::new_err(format!(
+        "{what}: {given} drives {other}; give {accepted} (one, or one per run), \
+         optionally inside a Sampled"
+    ))
+}
+
 impl<'py> Control<'py> {
     fn parse(obj: &Bound<'py, PyAny>, what: &str, width: usize) -> PyResult<Self> {
         let wheels = what == "wheel_torque";
-        let refused = |given: &str| {
-            let (accepted, other) = if wheels {
-                (
-                    "wheel torques (an array) or an AttitudePD",
-                    "the motors (u)",
-                )
-            } else {
-                (
-                    "torques (an array) or a MotorPD",
-                    "the reaction wheels (wheel_torque)",
-                )
-            };
-            ModelError::new_err(format!(
-                "{what}: {given} drives {other}; give {accepted} (one, or one per run), \
-                 optionally inside a Sampled"
-            ))
-        };
         if obj.is_instance_of::<PyMotorPD>() {
             return match wheels {
                 false => Ok(Control::Pd(
                     vec![obj.downcast::<PyMotorPD>()?.clone()],
                     true,
                 )),
-                true => Err(refused("a MotorPD")),
+                true => Err(refused(what, wheels, "a MotorPD")),
             };
         }
         if obj.is_instance_of::<PyAttitudePD>() {
@@ -277,52 +284,61 @@ impl<'py> Control<'py> {
                     vec![obj.downcast::<PyAttitudePD>()?.clone()],
                     true,
                 )),
-                false => Err(refused("an AttitudePD")),
+                false => Err(refused(what, wheels, "an AttitudePD")),
             };
         }
         if obj.is_callable() {
-            let accepted = if wheels {
-                "wheel torques (an array) or an AttitudePD"
-            } else {
-                "torques (an array) or a MotorPD"
-            };
             return Err(ModelError::new_err(format!(
                 "{what}: simulate_batch runs without the GIL, so it cannot call a Python \
-                 controller; give {accepted} (one, or one per run, optionally inside a \
-                 Sampled), or call FlexibleArm.simulate for each run"
+                 controller; give {} (one, or one per run, optionally inside a \
+                 Sampled), or call FlexibleArm.simulate for each run",
+                accepted(wheels).0
             )));
         }
         // a sequence of controllers, one per run (a buffer such as a 2-D memoryview is a
         // sequence whose items cannot be taken: it is an array)
         if let Ok(seq) = obj.downcast::<PySequence>() {
-            let first = seq
-                .len()
-                .ok()
-                .filter(|&len| len > 0)
-                .and_then(|_| seq.get_item(0).ok());
-            if let Some(first) = first {
-                if first.is_instance_of::<PySampled>() {
-                    return Err(ModelError::new_err(format!(
-                        "{what}: a sequence of Sampled; give one Sampled around the sequence of \
-                         controllers (Sampled([c_0, c_1, …], rate_hz, delay)): the runs share \
-                         one clock"
-                    )));
-                }
-                if first.is_instance_of::<PyMotorPD>() {
-                    if wheels {
-                        return Err(refused("a MotorPD"));
-                    }
-                    return Ok(Control::Pd(items(seq, what, "a MotorPD")?, false));
-                }
-                if first.is_instance_of::<PyAttitudePD>() {
-                    if !wheels {
-                        return Err(refused("an AttitudePD"));
-                    }
-                    return Ok(Control::Attitude(items(seq, what, "an AttitudePD")?, false));
-                }
+            if let Some(control) = Self::per_run(seq, what, wheels)? {
+                return Ok(control);
             }
         }
         Ok(Control::Open(optional(Some(obj), what, width)?))
+    }
+
+    /// A sequence of controllers, one per run, or `None` if its first item is no controller
+    /// (then it is an array).
+    fn per_run(seq: &Bound<'py, PySequence>, what: &str, wheels: bool) -> PyResult<Option<Self>> {
+        let first = seq
+            .len()
+            .ok()
+            .filter(|&len| len > 0)
+            .and_then(|_| seq.get_item(0).ok());
+        let Some(first) = first else {
+            return Ok(None);
+        };
+        if first.is_instance_of::<PySampled>() {
+            return Err(ModelError::new_err(format!(
+                "{what}: a sequence of Sampled; give one Sampled around the sequence of \
+                 controllers (Sampled([c_0, c_1, …], rate_hz, delay)): the runs share \
+                 one clock"
+            )));
+        }
+        if first.is_instance_of::<PyMotorPD>() {
+            if wheels {
+                return Err(refused(what, wheels, "a MotorPD"));
+            }
+            return Ok(Some(Control::Pd(items(seq, what, "a MotorPD")?, false)));
+        }
+        if first.is_instance_of::<PyAttitudePD>() {
+            if !wheels {
+                return Err(refused(what, wheels, "an AttitudePD"));
+            }
+            return Ok(Some(Control::Attitude(
+                items(seq, what, "an AttitudePD")?,
+                false,
+            )));
+        }
+        Ok(None)
     }
 }
 
@@ -464,13 +480,13 @@ fn parse_lanes(obj: Option<&Bound<'_, PyAny>>) -> PyResult<Lanes> {
 /// ``KeyboardInterrupt``. Bad shapes raise ``ModelError`` naming the argument, the shapes
 /// accepted and the shape given (and the run, for a bad row).
 ///
-/// ``lanes`` (keyword): runs of one robot driven by torques or ``MotorPD`` go 4 or 8 at a time
+/// ``lanes`` (keyword): runs of one robot (with as many reaction wheels) go 4 or 8 at a time
 /// through each RK4 step in SIMD lanes, each lane bit for bit its scalar run (the record is the
-/// same whatever ``lanes`` says; the controllers are called per run). ``None`` (default): lanes
-/// of the processor's width (8 with AVX-512, else 4), unless the environment variable
-/// ``ORBITFLEX_LANES`` is ``0`` or ``1`` (the scalar path) or ``4``/``8``; ``False`` or ``1``:
-/// the scalar path; ``True``: the processor's width; ``4`` or ``8``: that width. Arms with
-/// reaction wheels run on the scalar path.
+/// same whatever ``lanes`` says; the controllers, ``MotorPD``, ``AttitudePD``, ``Sampled`` or
+/// tables, are called per run). ``None`` (default): lanes of the processor's width (8 with
+/// AVX-512, else 4), unless the environment variable ``ORBITFLEX_LANES`` is ``0`` or ``1`` (the
+/// scalar path) or ``4``/``8``; ``False`` or ``1``: the scalar path; ``True``: the processor's
+/// width; ``4`` or ``8``: that width.
 #[pyfunction]
 #[pyo3(name = "simulate_batch", signature = (arm_or_arms, x0s, dt, steps, u=None, base_wrench=None, ee_wrench=None, threads=None, record_every=None, *, keep_rows=true, progress=None, wheel_torque=None, lanes=None))]
 pub(crate) fn py_simulate_batch<'py>(
@@ -490,16 +506,8 @@ pub(crate) fn py_simulate_batch<'py>(
     lanes: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<PyBatchTrajectory> {
     let lanes = parse_lanes(lanes)?;
-    let dt = real(dt, "dt")?;
-    let steps = count(steps, "steps")?;
-    let record_every = match record_every.filter(|o| !o.is_none()) {
-        Some(k) => positive_count(k, "record_every")?,
-        None => 1,
-    };
-    let threads = match threads.filter(|o| !o.is_none()) {
-        Some(t) => Some(positive_count(t, "threads")?),
-        None => None,
-    };
+    let settings = batch_settings(dt, steps, record_every, keep_rows, threads)?;
+    let steps = settings.steps;
     let arm_objects = arms(arm_or_arms)?;
     let arm_refs: Vec<&FlexibleArm> = arm_objects.iter().map(|a| &a.get().arm).collect();
     let layout = arm_refs[0].layout();
@@ -554,45 +562,60 @@ pub(crate) fn py_simulate_batch<'py>(
         ee_wrench: input_or_zero(&fee, "ee_wrench", runs, steps, k6)?,
         wheel_torque: wheel_control.wrap(&wheel_plain),
     };
-    let settings = BatchSettings {
-        dt,
-        steps,
-        record_every,
+    let record = run_batch(py, &batch, &settings, Progress::from_arg(progress), lanes)?;
+    let arm_handles = arm_objects.into_iter().map(Bound::unbind).collect();
+    PyBatchTrajectory::new(py, arm_handles, record)
+}
+
+/// The settings of :func:`simulate_batch`, read in the order of its arguments.
+fn batch_settings(
+    dt: &Bound<'_, PyAny>,
+    steps: &Bound<'_, PyAny>,
+    record_every: Option<&Bound<'_, PyAny>>,
+    keep_rows: bool,
+    threads: Option<&Bound<'_, PyAny>>,
+) -> PyResult<BatchSettings> {
+    Ok(BatchSettings {
+        dt: real(dt, "dt")?,
+        steps: count(steps, "steps")?,
+        record_every: record_every_arg(record_every)?,
         keep_rows,
-        threads,
-    };
-    // every step from here on runs without the GIL and stops within SIGNAL_CHECK of Ctrl-C
+        threads: match threads.filter(|o| !o.is_none()) {
+            Some(t) => Some(positive_count(t, "threads")?),
+            None => None,
+        },
+    })
+}
+
+/// Checks the batch, warns once about the runs past their RK4 stability limit, and runs it,
+/// every step without the GIL (stopping within `SIGNAL_CHECK` of Ctrl-C).
+fn run_batch(
+    py: Python<'_>,
+    batch: &Batch<'_>,
+    settings: &BatchSettings,
+    progress: Progress,
+    lanes: Lanes,
+) -> PyResult<BatchRecord> {
+    let (dt, runs) = (settings.dt, batch.runs);
     let watch = BatchWatch::default();
     let unstable = watched(
         py,
         &watch.cancel,
         |_| Ok(()),
         || {
-            batch.check_watched(&settings, &watch)?;
-            batch.unstable_runs_watched(dt, threads, &watch)
+            batch.check_watched(settings, &watch)?;
+            batch.unstable_runs_watched(dt, settings.threads, &watch)
         },
     )??;
     if !unstable.is_empty() {
-        let message = stability_warning(dt, runs, &unstable);
-        PyErr::warn(
-            py,
-            &py.get_type::<PyRuntimeWarning>(),
-            &CString::new(message).expect("no NUL in the message"),
-            1,
-        )?;
+        runtime_warning(py, stability_warning(dt, runs, &unstable))?;
     }
-    let progress = Progress::new(progress.filter(|p| !p.is_none()).cloned());
     let tick = |py: Python<'_>| progress.report(py, watch.done.load(Ordering::Relaxed), runs);
     let record = watched(py, &watch.cancel, tick, || {
-        simulate_batch_with_lanes(&batch, &settings, &watch, lanes)
+        simulate_batch_with_lanes(batch, settings, &watch, lanes)
     })??;
     progress.finish(py, runs, runs)?;
-    let arm_handles = if arm_objects.len() == 1 {
-        vec![arm_objects[0].clone().unbind()]
-    } else {
-        arm_objects.into_iter().map(Bound::unbind).collect()
-    };
-    PyBatchTrajectory::new(py, arm_handles, record)
+    Ok(record)
 }
 
 /// The record of :func:`simulate_batch`: B runs with a leading run axis, read-only arrays.

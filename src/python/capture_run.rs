@@ -521,40 +521,13 @@ pub fn py_simulate_capture_batch<'py>(
 ) -> PyResult<Vec<Py<super::trajectory::PyTrajectory>>> {
     use crate::capture::{simulate_capture_batch, CaptureBatchSettings, CaptureCase};
     use std::sync::atomic::{AtomicBool, AtomicUsize};
-    let targets: Vec<Bound<'py, PyTarget>> = targets
-        .try_iter()
-        .and_then(|i| i.collect::<PyResult<Vec<_>>>())
-        .map_err(|_| super::errors::ModelError::new_err("targets: expected a sequence of Target"))?
-        .into_iter()
-        .enumerate()
-        .map(|(k, t)| {
-            t.downcast_into::<PyTarget>().map_err(|_| {
-                super::errors::ModelError::new_err(format!("targets[{k}]: expected a Target"))
-            })
-        })
-        .collect::<PyResult<_>>()?;
+    let targets = targets_arg(targets)?;
     let runs = targets.len();
-    if runs == 0 {
-        return Err(super::errors::ModelError::new_err(
-            "targets: expected at least one Target, given none",
-        ));
-    }
     let arms = per_run::<PyFlexibleArm>(arms, "arms", runs)?;
     let controllers = per_run::<super::control::PyMotorPD>(controllers, "controllers", runs)?;
     let first = &arms[0].get().arm;
     let len = first.layout().len();
-    let x0 = match super::convert::vector(x0s, "x0s", Some(len)) {
-        Ok(one) => one.repeat(runs),
-        Err(_) => {
-            let (rows, values) = super::convert::matrix(x0s, "x0s", len)?;
-            if rows != runs {
-                return Err(super::errors::ModelError::new_err(format!(
-                    "x0s: expected ({runs}, {len}) (one state per target), given {rows} rows"
-                )));
-            }
-            values
-        }
-    };
+    let x0 = states_arg(x0s, runs, len)?;
     for (k, arm) in arms.iter().enumerate() {
         if arm.get().arm.layout().len() != len {
             return Err(super::errors::ModelError::new_err(format!(
@@ -567,33 +540,12 @@ pub fn py_simulate_capture_batch<'py>(
     let settings = CaptureBatchSettings {
         dt: real(dt, "dt")?,
         steps: super::convert::count(steps, "steps")?,
-        record_every: match record_every.filter(|o| !o.is_none()) {
-            Some(k) => super::convert::positive_count(k, "record_every")?,
-            None => 1,
-        },
+        record_every: super::convert::record_every_arg(record_every)?,
         when: capture.get().when,
         ee: Some(super::convert::ee_arg(first.robot(), capture_ee)?),
         threads,
     };
-    let wheel_pds = match wheel_torque.filter(|o| !o.is_none()) {
-        // as in simulate: wheels without a controller get no torque
-        None => Vec::new(),
-        Some(obj) => per_run::<super::control::PyAttitudePD>(obj, "wheel_torque", runs)?
-            .iter()
-            .zip(&arms)
-            .enumerate()
-            .map(|(k, (pd, arm))| {
-                let arm = &arm.get().arm;
-                if arm.wheels().is_none() {
-                    return Err(super::errors::ModelError::new_err(format!(
-                        "wheel_torque: arms[{k}] has no reaction wheels; give none (or build \
-                         the arm with wheels)"
-                    )));
-                }
-                pd.get().bind(arm)
-            })
-            .collect::<PyResult<Vec<_>>>()?,
-    };
+    let wheel_pds = wheel_pds_arg(wheel_torque, &arms)?;
     let cases: Vec<CaptureCase<'_>> = (0..runs)
         .map(|k| CaptureCase {
             arm: &arms[k].get().arm,
@@ -610,7 +562,83 @@ pub fn py_simulate_capture_batch<'py>(
         |_| Ok(()),
         || simulate_capture_batch(&cases, &settings, &cancel, &done),
     )??;
-    let mut trajectories = Vec::with_capacity(runs);
+    capture_batch_result(py, outcomes, &arms, &targets)
+}
+
+/// ``targets``: a non-empty sequence of ``Target``, one per run.
+fn targets_arg<'py>(targets: &Bound<'py, PyAny>) -> PyResult<Vec<Bound<'py, PyTarget>>> {
+    let targets: Vec<Bound<'py, PyTarget>> = targets
+        .try_iter()
+        .and_then(|i| i.collect::<PyResult<Vec<_>>>())
+        .map_err(|_| super::errors::ModelError::new_err("targets: expected a sequence of Target"))?
+        .into_iter()
+        .enumerate()
+        .map(|(k, t)| {
+            t.downcast_into::<PyTarget>().map_err(|_| {
+                super::errors::ModelError::new_err(format!("targets[{k}]: expected a Target"))
+            })
+        })
+        .collect::<PyResult<_>>()?;
+    if targets.is_empty() {
+        return Err(super::errors::ModelError::new_err(
+            "targets: expected at least one Target, given none",
+        ));
+    }
+    Ok(targets)
+}
+
+/// ``x0s``: one state of `len` numbers for every run, or `runs` rows of them.
+fn states_arg(x0s: &Bound<'_, PyAny>, runs: usize, len: usize) -> PyResult<Vec<f64>> {
+    match super::convert::vector(x0s, "x0s", Some(len)) {
+        Ok(one) => Ok(one.repeat(runs)),
+        Err(_) => {
+            let (rows, values) = super::convert::matrix(x0s, "x0s", len)?;
+            if rows != runs {
+                return Err(super::errors::ModelError::new_err(format!(
+                    "x0s: expected ({runs}, {len}) (one state per target), given {rows} rows"
+                )));
+            }
+            Ok(values)
+        }
+    }
+}
+
+/// ``wheel_torque``: none (wheels without a controller get no torque, as in ``simulate``), or
+/// an ``AttitudePD`` for every run or one per run, each bound to its arm (which must have
+/// wheels).
+fn wheel_pds_arg(
+    wheel_torque: Option<&Bound<'_, PyAny>>,
+    arms: &[Bound<'_, PyFlexibleArm>],
+) -> PyResult<Vec<crate::control::AttitudePD>> {
+    let Some(obj) = wheel_torque.filter(|o| !o.is_none()) else {
+        return Ok(Vec::new());
+    };
+    per_run::<super::control::PyAttitudePD>(obj, "wheel_torque", arms.len())?
+        .iter()
+        .zip(arms)
+        .enumerate()
+        .map(|(k, (pd, arm))| {
+            let arm = &arm.get().arm;
+            if arm.wheels().is_none() {
+                return Err(super::errors::ModelError::new_err(format!(
+                    "wheel_torque: arms[{k}] has no reaction wheels; give none (or build \
+                     the arm with wheels)"
+                )));
+            }
+            pd.get().bind(arm)
+        })
+        .collect()
+}
+
+/// The ``Trajectory`` of every run, or, once all are over, the first failure as a
+/// ``SimulationError`` naming its run, with its trajectory and ``.trajectories`` (every run's).
+fn capture_batch_result(
+    py: Python<'_>,
+    outcomes: Vec<crate::capture::CaptureOutcome>,
+    arms: &[Bound<'_, PyFlexibleArm>],
+    targets: &[Bound<'_, PyTarget>],
+) -> PyResult<Vec<Py<super::trajectory::PyTrajectory>>> {
+    let mut trajectories = Vec::with_capacity(outcomes.len());
     let mut failure = None;
     for (k, outcome) in outcomes.into_iter().enumerate() {
         let traj = super::trajectory::PyTrajectory::from_run(

@@ -252,6 +252,14 @@ pub fn count(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<usize> {
     })
 }
 
+/// `record_every` as the runs take it: None (every row) or an integer ≥ 1.
+pub fn record_every_arg(obj: Option<&Bound<'_, PyAny>>) -> PyResult<usize> {
+    match obj.filter(|o| !o.is_none()) {
+        Some(k) => positive_count(k, "record_every"),
+        None => Ok(1),
+    }
+}
+
 /// A count of at least 1 (an int or numpy integer, not a bool or a float), for `record_every`
 /// and `chunk_rows`.
 pub fn positive_count(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<usize> {
@@ -291,59 +299,8 @@ pub(crate) fn ee_wrench_arg<'py>(
         return Ok(None);
     };
     let k = robot.end_effectors().len();
-    let py = obj.py();
     let (lead, flat) = if let Ok(dict) = obj.downcast::<pyo3::types::PyDict>() {
-        let mut lead: Option<Vec<usize>> = None;
-        let mut parts = Vec::with_capacity(dict.len());
-        for (key, value) in dict.iter() {
-            let name: String = key.extract().map_err(|_| {
-                ModelError::new_err(format!(
-                    "ee_wrench: a dict's keys are end-effector link names ({}); given a key of \
-                     type {}",
-                    robot.ee_links().join(", "),
-                    key.get_type()
-                        .name()
-                        .map(|n| n.to_string())
-                        .unwrap_or_default()
-                ))
-            })?;
-            let e = robot.ee_index(&name).map_err(|_| {
-                ModelError::new_err(format!(
-                    "ee_wrench: no end-effector named {name:?}; the end-effectors are {}",
-                    robot.ee_links().join(", ")
-                ))
-            })?;
-            let what = format!("ee_wrench[{name:?}]");
-            let (shape, values) = shape_and_values(&value, &what)?;
-            check_finite(&what, &values)?;
-            if shape.last() != Some(&6) {
-                return Err(ModelError::new_err(format!(
-                    "{what}: expected [moment; force], shape (6,) or (rows, 6), given shape \
-                     {shape:?}"
-                )));
-            }
-            let here = shape[..shape.len() - 1].to_vec();
-            match &lead {
-                Some(first) if *first != here => {
-                    return Err(ModelError::new_err(format!(
-                        "{what}: shape {shape:?} differs from the other entries' (every entry \
-                         of the dict must have the same shape)"
-                    )))
-                }
-                _ => lead = Some(here),
-            }
-            parts.push((e, values));
-        }
-        let lead = lead.unwrap_or_default();
-        let rows: usize = lead.iter().product();
-        let mut flat = vec![0.0; rows * 6 * k];
-        for (e, values) in parts {
-            for r in 0..rows {
-                flat[r * 6 * k + 6 * e..r * 6 * k + 6 * e + 6]
-                    .copy_from_slice(&values[6 * r..6 * r + 6]);
-            }
-        }
-        (lead, flat)
+        ee_wrench_dict(robot, dict)?
     } else if k == 1 {
         return Ok(Some(obj.clone()));
     } else {
@@ -361,8 +318,73 @@ pub(crate) fn ee_wrench_arg<'py>(
     };
     let mut shape = lead;
     shape.push(6 * k);
-    let array = PyArray1::from_vec(py, flat);
+    let array = PyArray1::from_vec(obj.py(), flat);
     Ok(Some(array.reshape(shape)?.into_any()))
+}
+
+/// A dict of ``ee_wrench`` from end-effector link name to ``(…, 6)`` (every value the same
+/// shape), stacked: the leading shape `…` and the rows of `6k` numbers (zero for the
+/// end-effectors left out).
+fn ee_wrench_dict(
+    robot: &crate::Robot,
+    dict: &Bound<'_, pyo3::types::PyDict>,
+) -> PyResult<(Vec<usize>, Vec<f64>)> {
+    let k = robot.end_effectors().len();
+    let mut lead: Option<Vec<usize>> = None;
+    let mut parts = Vec::with_capacity(dict.len());
+    for (key, value) in dict.iter() {
+        let (e, name) = ee_wrench_key(robot, &key)?;
+        let what = format!("ee_wrench[{name:?}]");
+        let (shape, values) = super::batched::shape_and_values(&value, &what)?;
+        check_finite(&what, &values)?;
+        if shape.last() != Some(&6) {
+            return Err(ModelError::new_err(format!(
+                "{what}: expected [moment; force], shape (6,) or (rows, 6), given shape {shape:?}"
+            )));
+        }
+        let here = shape[..shape.len() - 1].to_vec();
+        match &lead {
+            Some(first) if *first != here => {
+                return Err(ModelError::new_err(format!(
+                    "{what}: shape {shape:?} differs from the other entries' (every entry of \
+                     the dict must have the same shape)"
+                )))
+            }
+            _ => lead = Some(here),
+        }
+        parts.push((e, values));
+    }
+    let lead = lead.unwrap_or_default();
+    let rows: usize = lead.iter().product();
+    let mut flat = vec![0.0; rows * 6 * k];
+    for (e, values) in parts {
+        for r in 0..rows {
+            flat[r * 6 * k + 6 * e..r * 6 * k + 6 * e + 6]
+                .copy_from_slice(&values[6 * r..6 * r + 6]);
+        }
+    }
+    Ok((lead, flat))
+}
+
+/// A key of an ``ee_wrench`` dict: the index of the end-effector it names, and the name.
+fn ee_wrench_key(robot: &crate::Robot, key: &Bound<'_, PyAny>) -> PyResult<(usize, String)> {
+    let name: String = key.extract().map_err(|_| {
+        ModelError::new_err(format!(
+            "ee_wrench: a dict's keys are end-effector link names ({}); given a key of type {}",
+            robot.ee_links().join(", "),
+            key.get_type()
+                .name()
+                .map(|n| n.to_string())
+                .unwrap_or_default()
+        ))
+    })?;
+    let e = robot.ee_index(&name).map_err(|_| {
+        ModelError::new_err(format!(
+            "ee_wrench: no end-effector named {name:?}; the end-effectors are {}",
+            robot.ee_links().join(", ")
+        ))
+    })?;
+    Ok((e, name))
 }
 
 /// The ``ee=`` argument: an end-effector link name, an index into ``ee_links``, or ``None`` for

@@ -18,7 +18,7 @@
 //! One file per class: `robot` (`Robot`), `joints` (`FlexibleJoints`), `control` (`MotorPD`,
 //! input schedules, Python controllers), `arm` (`FlexibleArm`), `trajectory` (`Trajectory`),
 //! `plan` (`Limits`, `Plan`, `plan_slew`), `stability` (`StabilityLimit`), `batch` (`simulate_batch`, `BatchTrajectory`), `capture`
-//! (`Target`, `capture`, `Capture`); `simulator` (`Simulator`); `fmu` (the FMU's files); `analysis` (the linear analysis's private
+//! (`Target`, `capture`, `Capture`); `simulator` (`Simulator`); `fmu` (the FMU's files); `memory` (`recorded_rows`, `run_bytes`, `check_run_memory`, `available_memory`); `analysis` (the linear analysis's private
 //! functions, wrapped by `orbitflex.analysis`);
 //! `batched` gives the per-call dynamics their leading batch axis and `out=`; `run` drives a
 //! simulation with or without the GIL; `errors` maps [`crate::Error`] onto the Python
@@ -36,6 +36,7 @@ mod convert;
 mod errors;
 mod fmu;
 mod joints;
+mod memory;
 mod parallel;
 mod plan;
 mod robot;
@@ -93,5 +94,9 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(fmu::py_fmu_files, m)?)?;
     m.add_function(wrap_pyfunction!(control::py_quintic_reference, m)?)?;
     m.add_function(wrap_pyfunction!(control::py_quintic_profile, m)?)?;
+    m.add_function(wrap_pyfunction!(memory::py_recorded_rows, m)?)?;
+    m.add_function(wrap_pyfunction!(memory::py_run_bytes, m)?)?;
+    m.add_function(wrap_pyfunction!(memory::py_check_run_memory, m)?)?;
+    m.add_function(wrap_pyfunction!(memory::available_memory, m)?)?;
     Ok(())
 }

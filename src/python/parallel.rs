@@ -86,6 +86,100 @@ impl Lookout<'_> {
 /// One row of a batched call: `f(data, row, out_row)`.
 pub(crate) type RowFn<'a> = dyn Fn(&mut Data, usize, &mut [f64]) -> crate::Result<()> + Sync + 'a;
 
+/// The rows of a batched call cut into pieces that the threads claim in turn, and what the
+/// threads share: the next piece to claim, how many have finished, the cancel flag and the
+/// first failure.
+struct Pieces<'v> {
+    pieces: Vec<Mutex<&'v mut [f64]>>,
+    per_piece: usize,
+    width: usize,
+    next: AtomicUsize,
+    finished: AtomicUsize,
+    cancel: AtomicBool,
+    /// The lowest piece with a failing row.
+    failed_piece: AtomicUsize,
+    /// The lowest failing row and its error.
+    failure: Mutex<Option<(usize, crate::Error)>>,
+}
+
+impl<'v> Pieces<'v> {
+    /// `values` (rows of `width` numbers) in pieces of `per_piece` rows.
+    fn new(values: &'v mut [f64], width: usize, per_piece: usize) -> Self {
+        Self {
+            pieces: values
+                .chunks_mut(per_piece * width)
+                .map(Mutex::new)
+                .collect(),
+            per_piece,
+            width,
+            next: AtomicUsize::new(0),
+            finished: AtomicUsize::new(0),
+            cancel: AtomicBool::new(false),
+            failed_piece: AtomicUsize::new(usize::MAX),
+            failure: Mutex::new(None),
+        }
+    }
+
+    fn count(&self) -> usize {
+        self.pieces.len()
+    }
+
+    /// Claims pieces until none is left and computes their rows with `f` in `data`; `lookout`
+    /// is the calling thread's. A piece counts as finished when it ends, even by a panic (which
+    /// the scope then raises): the calling thread waits for every piece to finish.
+    fn work(
+        &self,
+        data: &mut Data,
+        f: &RowFn<'_>,
+        caller: &std::thread::Thread,
+        mut lookout: Option<&mut Lookout<'_>>,
+    ) {
+        let count = self.count();
+        loop {
+            let p = self.next.fetch_add(1, Ordering::Relaxed);
+            if p >= count {
+                break;
+            }
+            let _done = Finished {
+                finished: &self.finished,
+                count,
+                caller,
+            };
+            if p < self.failed_piece.load(Ordering::Relaxed) {
+                self.piece(p, data, f, lookout.as_deref_mut());
+            }
+        }
+    }
+
+    /// The rows of piece `p`, until one fails or the rows are cancelled.
+    fn piece(
+        &self,
+        p: usize,
+        data: &mut Data,
+        f: &RowFn<'_>,
+        mut lookout: Option<&mut Lookout<'_>>,
+    ) {
+        let mut block = self.pieces[p].lock().unwrap_or_else(|e| e.into_inner());
+        for (k, out) in block.chunks_exact_mut(self.width).enumerate() {
+            if self.cancel.load(Ordering::Relaxed) {
+                break;
+            }
+            let row = p * self.per_piece + k;
+            if let Err(e) = f(data, row, out) {
+                self.failed_piece.fetch_min(p, Ordering::Relaxed);
+                let mut first = self.failure.lock().unwrap_or_else(|e| e.into_inner());
+                if first.as_ref().map_or(true, |(r, _)| row < *r) {
+                    *first = Some((row, e.in_context(&format!("row {row}"))));
+                }
+                break;
+            }
+            if let Some(lookout) = lookout.as_deref_mut() {
+                lookout.row_done();
+            }
+        }
+    }
+}
+
 /// Computes `f(data, row, out_row)` for every row of `values` (rows of `width` numbers,
 /// row-major) on rayon's global pool and the calling thread, without the GIL, each thread with
 /// a workspace from `workspaces`. Returns the error of the lowest failing row (naming the row),
@@ -104,57 +198,15 @@ pub(crate) fn compute_rows(
     let rows = values.len() / width;
     let threads = rayon::current_num_threads();
     let per_piece = rows.div_ceil(4 * threads).clamp(1, MAX_PIECE_ROWS);
-    let pieces: Vec<Mutex<&mut [f64]>> = values
-        .chunks_mut(per_piece * width)
-        .map(Mutex::new)
-        .collect();
-    let count = pieces.len();
-    let next = AtomicUsize::new(0);
-    let finished = AtomicUsize::new(0);
-    let cancel = AtomicBool::new(false);
-    // the lowest piece with a failing row, and that row's error
-    let failed_piece = AtomicUsize::new(usize::MAX);
-    let failure: Mutex<Option<(usize, crate::Error)>> = Mutex::new(None);
+    let pieces = Pieces::new(values, width, per_piece);
+    let count = pieces.count();
     let caller = std::thread::current();
-    // claims pieces until none is left; `lookout` is the calling thread's
-    let work = |mut lookout: Option<&mut Lookout<'_>>| {
+    let work = |lookout: Option<&mut Lookout<'_>>| {
         let mut data = workspaces.take(|| Data::new(robot));
-        loop {
-            let p = next.fetch_add(1, Ordering::Relaxed);
-            if p >= count {
-                break;
-            }
-            // counts the piece as finished when it ends, even by a panic (which the scope then
-            // raises): the calling thread waits for every piece to finish
-            let _done = Finished {
-                finished: &finished,
-                count,
-                caller: &caller,
-            };
-            if p < failed_piece.load(Ordering::Relaxed) {
-                let mut block = pieces[p].lock().unwrap_or_else(|e| e.into_inner());
-                for (k, out) in block.chunks_exact_mut(width).enumerate() {
-                    if cancel.load(Ordering::Relaxed) {
-                        break;
-                    }
-                    let row = p * per_piece + k;
-                    if let Err(e) = f(&mut data, row, out) {
-                        failed_piece.fetch_min(p, Ordering::Relaxed);
-                        let mut first = failure.lock().unwrap_or_else(|e| e.into_inner());
-                        if first.as_ref().map_or(true, |(r, _)| row < *r) {
-                            *first = Some((row, e.in_context(&format!("row {row}"))));
-                        }
-                        break;
-                    }
-                    if let Some(lookout) = lookout.as_deref_mut() {
-                        lookout.row_done();
-                    }
-                }
-            }
-        }
+        pieces.work(&mut data, f, &caller, lookout);
     };
     let mut lookout = Lookout {
-        cancel: &cancel,
+        cancel: &pieces.cancel,
         raised: None,
         last: Instant::now(),
         every: None,
@@ -167,7 +219,7 @@ pub(crate) fn compute_rows(
             }
             work(Some(&mut lookout));
             // the other threads' last pieces
-            while finished.load(Ordering::Acquire) < count {
+            while pieces.finished.load(Ordering::Acquire) < count {
                 std::thread::park_timeout(SIGNAL_CHECK);
                 lookout.look();
             }
@@ -176,7 +228,11 @@ pub(crate) fn compute_rows(
     if let Some(e) = lookout.raised {
         return Err(e);
     }
-    match failure.into_inner().unwrap_or_else(|e| e.into_inner()) {
+    match pieces
+        .failure
+        .into_inner()
+        .unwrap_or_else(|e| e.into_inner())
+    {
         Some((_, e)) => Err(e.into()),
         None => Ok(()),
     }

@@ -485,6 +485,148 @@ fn rounded(seconds: f64, decimals: usize) -> String {
     }
 }
 
+/// The arguments of ``Plan.track``, read in this order (the first bad one is reported).
+struct TrackingArgs {
+    dt: f64,
+    kp: Vec<f64>,
+    kd: Vec<f64>,
+    settle: f64,
+}
+
+impl TrackingArgs {
+    /// Reads them and refuses, before the tables are built, a run too long for memory.
+    fn parse(
+        plan: &Plan,
+        dt: &Bound<'_, PyAny>,
+        kp: &Bound<'_, PyAny>,
+        kd: &Bound<'_, PyAny>,
+        settle: Option<&Bound<'_, PyAny>>,
+    ) -> PyResult<Self> {
+        let n = plan.arm().dof();
+        let dt = real(dt, "dt")?;
+        let settle = match settle.filter(|s| !s.is_none()) {
+            Some(s) => real(s, "settle")?,
+            None => 2.0,
+        };
+        if !(settle.is_finite() && settle >= 0.0) {
+            return Err(ModelError::new_err(format!(
+                "settle: expected a finite time >= 0 (s), given {settle}"
+            )));
+        }
+        let (kp, kd) = (gains(kp, "kp", n)?, gains(kd, "kd", n)?);
+        crate::args::check_dt(dt)?;
+        // refuse a run too long for memory before its tables are built
+        let seconds = plan.duration() + settle;
+        let steps = (seconds / dt).ceil();
+        let blame = if settle > plan.duration() {
+            "settle"
+        } else {
+            "dt"
+        };
+        if steps >= 1e15 {
+            return Err(ModelError::new_err(format!(
+                "{blame}: dt = {} s over the plan's {} s plus settle = {} s makes {steps:.3e} \
+                 steps; lengthen dt or shorten settle",
+                number(dt),
+                rounded(plan.duration(), 6),
+                number(settle)
+            )));
+        }
+        let layout = plan.arm().layout();
+        check_steps(blame, steps as usize, 2 * layout.len() + 4 * n + 13)?;
+        Ok(Self { dt, kp, kd, settle })
+    }
+}
+
+/// Runs the tracking of `plan` set up by `setup` (its arm from its initial state, the setup's
+/// steps of `dt`, its PD and wrenches), or with ``wheel_torque`` driving the wheels in place of
+/// the base wrench: the trajectory and the setup's reference; a failure is the
+/// `SimulationError` carrying what was computed.
+fn run_tracking(
+    py: Python<'_>,
+    plan: &Plan,
+    arm: &Py<PyFlexibleArm>,
+    dt: f64,
+    setup: TrackingSetup,
+    wheel_torque: Option<&Bound<'_, PyAny>>,
+) -> PyResult<(crate::integrate::Trajectory, crate::planning::Reference)> {
+    let TrackingSetup {
+        steps,
+        reference,
+        pd,
+        wrenches,
+    } = setup;
+    let x0 = plan.initial_state();
+    let mut error = None;
+    let mut channels = match wheel_torque {
+        None => Channels {
+            u: Box::new(pd),
+            base_wrench: Box::new(wrenches.base),
+            ee_wrench: wrenches.ee,
+            wheel_torque: Box::new(wrenches.wheel_torque),
+        },
+        // the wheels hold the bus instead of the plan's wrench
+        Some(w) => Channels {
+            u: Box::new(pd),
+            base_wrench: Box::new(Schedule::Zero),
+            ee_wrench: wrenches.ee,
+            wheel_torque: wheel_controller(Some(w), plan.arm(), &mut error)?,
+        },
+    };
+    let run = run_releasing_gil(
+        py,
+        plan.arm(),
+        &Run::new(&x0, dt, steps),
+        &mut channels,
+        &mut Progress::new(None),
+    )?;
+    drop(channels);
+    match run {
+        Ok(trajectory) => Ok((trajectory, reference)),
+        Err(failure) => {
+            let (message, step, time) = match &failure.error {
+                Error::Simulation { step, time, .. } => (failure.error.to_string(), *step, *time),
+                other => return Err(other.clone().into()),
+            };
+            let traj = PyTrajectory::from_run(py, arm.clone_ref(py), failure.trajectory)?;
+            let traj = Py::new(py, traj)?.into_any();
+            Err(simulation_error(py, message, step, time, traj, error)?)
+        }
+    }
+}
+
+/// What ``Plan.track`` returns: the trajectory (on `arm`), the reference and the measures.
+fn tracking_dict(
+    py: Python<'_>,
+    arm: Py<PyFlexibleArm>,
+    tracking: Tracking,
+    n: usize,
+) -> PyResult<Bound<'_, PyDict>> {
+    let Tracking {
+        trajectory,
+        reference,
+        slew_end,
+        peak_motor_torque,
+        tracking_error,
+        residual_deflection,
+        residual_link_error,
+        base_position_error,
+        base_attitude_error,
+    } = tracking;
+    let d = PyDict::new(py);
+    let traj = PyTrajectory::from_run(py, arm, trajectory)?;
+    d.set_item("trajectory", Py::new(py, traj)?)?;
+    d.set_item("reference", reference_dict(py, reference, n)?)?;
+    d.set_item("slew_end", slew_end)?;
+    d.set_item("peak_motor_torque", array1(py, &peak_motor_torque))?;
+    d.set_item("tracking_error", tracking_error)?;
+    d.set_item("residual_deflection", residual_deflection)?;
+    d.set_item("residual_link_error", residual_link_error)?;
+    d.set_item("base_position_error", base_position_error)?;
+    d.set_item("base_attitude_error", base_attitude_error)?;
+    Ok(d)
+}
+
 /// Gains for the tracking PD: a number or one per joint, checked against `n`.
 fn gains(obj: &Bound<'_, PyAny>, what: &str, n: usize) -> PyResult<Vec<f64>> {
     let p = Param::parse(obj, what)?;
@@ -777,113 +919,20 @@ impl PyPlan {
     ) -> PyResult<Bound<'py, PyDict>> {
         let wheel_torque = wheel_torque.filter(|w| !w.is_none());
         let n = self.plan.arm().dof();
-        let dt = real(dt, "dt")?;
-        let settle = match settle.filter(|s| !s.is_none()) {
-            Some(s) => real(s, "settle")?,
-            None => 2.0,
-        };
-        if !(settle.is_finite() && settle >= 0.0) {
-            return Err(ModelError::new_err(format!(
-                "settle: expected a finite time >= 0 (s), given {settle}"
-            )));
-        }
-        let (kp, kd) = (gains(kp, "kp", n)?, gains(kd, "kd", n)?);
-        crate::args::check_dt(dt)?;
-        // refuse a run too long for memory before its tables are built
-        let seconds = self.plan.duration() + settle;
-        let steps = (seconds / dt).ceil();
-        let blame = if settle > self.plan.duration() {
-            "settle"
-        } else {
-            "dt"
-        };
-        if steps >= 1e15 {
-            return Err(ModelError::new_err(format!(
-                "{blame}: dt = {} s over the plan's {} s plus settle = {} s makes {steps:.3e} \
-                 steps; lengthen dt or shorten settle",
-                number(dt),
-                rounded(self.plan.duration(), 6),
-                number(settle)
-            )));
-        }
-        let layout = self.plan.arm().layout();
-        check_steps(blame, steps as usize, 2 * layout.len() + 4 * n + 13)?;
+        let TrackingArgs { dt, kp, kd, settle } =
+            TrackingArgs::parse(&self.plan, dt, kp, kd, settle)?;
         let plan = &self.plan;
         let mut interrupt = None;
         let setup = py.allow_threads(|| {
             plan.tracking_setup_with(dt, &kp, &kd, settle, &mut |_| keep_going(&mut interrupt))
         })?;
-        let Some(TrackingSetup {
-            steps,
-            reference,
-            pd,
-            wrenches,
-        }) = setup
-        else {
+        let Some(setup) = setup else {
             return Err(interrupt.expect("stopped only on a pending exception"));
         };
-        let x0 = plan.initial_state();
-        let mut error = None;
-        let mut channels = match wheel_torque {
-            None => Channels {
-                u: Box::new(pd),
-                base_wrench: Box::new(wrenches.base),
-                ee_wrench: wrenches.ee,
-                wheel_torque: Box::new(wrenches.wheel_torque),
-            },
-            // the wheels hold the bus instead of the plan's wrench
-            Some(w) => Channels {
-                u: Box::new(pd),
-                base_wrench: Box::new(Schedule::Zero),
-                ee_wrench: wrenches.ee,
-                wheel_torque: wheel_controller(Some(w), plan.arm(), &mut error)?,
-            },
-        };
-        let run = run_releasing_gil(
-            py,
-            plan.arm(),
-            &Run::new(&x0, dt, steps),
-            &mut channels,
-            &mut Progress::new(None),
-        )?;
-        drop(channels);
-        let trajectory = match run {
-            Ok(trajectory) => trajectory,
-            Err(failure) => {
-                let (message, step, time) = match &failure.error {
-                    Error::Simulation { step, time, .. } => {
-                        (failure.error.to_string(), *step, *time)
-                    }
-                    other => return Err(other.clone().into()),
-                };
-                let traj = PyTrajectory::from_run(py, self.arm.clone_ref(py), failure.trajectory)?;
-                let traj = Py::new(py, traj)?.into_any();
-                return Err(simulation_error(py, message, step, time, traj, error)?);
-            }
-        };
-        let Tracking {
-            trajectory,
-            reference,
-            slew_end,
-            peak_motor_torque,
-            tracking_error,
-            residual_deflection,
-            residual_link_error,
-            base_position_error,
-            base_attitude_error,
-        } = py.allow_threads(|| plan.measure(trajectory, reference));
-        let d = PyDict::new(py);
-        let traj = PyTrajectory::from_run(py, self.arm.clone_ref(py), trajectory)?;
-        d.set_item("trajectory", Py::new(py, traj)?)?;
-        d.set_item("reference", reference_dict(py, reference, n)?)?;
-        d.set_item("slew_end", slew_end)?;
-        d.set_item("peak_motor_torque", array1(py, &peak_motor_torque))?;
-        d.set_item("tracking_error", tracking_error)?;
-        d.set_item("residual_deflection", residual_deflection)?;
-        d.set_item("residual_link_error", residual_link_error)?;
-        d.set_item("base_position_error", base_position_error)?;
-        d.set_item("base_attitude_error", base_attitude_error)?;
-        Ok(d)
+        let arm = &self.arm;
+        let (trajectory, reference) = run_tracking(py, plan, arm, dt, setup, wheel_torque)?;
+        let tracking = py.allow_threads(|| plan.measure(trajectory, reference));
+        tracking_dict(py, arm.clone_ref(py), tracking, n)
     }
 
     /// What holding the bus through this held-base plan asks of reaction ``wheels``

@@ -1,6 +1,7 @@
 //! Running a simulation from Python: without the GIL when the controller is Rust, with it when
 //! it is a Python callable; honouring Ctrl-C and reporting progress either way.
 
+use super::control::{base_wrench_controller, controller, schedule, wheel_controller};
 use super::convert::row_major;
 use crate::control::{Controller, Schedule};
 use crate::error::Error;
@@ -37,6 +38,11 @@ impl Progress {
         }
     }
 
+    /// The `progress` argument of a run: a callable, or None (no reports).
+    pub fn from_arg(progress: Option<&Bound<'_, PyAny>>) -> Self {
+        Self::new(progress.filter(|p| !p.is_none()).cloned())
+    }
+
     pub(crate) fn report(&self, py: Python<'_>, done: usize, steps: usize) -> PyResult<()> {
         if let Some(callback) = &self.callback {
             callback.call1(py, (done, steps))?;
@@ -48,6 +54,17 @@ impl Progress {
     pub fn finish(&self, py: Python<'_>, done: usize, steps: usize) -> PyResult<()> {
         self.report(py, done, steps)
     }
+}
+
+/// Warns `message` as a `RuntimeWarning` (a step past the RK4 stability limit, an unstable
+/// sampled loop), at the caller's line.
+pub(crate) fn runtime_warning(py: Python<'_>, message: String) -> PyResult<()> {
+    PyErr::warn(
+        py,
+        &py.get_type::<pyo3::exceptions::PyRuntimeWarning>(),
+        &std::ffi::CString::new(message).expect("no NUL in the message"),
+        1,
+    )
 }
 
 /// Looks for signals every [`SIGNAL_CHECK`] and reports progress every [`EVERY`] steps, taking
@@ -154,6 +171,53 @@ pub(crate) struct Channels<'a> {
     pub ee_wrench: Schedule,
     /// The reaction-wheel torque commands.
     pub wheel_torque: Box<dyn Controller + Send + 'a>,
+}
+
+/// The first exception of each callable channel of a run, one slot per channel.
+#[derive(Default)]
+pub(crate) struct ChannelErrors {
+    u: Option<PyErr>,
+    wheel_torque: Option<PyErr>,
+    base_wrench: Option<PyErr>,
+}
+
+impl ChannelErrors {
+    /// The exception that stopped the run: the motors', else the wheels', else the base
+    /// wrench's.
+    pub fn first(self) -> Option<PyErr> {
+        self.u.or(self.wheel_torque).or(self.base_wrench)
+    }
+}
+
+impl<'a> Channels<'a> {
+    /// The channels of ``FlexibleArm.simulate``'s arguments, read in this order (the first bad
+    /// argument is the one reported): the base wrench, the EE wrenches, the wheel torques, the
+    /// motor torques. A callable channel's exception goes to its slot of `errors`.
+    pub fn from_args(
+        arm: &FlexibleArm,
+        u: Option<&Bound<'_, PyAny>>,
+        base_wrench: Option<&Bound<'_, PyAny>>,
+        ee_wrench: Option<&Bound<'_, PyAny>>,
+        wheel_torque: Option<&Bound<'_, PyAny>>,
+        errors: &'a mut ChannelErrors,
+    ) -> PyResult<Self> {
+        let ChannelErrors {
+            u: u_error,
+            wheel_torque: wheel_error,
+            base_wrench: base_error,
+        } = errors;
+        let robot = arm.robot();
+        Ok(Channels {
+            base_wrench: base_wrench_controller(base_wrench, base_error)?,
+            ee_wrench: schedule(
+                super::convert::ee_wrench_arg(robot, ee_wrench)?.as_ref(),
+                "ee_wrench",
+                6 * robot.end_effectors().len(),
+            )?,
+            wheel_torque: wheel_controller(wheel_torque, arm, wheel_error)?,
+            u: controller(u, arm.dof(), u_error)?,
+        })
+    }
 }
 
 impl Channels<'_> {

@@ -106,6 +106,64 @@ struct StepInputs {
     u: Option<Vec<f64>>,
     base_wrench: Option<Vec<f64>>,
     ee_wrench: Option<Vec<f64>>,
+    wheel_torque: Option<Vec<f64>>,
+}
+
+impl StepInputs {
+    /// The inputs given (None: keep the held one), in the order the messages report them: the
+    /// wheel torques, the motor torques, the base wrench, the EE wrenches.
+    fn parse(
+        arm: &crate::FlexibleArm,
+        u: Option<&Bound<'_, PyAny>>,
+        base_wrench: Option<&Bound<'_, PyAny>>,
+        ee_wrench: Option<&Bound<'_, PyAny>>,
+        wheel_torque: Option<&Bound<'_, PyAny>>,
+    ) -> PyResult<Self> {
+        let robot = arm.robot();
+        let given = |obj: Option<&Bound<'_, PyAny>>, what: &str, len: usize| {
+            obj.filter(|o| !o.is_none())
+                .map(|v| vector(v, what, Some(len)))
+                .transpose()
+        };
+        let wheel_torque =
+            match (wheel_torque.filter(|o| !o.is_none()), arm.layout().wheels) {
+                (Some(_), 0) => return Err(ModelError::new_err(
+                    "wheel_torque: the arm has no reaction wheels; pass None (or build the arm \
+                     with wheels=)",
+                )),
+                (w, k) => given(w, "wheel_torque", k)?,
+            };
+        Ok(StepInputs {
+            wheel_torque,
+            u: given(u, "u", robot.dof())?,
+            base_wrench: given(base_wrench, "base_wrench", 6)?,
+            ee_wrench: match super::convert::ee_wrench_arg(robot, ee_wrench)? {
+                Some(f) => Some(vector(
+                    &f,
+                    "ee_wrench",
+                    Some(6 * robot.end_effectors().len()),
+                )?),
+                None => None,
+            },
+        })
+    }
+
+    /// Holds the inputs given from now on.
+    fn hold(&self, sim: &mut Simulator) -> PyResult<()> {
+        if let Some(u) = &self.u {
+            sim.set_motor_torque(u)?;
+        }
+        if let Some(w) = &self.base_wrench {
+            sim.set_base_wrench(w)?;
+        }
+        if let Some(f) = &self.ee_wrench {
+            sim.set_ee_wrench(Some(f))?;
+        }
+        if let Some(w) = &self.wheel_torque {
+            sim.set_wheel_torque(w)?;
+        }
+        Ok(())
+    }
 }
 
 #[pymethods]
@@ -137,50 +195,10 @@ impl PySimulator {
             Some(n) => positive_count(n, "n")?,
             None => 1,
         };
-        let arm = self.arm.bind(py).get();
-        let robot = arm.arm.robot();
-        let wheel_torque =
-            match (
-                wheel_torque.filter(|o| !o.is_none()),
-                arm.arm.layout().wheels,
-            ) {
-                (None, _) => None,
-                (Some(_), 0) => return Err(ModelError::new_err(
-                    "wheel_torque: the arm has no reaction wheels; pass None (or build the arm \
-                     with wheels=)",
-                )),
-                (Some(w), k) => Some(vector(w, "wheel_torque", Some(k))?),
-            };
-        let inputs = StepInputs {
-            u: match u.filter(|o| !o.is_none()) {
-                Some(u) => Some(vector(u, "u", Some(robot.dof()))?),
-                None => None,
-            },
-            base_wrench: match base_wrench.filter(|o| !o.is_none()) {
-                Some(w) => Some(vector(w, "base_wrench", Some(6))?),
-                None => None,
-            },
-            ee_wrench: match super::convert::ee_wrench_arg(robot, ee_wrench)? {
-                Some(f) => {
-                    let k = robot.end_effectors().len();
-                    Some(vector(&f, "ee_wrench", Some(6 * k))?)
-                }
-                None => None,
-            },
-        };
+        let arm = &self.arm.bind(py).get().arm;
+        let inputs = StepInputs::parse(arm, u, base_wrench, ee_wrench, wheel_torque)?;
         let mut sim = self.lock()?;
-        if let Some(u) = &inputs.u {
-            sim.set_motor_torque(u)?;
-        }
-        if let Some(w) = &inputs.base_wrench {
-            sim.set_base_wrench(w)?;
-        }
-        if let Some(f) = &inputs.ee_wrench {
-            sim.set_ee_wrench(Some(f))?;
-        }
-        if let Some(w) = &wheel_torque {
-            sim.set_wheel_torque(w)?;
-        }
+        inputs.hold(&mut sim)?;
         let mut signals = Signals {
             error: None,
             last: Instant::now(),

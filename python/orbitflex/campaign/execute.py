@@ -14,7 +14,7 @@ from typing import Any, Callable, Dict, List, Mapping, Optional, Sequence, TYPE_
 
 import numpy as np
 
-from .. import FlexibleArm
+from .. import FlexibleArm, available_memory
 from .dispersion import CampaignError
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -38,7 +38,7 @@ class _Table:
             for name in piece.columns:
                 row += piece[name].to_numpy().itemsize
             need = self.runs * row
-            free = _free_memory()
+            free = available_memory()
             if free is not None and need > free:
                 raise CampaignError(f"runs: the table of {self.runs} runs needs {need / 1e9:.3g} GB, more than the "
                                     f"{free / 1e9:.3g} GB of memory free; run fewer runs at a time")
@@ -50,14 +50,6 @@ class _Table:
         import pandas as pd
 
         return pd.DataFrame(self.columns, copy=False)
-
-
-def _free_memory() -> Optional[int]:
-    """Bytes of free physical memory, or None where the system does not say."""
-    try:
-        return os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
-    except (AttributeError, ValueError, OSError):
-        return None
 
 
 class ChunkLog(Sequence[Dict[str, Any]]):

@@ -20,7 +20,7 @@ import numpy as np
 from .. import FlexibleArm, Limits, MotorPD, Plan, Robot, SimulationError, plan_slew
 from .errors import CliError, output_folder
 from .jobs import Job, WarningPrinter, failure_reason
-from .memory import check_memory
+from .memory import check_memory, step_count
 from .plan_plots import plot_plan
 from .plan_wheels import print_wheel_plan, wheel_plan
 from .plots import seconds
@@ -337,8 +337,9 @@ def plan_command(args: argparse.Namespace) -> int:
     for note in (job.note, dt_note):
         if note:
             print(note)
-    steps = math.ceil((1.01 * plan.duration + args.settle) / dt)
-    check_memory(steps, arm.dof, *tracking_steps_flag(args, plan, dt))
+    flag, advice = tracking_steps_flag(args, plan, dt)
+    steps = step_count(1.01 * plan.duration + args.settle, dt, flag, advice, math.ceil)
+    check_memory(steps, arm.dof, flag, advice)
     try:
         comparison = compare(job.name, plan, dt, kp, kd, args.settle)
     except ValueError as e:  # a step the runs refuse: longer than a plan that the limits made short

@@ -18,7 +18,7 @@ import numpy as np
 from .. import FlexibleArm, MotorPD, SimulationError, Trajectory, models
 from .errors import CliError, output_folder
 from .jobs import Job, Outcome, ProgressBar, WarningPrinter, failure_reason
-from .memory import check_memory
+from .memory import check_memory, step_count
 from .plan import (
     DEMO_PLAN_GOAL, PLAN_OUTPUTS, comparison_summary, demo_comparison, describe_binding,
     limits_dict, print_comparison,
@@ -110,7 +110,7 @@ def simulate(arm: FlexibleArm, pd: MotorPD, steps: int, dt: float, progress: boo
 
 
 def run(job: Job, args: argparse.Namespace) -> int:
-    steps = int(round(args.duration / args.dt))
+    steps = step_count(args.duration, args.dt, "--duration/--dt", "shorten --duration or lengthen --dt")
     check_memory(steps, job.arm.dof, record_every=args.record_every)
     gains = choose_gains(job.arm, args)
     pd = slew_controller(job.arm, job.slew, steps, args.dt, args.slew_time, gains)

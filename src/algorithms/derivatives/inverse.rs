@@ -71,7 +71,9 @@ fn body_terms(s: &mut Scratch, i: usize, inertia: &Inertia) {
 
 /// The inverse-dynamics derivatives in base-frame components (module docs) into `id_q` and
 /// `id_v`, from the joint transforms at `q` in `data.x` (left there by the forward dynamics, or
-/// computed by the caller). (Its AVX2 build was about 10 % faster, but valgrind 3.19 cannot
+/// computed by the caller): `∂τ_i/∂q_k = α_i · c_k + β_i · u_k`, `∂τ_i/∂q̇_k = 2 α_i · u_k + β_i · S_k`
+/// within a subtree, the subtree's force change `δF_k` for its ancestors and the base, and the
+/// base twist's columns with `u = δV`. (Its AVX2 build was about 10 % faster, but valgrind 3.19 cannot
 /// decode one of its instructions, so it stays portable.)
 pub(super) fn id_derivatives(
     robot: &Robot,

@@ -223,10 +223,11 @@ pub fn simulate_batch(
     simulate_batch_with_lanes(batch, settings, watch, Lanes::Auto)
 }
 
-/// [`simulate_batch`] with the lanes chosen: runs of one robot driven by torque tables or
-/// [`MotorPD`]s go `W` at a time through one RK4 step in SIMD lanes ([`crate::lanes`]), each
-/// lane bit for bit its scalar run; `Lanes::Off` runs every run on the scalar path. The record
-/// is the same whatever the choice.
+/// [`simulate_batch`] with the lanes chosen: runs of one robot (and as many reaction wheels) go
+/// `W` at a time through one RK4 step in SIMD lanes ([`crate::lanes`]), each lane bit for bit
+/// its scalar run, whatever drives them (every [`BatchControl`] is read per run by the scalar
+/// code); `Lanes::Off` runs every run on the scalar path. The record is the same whatever the
+/// choice.
 pub fn simulate_batch_with_lanes(
     batch: &Batch<'_>,
     settings: &BatchSettings,
@@ -302,12 +303,12 @@ pub fn simulate_batch_with_lanes(
     })
 }
 
-/// The arm of run `run` when the lanes may integrate it (the kind of controller the lanes call
-/// per lane; [`crate::lanes::lane_groups`] then checks the arm), `None` for the scalar path.
+/// The arm of run `run` when the lanes may integrate it ([`crate::lanes::lane_groups`] then
+/// checks the arm), `None` for the scalar path. Every [`BatchControl`] (tables, [`MotorPD`],
+/// [`AttitudePD`], [`Sampled`](crate::control::Sampled) of those) is Rust code that each lane
+/// calls through its own `Stepper`, so the controller never keeps a run out of the lanes.
 fn lane_arm<'a>(batch: &Batch<'a>, run: usize) -> Option<&'a FlexibleArm> {
-    let lanes = matches!(batch.u, BatchControl::Open(_) | BatchControl::Pd(_))
-        && matches!(batch.wheel_torque, BatchControl::Open(_));
-    lanes.then(|| batch.arms.get(run))
+    Some(batch.arms.get(run))
 }
 
 /// A piece of work for one thread: a lane group, or one run on the scalar path.

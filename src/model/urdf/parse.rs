@@ -292,25 +292,60 @@ impl<'a> Reader<'a> {
         let name = e.local_name();
         let name = name.as_ref();
         let line = self.line();
-        let parent = self.scopes.last().copied();
-        Ok(match (parent, name) {
-            (None, b"robot") => {
-                if self.robot.is_some() {
-                    return Err(format!("line {line}: a second <robot> element"));
+        match self.scopes.last().copied() {
+            None => self.open_root(e, name, line),
+            Some(Scope::Robot) => self.open_in_robot(e, name, line),
+            Some(Scope::Link | Scope::Visual | Scope::Geometry | Scope::VisualMaterial) => {
+                Ok(self.open_in_link(e, name, line))
+            }
+            Some(Scope::Material) => {
+                if name == b"color" {
+                    // a bad colour of a named material leaves it without colour
+                    if let (Some(name), Ok(rgba)) = (self.material.clone(), self.rgba(e)) {
+                        let robot = self.robot.as_mut().expect("inside the robot");
+                        robot.materials.insert(name, rgba);
+                    }
                 }
-                self.robot = Some(Urdf {
-                    name: self.attribute(e, "name")?.unwrap_or_default(),
-                    ..Urdf::default()
-                });
-                Scope::Robot
+                Ok(Scope::Other)
             }
-            (None, other) => {
-                return Err(format!(
-                    "line {line}: the root element is <{}>; expected <robot>",
-                    String::from_utf8_lossy(other)
-                ))
-            }
-            (Some(Scope::Robot), b"link") => {
+            Some(Scope::Inertial) => self.open_in_inertial(e, name),
+            Some(Scope::Joint) => self.open_in_joint(e, name),
+            Some(Scope::Other) => Ok(Scope::Other),
+        }
+    }
+
+    /// The root element: `<robot>`, once.
+    fn open_root(
+        &mut self,
+        e: &BytesStart,
+        name: &[u8],
+        line: usize,
+    ) -> std::result::Result<Scope, Message> {
+        if name != b"robot" {
+            return Err(format!(
+                "line {line}: the root element is <{}>; expected <robot>",
+                String::from_utf8_lossy(name)
+            ));
+        }
+        if self.robot.is_some() {
+            return Err(format!("line {line}: a second <robot> element"));
+        }
+        self.robot = Some(Urdf {
+            name: self.attribute(e, "name")?.unwrap_or_default(),
+            ..Urdf::default()
+        });
+        Ok(Scope::Robot)
+    }
+
+    /// A child of `<robot>`: a link, a named material or a joint.
+    fn open_in_robot(
+        &mut self,
+        e: &BytesStart,
+        name: &[u8],
+        line: usize,
+    ) -> std::result::Result<Scope, Message> {
+        Ok(match name {
+            b"link" => {
                 self.link = Some(Link {
                     name: self.required(e, "link", "name")?,
                     inertial: Inertial::default(),
@@ -318,6 +353,45 @@ impl<'a> Reader<'a> {
                 });
                 Scope::Link
             }
+            b"material" => {
+                self.material = self.attribute(e, "name").ok().flatten();
+                Scope::Material
+            }
+            b"joint" => {
+                let name = self.required(e, "joint", "name")?;
+                let kind = self.required(e, "joint", "type")?;
+                let kind = JointKind::ALL
+                    .iter()
+                    .find(|(spelled, _)| *spelled == kind)
+                    .map(|(_, k)| *k)
+                    .ok_or_else(|| {
+                        format!(
+                            "line {line}: joint '{name}' has the unknown type '{kind}'; URDF's \
+                             types are revolute, continuous, prismatic, fixed, floating, planar \
+                             and spherical"
+                        )
+                    })?;
+                self.joint = Some(PartialJoint {
+                    name,
+                    kind,
+                    parent: None,
+                    child: None,
+                    origin: Pose::default(),
+                    axis: [1.0, 0.0, 0.0],
+                    limit: None,
+                    line,
+                });
+                Scope::Joint
+            }
+            _ => Scope::Other,
+        })
+    }
+
+    /// Inside a `<link>`: its `<inertial>`, and its `<visual>`s with everything in them. A
+    /// visual's problems are kept on the visual (it is dropped with a warning), never errors.
+    fn open_in_link(&mut self, e: &BytesStart, name: &[u8], line: usize) -> Scope {
+        match (self.scopes.last().copied(), name) {
+            (Some(Scope::Link), b"inertial") => Scope::Inertial,
             (Some(Scope::Link), b"visual") => {
                 self.visual = Some(PartialVisual::default());
                 Scope::Visual
@@ -355,30 +429,26 @@ impl<'a> Reader<'a> {
                 }
                 Scope::Other
             }
-            (Some(Scope::Robot), b"material") => {
-                self.material = self.attribute(e, "name").ok().flatten();
-                Scope::Material
-            }
-            (Some(Scope::Material), b"color") => {
-                // a bad colour of a named material leaves it without colour
-                if let (Some(name), Ok(rgba)) = (self.material.clone(), self.rgba(e)) {
-                    let robot = self.robot.as_mut().expect("inside the robot");
-                    robot.materials.insert(name, rgba);
-                }
-                Scope::Other
-            }
-            (Some(Scope::Link), b"inertial") => Scope::Inertial,
-            (Some(Scope::Inertial), b"origin") => {
+            _ => Scope::Other,
+        }
+    }
+
+    /// Inside `<inertial>`: its origin, mass and inertia.
+    fn open_in_inertial(
+        &mut self,
+        e: &BytesStart,
+        name: &[u8],
+    ) -> std::result::Result<Scope, Message> {
+        match name {
+            b"origin" => {
                 let pose = self.pose(e)?;
                 self.inertial()?.origin = pose;
-                Scope::Other
             }
-            (Some(Scope::Inertial), b"mass") => {
+            b"mass" => {
                 let mass = self.number(e, "mass", "value")?;
                 self.inertial()?.mass = mass;
-                Scope::Other
             }
-            (Some(Scope::Inertial), b"inertia") => {
+            b"inertia" => {
                 let mut values = [0.0; 6];
                 for (value, key) in values
                     .iter_mut()
@@ -387,35 +457,20 @@ impl<'a> Reader<'a> {
                     *value = self.number(e, "inertia", key)?;
                 }
                 self.inertial()?.inertia = values;
-                Scope::Other
             }
-            (Some(Scope::Robot), b"joint") => {
-                let name = self.required(e, "joint", "name")?;
-                let kind = self.required(e, "joint", "type")?;
-                let kind = JointKind::ALL
-                    .iter()
-                    .find(|(spelled, _)| *spelled == kind)
-                    .map(|(_, k)| *k)
-                    .ok_or_else(|| {
-                        format!(
-                            "line {line}: joint '{name}' has the unknown type '{kind}'; URDF's \
-                             types are revolute, continuous, prismatic, fixed, floating, planar \
-                             and spherical"
-                        )
-                    })?;
-                self.joint = Some(PartialJoint {
-                    name,
-                    kind,
-                    parent: None,
-                    child: None,
-                    origin: Pose::default(),
-                    axis: [1.0, 0.0, 0.0],
-                    limit: None,
-                    line,
-                });
-                Scope::Joint
-            }
-            (Some(Scope::Joint), b"parent" | b"child") => {
+            _ => {}
+        }
+        Ok(Scope::Other)
+    }
+
+    /// Inside `<joint>`: its parent, child, origin, axis and limit.
+    fn open_in_joint(
+        &mut self,
+        e: &BytesStart,
+        name: &[u8],
+    ) -> std::result::Result<Scope, Message> {
+        match name {
+            b"parent" | b"child" => {
                 let tag = if name == b"parent" { "parent" } else { "child" };
                 let link = self.required(e, tag, "link")?;
                 let joint = self.joint.as_mut().expect("inside a joint");
@@ -424,19 +479,16 @@ impl<'a> Reader<'a> {
                 } else {
                     joint.child = Some(link);
                 }
-                Scope::Other
             }
-            (Some(Scope::Joint), b"origin") => {
+            b"origin" => {
                 let pose = self.pose(e)?;
                 self.joint.as_mut().expect("inside a joint").origin = pose;
-                Scope::Other
             }
-            (Some(Scope::Joint), b"axis") => {
+            b"axis" => {
                 let axis = self.triple(e, "axis", "xyz")?.unwrap_or([1.0, 0.0, 0.0]);
                 self.joint.as_mut().expect("inside a joint").axis = axis;
-                Scope::Other
             }
-            (Some(Scope::Joint), b"limit") => {
+            b"limit" => {
                 let limit = RawLimit {
                     lower: self.optional_number(e, "limit", "lower")?,
                     upper: self.optional_number(e, "limit", "upper")?,
@@ -444,10 +496,10 @@ impl<'a> Reader<'a> {
                     velocity: self.optional_number(e, "limit", "velocity")?,
                 };
                 self.joint.as_mut().expect("inside a joint").limit = Some(limit);
-                Scope::Other
             }
-            _ => Scope::Other,
-        })
+            _ => {}
+        }
+        Ok(Scope::Other)
     }
 
     /// Finishes the element that closes.
