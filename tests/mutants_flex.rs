@@ -865,3 +865,33 @@ fn joint_by_joint_estimate_takes_each_joints_own_effective_inertia() {
     assert_bisected(estimate, 2.0 * std::f64::consts::SQRT_2 / omega[1]);
     assert_close(fastest.norm(), omega[1], 1e-9);
 }
+
+#[test]
+fn a_spinning_base_sets_the_estimated_limit_by_its_quaternion_kinematics() {
+    // Past DENSE_LIMIT joints the limit is the joint-by-joint estimate, which leaves the base's
+    // rotation out, and the minimum with the quaternion kinematics' term: q̇ = ½ q ⊗ ω_B
+    // oscillates at ±i|ω_B|/2, on RK4's imaginary axis, stable up to |λ h| = 2√2. With soft
+    // joints (modes near 0.22 rad/s) that term sets the limit: 2√2 / (|ω_B|/2), exactly as
+    // computed (|ω_B| = w exactly for a spin about z). At rest the term is absent.
+    use orbitflex::flex::stability::DENSE_LIMIT;
+    let n = DENSE_LIMIT + 4;
+    let joints = FlexibleJoints::new(vec![1e-2; n], vec![1.0; n], vec![0.0; n], vec![0.0; n]);
+    let arm = FlexibleArm::new(random_chain(n, 7), joints.unwrap()).unwrap();
+    let at_rest = arm
+        .rk4_stability_limit(&arm.rest_state(), &Schedule::Zero)
+        .unwrap();
+    assert!(at_rest.estimated);
+    for w in [0.5, 2.0, 10.0] {
+        let mut x = arm.rest_state();
+        x[arm.layout().base_twist()][..3].copy_from_slice(&[0.0, 0.0, w]);
+        let limit = arm.rk4_stability_limit(&x, &Schedule::Zero).unwrap();
+        let pose = 2.0 * std::f64::consts::SQRT_2 / (0.5 * w);
+        assert!(
+            pose < at_rest.dt,
+            "w = {w}: the joints' limit {:e}",
+            at_rest.dt
+        );
+        assert_eq!(limit.dt, pose, "w = {w}");
+        assert!(limit.estimated);
+    }
+}
