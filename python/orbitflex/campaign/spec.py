@@ -347,11 +347,12 @@ class Campaign:
             pd = MotorPD(values["kp"], values["kd"], tables["theta_ref"], tables["theta_dot_ref"], tables["u"])
             return arm, x0, pd
         ends = values["q0"].tobytes() + values["goal"].tobytes()
-        if references is None or ends not in references:
+        table = references.get(ends) if references is not None else None
+        if table is None:
             table = self._reference(robot.dof, values["q0"], values["goal"], self.steps)
-            references = {} if references is None else references
-            references[ends] = table
-        theta_ref, theta_dot_ref = references[ends]
+            if references is not None:
+                references[ends] = table
+        theta_ref, theta_dot_ref = table
         pd = MotorPD(values["kp"], values["kd"], theta_ref, theta_dot_ref)
         return arm, x0, pd
 
